@@ -103,7 +103,8 @@ def synthesize_exact(points: np.ndarray, velocities: np.ndarray | None, weights:
             r_tx = np.linalg.norm(pos - arr.tx_positions[tx_of[m]], axis=-1)
             for a in range(arr.num_rx):
                 tau = (r_tx + np.linalg.norm(pos - arr.rx_positions[a], axis=-1)) / SPEED_OF_LIGHT
-                phase = _TWO_PI * f0 * tau + _TWO_PI * slope * tau * t_fast - math.pi * slope * tau**2
+                phase = (_TWO_PI * f0 * tau + _TWO_PI * slope * tau * t_fast
+                         - math.pi * slope * tau**2)
                 cube[a, m] += ws @ np.exp(1j * phase)
     return _output(cube, config)
 
@@ -119,7 +120,7 @@ def _nufft_rows(x: np.ndarray, strengths: np.ndarray, num_samples: int, eps: flo
     ``strengths`` is (n,) or (n_trans, n); the output is (num_samples,) or (n_trans, num_samples).
     """
     if len(x) == 0:
-        return np.zeros(strengths.shape[:-1] + (num_samples,), dtype=complex)
+        return np.zeros((*strengths.shape[:-1], num_samples), dtype=complex)
     n_trans = 1 if strengths.ndim == 1 else strengths.shape[0]
     plan = finufft.Plan(1, (num_samples,), n_trans=n_trans, eps=eps, isign=1, nthreads=1,
                         modeord=0)

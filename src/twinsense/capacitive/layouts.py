@@ -1,0 +1,401 @@
+"""Electrode layouts: planar electrodes on a substrate, and solid conductors.
+
+Everything is given in the layout frame (metres, z up, electrodes on the plane
+z = 0 by default, the substrate below it from z = -thickness to 0); the layout
+is placed in the world by the sensor's mount pose.
+
+Planar electrodes are zero-thickness polygons (copper on a PCB is 35 um thick,
+far below any mesh size that resolves the sensing volume). A driven shield or
+a ground plane is an electrode with the role ``"shield"`` or ``"ground"``.
+Closed bodies (a sphere, a gripper finger) are :class:`SolidElectrode`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from matplotlib.path import Path as _MplPath
+
+from twinsense import validation as v
+from twinsense.errors import ConfigError
+
+__all__ = [
+    "ROLES",
+    "Electrode",
+    "Layout",
+    "SolidElectrode",
+    "Substrate",
+    "backplane",
+    "interdigital",
+    "pad_grid",
+    "polygon",
+    "rectangle",
+    "ring",
+    "stripes",
+]
+
+ROLES = ("sense", "shield", "ground")
+"""Electrode roles: a measured terminal, a driven shield, or ground (0 V)."""
+
+
+@dataclass(frozen=True, eq=False)
+class Electrode:
+    """A planar electrode: a polygon on the plane z = ``z`` of the layout frame.
+
+    Attributes
+    ----------
+    name : str
+    polygon : (k, 2) float
+        Outline vertices (x, y) [m], k >= 3, either orientation, not closed.
+    z : float
+        Height of the electrode plane in the layout frame [m].
+    role : {"sense", "shield", "ground"}
+    """
+
+    name: str
+    polygon: np.ndarray
+    z: float = 0.0
+    role: str = "sense"
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            raise ConfigError("Electrode.name", self.name, "a non-empty string")
+        poly = v.array(f"{self.name}.polygon", self.polygon, (None, 2), "m")
+        if len(poly) < 3:
+            raise ConfigError(f"{self.name}.polygon", self.polygon, "at least 3 vertices (k, 2) [m]")
+        if abs(_area(poly)) <= 0:
+            raise ConfigError(f"{self.name}.polygon", self.polygon, "a polygon with non-zero area")
+        poly.setflags(write=False)
+        object.__setattr__(self, "polygon", poly)
+        object.__setattr__(self, "z", v.number(f"{self.name}.z", self.z, unit="m"))
+        v.choice(f"{self.name}.role", self.role, ROLES)
+
+    @property
+    def rectilinear(self) -> bool:
+        """True when every edge is parallel to x or y (embedded exactly by a tensor grid)."""
+        d = np.diff(np.vstack([self.polygon, self.polygon[:1]]), axis=0)
+        return bool(np.all((np.abs(d[:, 0]) < 1e-12) | (np.abs(d[:, 1]) < 1e-12)))
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """(2, 3) axis-aligned bounds [m] in the layout frame."""
+        lo = np.append(self.polygon.min(axis=0), self.z)
+        hi = np.append(self.polygon.max(axis=0), self.z)
+        return np.vstack([lo, hi])
+
+    def contains_xy(self, xy: np.ndarray, tol: float) -> np.ndarray:
+        """Points (n, 2) inside or within ``tol`` of the outline -> bool (n,)."""
+        path = _MplPath(np.vstack([self.polygon, self.polygon[:1]]), closed=True)
+        # matplotlib's radius sign depends on orientation: test both and OR.
+        a = path.contains_points(xy, radius=tol)
+        b = path.contains_points(xy, radius=-tol)
+        return a | b
+
+    def nodes(self, points: np.ndarray, tol: float) -> np.ndarray:
+        """Indices of mesh nodes (points (n, 3), layout frame) on this electrode."""
+        on_plane = np.flatnonzero(np.abs(points[:, 2] - self.z) <= tol)
+        inside = self.contains_xy(points[on_plane, :2], tol)
+        return on_plane[inside]
+
+
+@dataclass(frozen=True, eq=False)
+class SolidElectrode:
+    """A closed body used as an electrode or conductor (sphere, box, finger).
+
+    Attributes
+    ----------
+    name : str
+    geometry : object with ``contains(points (n, 3)) -> bool (n,)`` and
+        ``bounds`` (2, 3) [m] in its local frame (any twinsense geometry).
+    pose : Pose or None
+        Body-to-layout transform (None: identity).
+    role : {"sense", "shield", "ground"}
+    """
+
+    name: str
+    geometry: Any
+    pose: Any = None
+    role: str = "sense"
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            raise ConfigError("SolidElectrode.name", self.name, "a non-empty string")
+        if not callable(getattr(self.geometry, "contains", None)):
+            raise ConfigError(f"{self.name}.geometry", self.geometry,
+                              "a geometry with contains(points) (Box, Sphere, TriangleMesh, ...)")
+        v.choice(f"{self.name}.role", self.role, ROLES)
+
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        """Inside test of layout-frame points (n, 3) -> bool (n,)."""
+        local = points if self.pose is None else self.pose.inverse().apply(points)
+        return np.asarray(self.geometry.contains(local), bool)
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """(2, 3) axis-aligned bounds [m] in the layout frame."""
+        b = np.asarray(self.geometry.bounds, float)
+        if self.pose is None:
+            return b
+        corners = np.array([[b[i, 0], b[j, 1], b[k, 2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+        c = self.pose.apply(corners)
+        return np.vstack([c.min(axis=0), c.max(axis=0)])
+
+    def nodes(self, points: np.ndarray, cells: np.ndarray, centroids: np.ndarray) -> np.ndarray:
+        """Mesh nodes inside the body or on a cell whose centroid is inside."""
+        inside = self.contains(points)
+        cell_in = self.contains(centroids)
+        nodes = np.union1d(np.flatnonzero(inside), np.unique(cells[cell_in]))
+        return nodes.astype(np.int64)
+
+
+@dataclass(frozen=True)
+class Substrate:
+    """A dielectric slab under the electrodes.
+
+    Attributes
+    ----------
+    thickness : float
+        Slab from z = -thickness to z = 0 [m] (FR-4 boards: 1.6e-3).
+    permittivity : float
+        Relative permittivity (FR-4: 4.4).
+    extent : (4,) float or None
+        (x_min, x_max, y_min, y_max) [m]; None covers the whole mesh.
+    """
+
+    thickness: float = 1.6e-3
+    permittivity: float = 4.4
+    extent: tuple[float, float, float, float] | None = None
+
+    def __post_init__(self) -> None:
+        v.positive("Substrate.thickness", self.thickness, "m")
+        v.number("Substrate.permittivity", self.permittivity, lo=0.0, lo_open=True,
+                 unit="relative, vacuum = 1")
+        if self.extent is not None:
+            e = v.vector("Substrate.extent", self.extent, 4, "m")
+            if not (e[1] > e[0] and e[3] > e[2]):
+                raise ConfigError("Substrate.extent", self.extent, "x_min < x_max and y_min < y_max")
+            object.__setattr__(self, "extent", tuple(float(x) for x in e))
+
+
+@dataclass(frozen=True, eq=False)
+class Layout:
+    """Electrodes, substrate and the layout's name.
+
+    Attributes
+    ----------
+    electrodes : tuple of Electrode or SolidElectrode
+        In terminal order; names must be unique. Ground electrodes are held
+        at 0 V and are not terminals.
+    substrate : Substrate or None
+    name : str
+    """
+
+    electrodes: tuple = ()
+    substrate: Substrate | None = field(default_factory=Substrate)
+    name: str = "layout"
+
+    def __post_init__(self) -> None:
+        els = tuple(self.electrodes)
+        if len(els) == 0:
+            raise ConfigError("Layout.electrodes", (), "at least one electrode")
+        names = set()
+        for i, e in enumerate(els):
+            if not isinstance(e, (Electrode, SolidElectrode)):
+                raise ConfigError(f"Layout.electrodes[{i}]", e, "an Electrode or SolidElectrode")
+            if e.name in names:
+                raise ConfigError(f"Layout.electrodes[{i}].name", e.name, "a name not used twice")
+            names.add(e.name)
+        if not any(e.role == "sense" for e in els):
+            raise ConfigError("Layout.electrodes", [e.name for e in els],
+                              "at least one electrode with role 'sense'")
+        if self.substrate is not None and not isinstance(self.substrate, Substrate):
+            raise ConfigError("Layout.substrate", self.substrate, "a Substrate or None")
+        object.__setattr__(self, "electrodes", els)
+
+    @property
+    def terminals(self) -> tuple:
+        """Electrodes that are terminals (sense and shield), in order."""
+        return tuple(e for e in self.electrodes if e.role != "ground")
+
+    @property
+    def terminal_names(self) -> tuple[str, ...]:
+        return tuple(e.name for e in self.terminals)
+
+    @property
+    def sense_names(self) -> tuple[str, ...]:
+        return tuple(e.name for e in self.electrodes if e.role == "sense")
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """(2, 3) bounds of all electrodes and the substrate [m], layout frame."""
+        b = np.array([e.bounds for e in self.electrodes])
+        lo, hi = b[:, 0].min(axis=0), b[:, 1].max(axis=0)
+        if self.substrate is not None:
+            lo[2] = min(lo[2], -self.substrate.thickness)
+            hi[2] = max(hi[2], 0.0)
+            if self.substrate.extent is not None:
+                x0, x1, y0, y1 = self.substrate.extent
+                lo[:2] = np.minimum(lo[:2], [x0, y0])
+                hi[:2] = np.maximum(hi[:2], [x1, y1])
+        return np.vstack([lo, hi])
+
+    def digest_key(self) -> str:
+        """A text describing every input that shapes the mesh (for the mesh cache)."""
+        parts = [f"layout:{self.name}"]
+        for e in self.electrodes:
+            if isinstance(e, Electrode):
+                parts.append(f"E:{e.name}:{e.role}:{e.z!r}:{np.round(e.polygon, 12).tolist()}")
+            else:
+                parts.append(f"S:{e.name}:{e.role}:{np.round(e.bounds, 12).tolist()}")
+        s = self.substrate
+        if s is not None:
+            parts.append(f"sub:{s.thickness!r}:{s.permittivity!r}:{s.extent!r}")
+        return "|".join(parts)
+
+
+def _area(poly: np.ndarray) -> float:
+    x, y = poly[:, 0], poly[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+
+
+def rectangle(name: str, x0: float, y0: float, x1: float, y1: float, z: float = 0.0,
+              role: str = "sense") -> Electrode:
+    """An axis-aligned rectangular electrode [x0, x1] x [y0, y1] [m]."""
+    if not (x1 > x0 and y1 > y0):
+        raise ConfigError(f"{name}.rectangle", (x0, y0, x1, y1), "x0 < x1 and y0 < y1 [m]")
+    return Electrode(name, np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]]), z, role)
+
+
+def polygon(name: str, points, z: float = 0.0, role: str = "sense") -> Electrode:
+    """A custom polygon electrode (points (k, 2) [m])."""
+    return Electrode(name, np.asarray(points, float), z, role)
+
+
+def stripes(n: int, width: float, length: float, pitch: float, *, axis: str = "y",
+            prefix: str = "s") -> tuple[Electrode, ...]:
+    """``n`` parallel stripes centred on the origin.
+
+    Parameters
+    ----------
+    n : int, number of stripes.
+    width : float, stripe width [m].
+    length : float, stripe length along ``axis`` [m].
+    pitch : float, centre-to-centre distance [m], > width.
+    axis : {"x", "y"}, the stripes' long direction.
+    """
+    n = v.integer("stripes.n", n, lo=1)
+    v.positive("stripes.width", width, "m")
+    v.positive("stripes.length", length, "m")
+    v.number("stripes.pitch", pitch, lo=width, lo_open=True, unit="m (> width)")
+    v.choice("stripes.axis", axis, ("x", "y"))
+    out = []
+    for i in range(n):
+        c = (i - 0.5 * (n - 1)) * pitch
+        if axis == "y":
+            out.append(rectangle(f"{prefix}{i}", c - width / 2, -length / 2, c + width / 2, length / 2))
+        else:
+            out.append(rectangle(f"{prefix}{i}", -length / 2, c - width / 2, length / 2, c + width / 2))
+    return tuple(out)
+
+
+def pad_grid(nx: int, ny: int, size: float, pitch: float, *, prefix: str = "p") -> tuple[Electrode, ...]:
+    """An ``nx`` by ``ny`` grid of square pads of side ``size`` at ``pitch`` [m], centred."""
+    nx = v.integer("pad_grid.nx", nx, lo=1)
+    ny = v.integer("pad_grid.ny", ny, lo=1)
+    v.positive("pad_grid.size", size, "m")
+    v.number("pad_grid.pitch", pitch, lo=size, lo_open=True, unit="m (> size)")
+    out = []
+    for j in range(ny):
+        for i in range(nx):
+            cx = (i - 0.5 * (nx - 1)) * pitch
+            cy = (j - 0.5 * (ny - 1)) * pitch
+            out.append(rectangle(f"{prefix}{j}_{i}", cx - size / 2, cy - size / 2,
+                                 cx + size / 2, cy + size / 2))
+    return tuple(out)
+
+
+def interdigital(n_fingers: int, finger_width: float, finger_length: float, gap: float,
+                 bus_width: float | None = None, *, names=("tx", "rx")) -> tuple[Electrode, Electrode]:
+    """Two interleaved combs (a mutual-capacitance Tx/Rx pair), centred.
+
+    Fingers run along y; comb 0 has its bus at the bottom and ``n_fingers``
+    fingers, comb 1 its bus at the top and the fingers in between. ``gap`` is
+    the spacing between neighbouring fingers and between finger tips and the
+    opposite bus [m].
+    """
+    n = v.integer("interdigital.n_fingers", n_fingers, lo=1)
+    w = v.positive("interdigital.finger_width", finger_width, "m")
+    L = v.positive("interdigital.finger_length", finger_length, "m")
+    g = v.positive("interdigital.gap", gap, "m")
+    b = w if bus_width is None else v.positive("interdigital.bus_width", bus_width, "m")
+    pitch = 2 * (w + g)
+    total = (2 * n - 1) * w + (2 * n - 2) * g
+    x0 = -total / 2
+    y_lo = -(L + g) / 2  # comb 0 fingers from y_lo to y_lo + L
+    combs = []
+    for k in range(2):
+        fingers = n if k == 0 else n - 1
+        if fingers == 0:
+            raise ConfigError("interdigital.n_fingers", n_fingers, "an integer >= 2 (both combs need fingers)")
+        xs = [x0 + (w + g) * k + pitch * i for i in range(fingers)]
+        if k == 0:
+            yb0, yb1 = y_lo - b, y_lo  # bus below
+            yf0, yf1 = y_lo, y_lo + L
+        else:
+            yb0, yb1 = -y_lo, -y_lo + b  # bus above
+            yf0, yf1 = -y_lo - L, -y_lo
+        bx0, bx1 = (x0, x0 + total)
+        # Outline: bus rectangle with finger rectangles attached, walked as one polygon.
+        pts = []
+        if k == 0:
+            pts += [(bx0, yb0), (bx1, yb0), (bx1, yb1)]
+            for x in reversed(xs):
+                pts += [(x + w, yb1), (x + w, yf1), (x, yf1), (x, yb1)]
+            pts += [(bx0, yb1)]
+        else:
+            pts += [(bx1, yb1), (bx0, yb1), (bx0, yb0)]
+            for x in xs:
+                pts += [(x, yb0), (x, yf0), (x + w, yf0), (x + w, yb0)]
+            pts += [(bx1, yb0)]
+        pts = _dedupe(np.array(pts))
+        combs.append(Electrode(names[k], pts))
+    return combs[0], combs[1]
+
+
+def _dedupe(p: np.ndarray) -> np.ndarray:
+    keep = np.ones(len(p), bool)
+    keep[1:] = np.any(np.abs(np.diff(p, axis=0)) > 1e-15, axis=1)
+    return p[keep]
+
+
+def ring(name: str, r_in: float, r_out: float, *, center=(0.0, 0.0), segments: int = 64,
+         z: float = 0.0, role: str = "sense") -> Electrode:
+    """An annulus r_in <= r <= r_out [m] (``r_in = 0`` gives a disk), as a polygon.
+
+    The annulus is one polygon that runs out along the outer circle and back
+    along the inner one (a zero-width slit joins them, which the node test
+    with tolerance closes).
+    """
+    v.non_negative(f"{name}.r_in", r_in, "m")
+    v.number(f"{name}.r_out", r_out, lo=r_in, lo_open=True, unit="m (> r_in)")
+    segments = v.integer(f"{name}.segments", segments, lo=8)
+    c = v.vector(f"{name}.center", center, 2, "m")
+    th = np.linspace(0.0, 2 * np.pi, segments + 1)
+    outer = c + r_out * np.column_stack([np.cos(th), np.sin(th)])
+    if r_in == 0:
+        return Electrode(name, outer[:-1], z, role)
+    inner = c + r_in * np.column_stack([np.cos(th[::-1]), np.sin(th[::-1])])
+    return Electrode(name, np.vstack([outer, inner]), z, role)
+
+
+def backplane(name: str, extent, z: float, role: str = "ground") -> Electrode:
+    """A full rectangular plane (ground plane or driven shield) at height ``z`` [m].
+
+    Parameters
+    ----------
+    extent : (x_min, x_max, y_min, y_max) [m]
+    """
+    e = v.vector(f"{name}.extent", extent, 4, "m")
+    return rectangle(name, e[0], e[2], e[1], e[3], z=z, role=role)

@@ -1,0 +1,1 @@
+"""Demo scenes and the demos the CLI runs (``twinsense demo NAME``)."""

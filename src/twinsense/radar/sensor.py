@@ -1,0 +1,182 @@
+"""The FMCW radar sensor: scene -> raw IF cube -> ADC codes -> detections."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from twinsense.errors import ConfigError
+from twinsense.radar import effects
+from twinsense.radar.config import RadarConfig
+from twinsense.radar.processing import ProcessingResult, ProcessingSettings, process_cube
+from twinsense.radar.scatterers import Scatterers, ScatterRenderer, received_amplitude
+from twinsense.radar.synthesis import synthesize
+from twinsense.scene import Mount, Pose
+
+
+@dataclass(frozen=True, eq=False)
+class RadarFrame:
+    """One radar frame.
+
+    Attributes
+    ----------
+    t : float
+        Frame start time [s] (start of the first chirp).
+    adc : (n_rx, n_chirps, n_samples) array
+        ADC codes: uint16 around mid-scale (real IF) or complex64 with signed
+        integer I and Q (complex IF).
+    signal : (n_rx, n_chirps, n_samples) float or complex
+        Noise-free IF signal at the ADC input [V] (scatterers and leakage,
+        after the IF filters and gain, before DC offset and quantisation).
+    noise : (n_rx, n_chirps, n_samples) float or complex
+        The receiver noise alone at the ADC input [V] (filtered), so the SNR
+        can be measured.
+    config : RadarConfig
+        The configuration that made this frame.
+    pose : Pose
+        Sensor -> world pose at ``t``.
+    scatterers : Scatterers
+        What the radar saw (ground truth), sensor frame.
+    processed : ProcessingResult or None
+        Range-Doppler map, CFAR and detections (None if processing was off).
+    """
+
+    t: float
+    adc: np.ndarray
+    signal: np.ndarray
+    noise: np.ndarray
+    config: RadarConfig
+    pose: Pose
+    scatterers: Scatterers
+    processed: ProcessingResult | None = None
+
+    @property
+    def cube(self) -> np.ndarray:
+        """(n_rx, n_chirps, n_samples) ADC-input voltage recovered from the codes [V]."""
+        return effects.codes_to_voltage(self.adc, self.config.if_chain)
+
+    @property
+    def detections(self):
+        """The processed point cloud (:class:`RadarPointCloud`), or None."""
+        return None if self.processed is None else self.processed.detections
+
+    def streams(self) -> dict[str, np.ndarray]:
+        """Recorded arrays: raw ADC codes and, if processed, the range-Doppler power map."""
+        out = {"adc": self.adc}
+        if self.processed is not None:
+            out["range_doppler_power"] = self.processed.power.astype(np.float32)
+        return out
+
+
+class FMCWRadar:
+    """FMCW radar sensor (PHYSICS.md section 2).
+
+    Parameters
+    ----------
+    config : RadarConfig
+    name : str
+        Sensor name (recording group).
+    mount : Mount, optional
+        Where the radar sits (default: world origin, looking along world +z).
+    processing : ProcessingSettings, optional
+        Settings of the processing chain run on every frame.
+    process : bool
+        Run the processing chain in :meth:`capture` (range/Doppler FFT, CFAR, angles).
+    backend : str
+        Ray-cast backend for the scene render.
+    eps : float
+        Requested relative accuracy of the fast IF synthesis.
+    """
+
+    kind = "radar"
+
+    def __init__(self, config: RadarConfig, *, name: str = "radar", mount: Mount | None = None,
+                 processing: ProcessingSettings | None = None, process: bool = True,
+                 backend: str = "embree", eps: float = 1e-7):
+        if not isinstance(config, RadarConfig):
+            raise ConfigError("FMCWRadar.config", config, "a RadarConfig")
+        if not isinstance(name, str) or not name:
+            raise ConfigError("FMCWRadar.name", name, "a non-empty string")
+        self.config = config
+        self.name = name
+        self.mount = mount or Mount()
+        if not isinstance(self.mount, Mount):
+            raise ConfigError("FMCWRadar.mount", mount, "a twinsense.scene.Mount")
+        self.processing = processing or ProcessingSettings(min_range=0.05)
+        self.process = bool(process)
+        self.backend = backend
+        self.eps = eps
+        self._renderer: ScatterRenderer | None = None
+
+    # ---- sensor protocol ---------------------------------------------------
+    @property
+    def frame_rate(self) -> float:
+        """Frames per second [Hz]."""
+        return self.config.frame_rate
+
+    @classmethod
+    def preset(cls, name: str, **overrides: Any) -> FMCWRadar:
+        """A radar from a named preset (see :mod:`twinsense.radar.presets`)."""
+        from twinsense.radar.presets import make_radar
+
+        return make_radar(name, **overrides)
+
+    def config_dict(self) -> dict[str, Any]:
+        return {"kind": self.kind, "name": self.name, "mount": self.mount.to_dict(),
+                **self.config.to_dict()}
+
+    def capture(self, scene, t: float, rng: np.random.Generator | None = None) -> RadarFrame:
+        """Render ``scene`` at time ``t`` [s] and return one frame.
+
+        ``rng`` draws the receiver noise; None uses a generator seeded from
+        ``t`` (the same call gives the same frame).
+        """
+        state = self.mount.state_at(scene, t)
+        if self._renderer is None:
+            self._renderer = ScatterRenderer(self.config, self.backend)
+        scat = self._renderer.render(scene, state, t)
+        return self.capture_scatterers(scat, t, rng, pose=state.pose)
+
+    def capture_scatterers(self, scatterers: Scatterers, t: float = 0.0,
+                           rng: np.random.Generator | None = None,
+                           pose: Pose | None = None) -> RadarFrame:
+        """One frame from given scatterers (sensor frame), without a scene."""
+        cfg = self.config
+        if rng is None:
+            rng = np.random.default_rng(int(round(t * 1e6)) & 0xFFFFFFFF)
+        amp = received_amplitude(scatterers, cfg)
+        w = effects.filtered_weights(amp, scatterers.points, scatterers.velocities, cfg)
+        keep = np.abs(w) > 0
+        sig = synthesize(scatterers.points[keep], scatterers.velocities[keep], w[keep], cfg,
+                         eps=self.eps)
+        sig = (sig + effects.leakage(cfg)) * cfg.if_chain.voltage_gain
+        noise = effects.filter_cube(effects.thermal_noise(cfg, rng), cfg.if_chain,
+                                    cfg.chirp.sample_rate)
+        # The DC offset sits on every real channel (on I and on Q alike).
+        dc = cfg.if_chain.dc_offset * ((1 + 1j) if cfg.if_chain.complex_if else 1.0)
+        adc = effects.adc(sig + noise + dc, cfg.if_chain)
+        pose = pose or self.mount.pose
+        frame = RadarFrame(float(t), adc, sig, noise, cfg, pose, scatterers)
+        if self.process:
+            frame = RadarFrame(frame.t, adc, sig, noise, cfg, pose, scatterers,
+                               self.process_cube(frame.cube, pose))
+        return frame
+
+    def process_cube(self, cube: np.ndarray, pose: Pose | None = None) -> ProcessingResult:
+        """Run the processing chain on a raw (rx, chirp, sample) cube of this radar."""
+        cfg = self.config
+        arr = cfg.antennas
+        tx = arr.tx_positions[list(arr.tx_sequence)] if len(arr.tx_sequence) > 1 else None
+        return process_cube(cube, sample_rate=cfg.chirp.sample_rate, slope=cfg.chirp.slope,
+                            carrier_frequency=cfg.chirp.centre_frequency,
+                            chirp_repetition_time=cfg.chirp.chirp_repetition_time,
+                            rx_positions=arr.rx_positions, tx_positions=tx,
+                            real_if=not cfg.if_chain.complex_if, settings=self.processing,
+                            pose=pose)
+
+    def __repr__(self) -> str:
+        c = self.config.chirp
+        return (f"FMCWRadar(name={self.name!r}, {c.centre_frequency / 1e9:.1f} GHz, "
+                f"{self.config.num_rx} rx, {c.num_chirps} chirps x {c.num_samples} samples)")

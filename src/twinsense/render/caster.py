@@ -1,0 +1,113 @@
+"""Cast rays against a posed scene at time t.
+
+Static objects share one acceleration structure built once in world
+coordinates. Each moving rigid object keeps its own structure in its local
+frame; rays are moved into that frame instead of rebuilding the BVH every
+frame (a rigid motion preserves distances, so hit distances need no change).
+Structures are cached per (scene, sensor kind, backend).
+"""
+
+from __future__ import annotations
+
+import weakref
+
+import numpy as np
+
+from twinsense.errors import ConfigError
+from twinsense.render.backends import make_intersector
+from twinsense.render.hits import Hits
+from twinsense.render.rays import Rays
+from twinsense.scene.scene import SENSOR_KINDS, Scene
+
+
+class SceneCaster:
+    """Ray caster for one scene and one sensor kind (objects hidden from the kind are skipped)."""
+
+    def __init__(self, scene: Scene, kind: str = "tof", backend: str = "embree"):
+        if kind not in SENSOR_KINDS:
+            raise ConfigError("kind", kind, "one of: " + ", ".join(SENSOR_KINDS))
+        self.scene = scene
+        self.kind = kind
+        self.backend = backend
+        self._version = scene.version
+        objs = scene.objects
+        vis = scene.visible(kind)
+        self._static = [i for i in vis if objs[i].is_static]
+        self._moving = [i for i in vis if not objs[i].is_static]
+        self._mat = scene.material_index()
+        # Static: world-frame vertices, one geometry per object.
+        static_meshes = []
+        for i in self._static:
+            m = objs[i].geometry.mesh
+            static_meshes.append((objs[i].pose_at(0.0).apply(m.vertices), np.asarray(m.faces)))
+        self._static_bvh = make_intersector(backend, static_meshes) if static_meshes else None
+        # Look-up tables indexed by id + 1 so that -1 (a miss) maps to -1.
+        self._static_lut = np.array([-1, *self._static], dtype=np.int32)
+        self._mat_lut = np.concatenate([[-1], self._mat]).astype(np.int32)
+        self._moving_bvh = []
+        for i in self._moving:
+            m = objs[i].geometry.mesh
+            self._moving_bvh.append(make_intersector(backend, [(m.vertices, np.asarray(m.faces))]))
+
+    def cast(self, rays: Rays, t: float = 0.0) -> Hits:
+        """Closest hits of ``rays`` (world frame) against the scene posed at time ``t`` [s]."""
+        if self.scene.version != self._version:
+            raise ConfigError("scene", "changed after the caster was built", "a new SceneCaster (use cast())")
+        o, d = rays.origins, rays.directions
+        n = len(d)
+        if self._static_bvh is not None:
+            dist, g, tri, normal = self._static_bvh.intersect(o, d)
+            obj = self._static_lut[g + 1]
+        else:
+            dist = np.full(n, np.inf)
+            obj = np.full(n, -1, dtype=np.int32)
+            tri = np.full(n, -1, dtype=np.int32)
+            normal = np.zeros((n, 3))
+        states = {}
+        for k, i in enumerate(self._moving):
+            st = self.scene.objects[i].state_at(t)
+            states[i] = st
+            rot, pos = st.pose.rotation, st.pose.position
+            # Rays into the object's frame: x_local = R^T (x - p). A rigid
+            # motion preserves lengths, so the local distance is the world one.
+            t_m, _, p, n_local = self._moving_bvh[k].intersect((o - pos) @ rot, d @ rot)
+            closer = t_m < dist  # inf < inf is False: misses never win
+            np.copyto(dist, t_m, where=closer)
+            np.copyto(obj, i, where=closer)
+            np.copyto(tri, p, where=closer)
+            np.copyto(normal, n_local @ rot.T, where=closer[:, None])
+        hit = obj >= 0
+        point = o + d * np.where(hit, dist, np.nan)[:, None]
+        # Turn normals towards the incoming ray; |cos| is the incidence cosine.
+        dn = np.einsum("ij,ij->i", normal, d)
+        normal *= np.where(dn > 0, -1.0, 1.0)[:, None]
+        cos_inc = np.abs(dn)
+        velocity = np.zeros((n, 3))
+        for i, st in states.items():
+            sel = np.nonzero(obj == i)[0]
+            if len(sel):
+                velocity[sel] = st.point_velocity(point[sel])
+        mat = self._mat_lut[obj + 1]
+        return Hits(dist, point, normal, cos_inc, obj, mat, tri, velocity)
+
+
+_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def caster_for(scene: Scene, kind: str = "tof", backend: str = "embree") -> SceneCaster:
+    """A cached SceneCaster (rebuilt when objects are added to the scene)."""
+    per_scene = _CACHE.setdefault(scene, {})
+    key = (kind, backend)
+    c = per_scene.get(key)
+    if c is None or c._version != scene.version:
+        c = SceneCaster(scene, kind, backend)
+        per_scene[key] = c
+    return c
+
+
+def cast(scene: Scene, rays: Rays, t: float = 0.0, kind: str = "tof", backend: str = "embree") -> Hits:
+    """Cast world-frame ``rays`` against ``scene`` at time ``t`` for a sensor of ``kind``.
+
+    Objects whose layers exclude ``kind`` are invisible. See :class:`Hits`.
+    """
+    return caster_for(scene, kind, backend).cast(rays, t)

@@ -1,0 +1,56 @@
+"""Per-ray results of ray casting."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True, eq=False)
+class Hits:
+    """Closest hit of every ray (n rays, in the order they were given).
+
+    Attributes
+    ----------
+    distance : (n,) float64
+        Distance from the ray origin along the unit direction [m]; inf on a miss.
+    point : (n, 3) float64
+        Hit point, world frame [m]; NaN on a miss.
+    normal : (n, 3) float64
+        Unit geometric normal, world frame, turned towards the side the ray
+        came from; zeros on a miss.
+    cos_incidence : (n,) float64
+        Cosine of the angle between the ray and the normal, in [0, 1]; 0 on a miss.
+    object_id : (n,) int32
+        Index into ``scene.objects``; -1 on a miss.
+    material_id : (n,) int32
+        Index into ``scene.materials``; -1 on a miss.
+    triangle_id : (n,) int32
+        Triangle index within the object's mesh; -1 on a miss.
+    velocity : (n, 3) float64
+        World velocity of the hit surface point [m/s]; zeros on a miss.
+    """
+
+    distance: np.ndarray
+    point: np.ndarray
+    normal: np.ndarray
+    cos_incidence: np.ndarray
+    object_id: np.ndarray
+    material_id: np.ndarray
+    triangle_id: np.ndarray
+    velocity: np.ndarray
+
+    @property
+    def hit(self) -> np.ndarray:
+        """(n,) bool: the ray hit something."""
+        return self.object_id >= 0
+
+    def __len__(self) -> int:
+        return len(self.distance)
+
+    def reshape(self, shape: tuple[int, ...]) -> Hits:
+        """The same hits with the ray axis reshaped to ``shape`` (e.g. an image (H, W))."""
+        def r(a):
+            return a.reshape(*shape, *a.shape[1:])
+        return Hits(*(r(getattr(self, f)) for f in self.__dataclass_fields__))

@@ -1,0 +1,220 @@
+"""Ray generation: pinhole cameras with OpenCV distortion, orthographic cameras.
+
+Directions are built in the sensor's optical frame (x right, y down, z
+forward) and moved to the world by the sensor pose. Supersampling puts N x N
+sub-pixel rays at the centres of an N x N grid inside each pixel; the output
+image axes are (row, col) at the supersampled resolution, so sub-pixel
+(i, j) of pixel (r, c) is at row r*N + i, column c*N + j.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+
+from twinsense import validation as V
+from twinsense.errors import ConfigError
+from twinsense.scene.pose import Pose
+
+
+@dataclass(frozen=True, eq=False)
+class Rays:
+    """A bundle of rays in the world frame.
+
+    Attributes
+    ----------
+    origins : (n, 3) float
+        Ray origins [m].
+    directions : (n, 3) float
+        Unit directions.
+    """
+
+    origins: np.ndarray
+    directions: np.ndarray
+
+    def __post_init__(self):
+        o = np.asarray(self.origins, dtype=float)
+        d = np.asarray(self.directions, dtype=float)
+        if o.ndim == 1:
+            o = np.broadcast_to(o, d.shape)
+        if d.ndim != 2 or d.shape[1] != 3 or o.shape != d.shape:
+            raise ConfigError("Rays", f"origins {o.shape}, directions {d.shape}",
+                              "origins and directions of the same shape (n, 3)")
+        object.__setattr__(self, "origins", o)
+        object.__setattr__(self, "directions", d)
+
+    def __len__(self) -> int:
+        return len(self.directions)
+
+
+def _grid(n_pix: int, supersample: int) -> np.ndarray:
+    """Sub-pixel centre coordinates along one axis, in pixel units (pixel centres at integers)."""
+    k = np.arange(n_pix * supersample)
+    return (k + 0.5) / supersample - 0.5
+
+
+@dataclass(frozen=True, eq=False)
+class PinholeCamera:
+    """Pinhole camera with OpenCV's radial-tangential distortion.
+
+    Parameters
+    ----------
+    width, height : int
+        Image size [px].
+    fx, fy : float
+        Focal lengths [px].
+    cx, cy : float
+        Principal point [px] (pixel centres at integer coordinates).
+    distortion : (5,) float
+        OpenCV (k1, k2, p1, p2, k3). They map an ideal normalised image point
+        to the distorted one; ray generation inverts that map (Newton
+        iterations, to 1e-12 in normalised coordinates).
+    """
+
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    distortion: tuple = (0.0, 0.0, 0.0, 0.0, 0.0)
+
+    def __post_init__(self):
+        V.integer("camera.width", self.width, lo=1, hi=100_000)
+        V.integer("camera.height", self.height, lo=1, hi=100_000)
+        V.positive("camera.fx", self.fx, "px")
+        V.positive("camera.fy", self.fy, "px")
+        V.number("camera.cx", self.cx, unit="px")
+        V.number("camera.cy", self.cy, unit="px")
+        d = V.vector("camera.distortion", self.distortion, 5)
+        object.__setattr__(self, "distortion", tuple(float(x) for x in d))
+
+    @classmethod
+    def from_fov(cls, width: int, height: int, hfov_deg: float, vfov_deg: float | None = None,
+                 distortion=(0.0, 0.0, 0.0, 0.0, 0.0)) -> PinholeCamera:
+        """Camera whose image spans ``hfov_deg`` x ``vfov_deg`` (edge to edge) [deg]."""
+        V.number("camera.hfov_deg", hfov_deg, lo=0, hi=180, lo_open=True, hi_open=True, unit="deg")
+        if vfov_deg is None:
+            fx = 0.5 * width / np.tan(np.deg2rad(hfov_deg) / 2)
+            fy = fx
+        else:
+            V.number("camera.vfov_deg", vfov_deg, lo=0, hi=180, lo_open=True, hi_open=True, unit="deg")
+            fx = 0.5 * width / np.tan(np.deg2rad(hfov_deg) / 2)
+            fy = 0.5 * height / np.tan(np.deg2rad(vfov_deg) / 2)
+        return cls(width, height, fx, fy, (width - 1) / 2, (height - 1) / 2, distortion)
+
+    @property
+    def is_distorted(self) -> bool:
+        return any(self.distortion)
+
+    def distort(self, xn: np.ndarray, yn: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Apply OpenCV distortion to ideal normalised coordinates."""
+        k1, k2, p1, p2, k3 = self.distortion
+        r2 = xn * xn + yn * yn
+        radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        xd = xn * radial + 2 * p1 * xn * yn + p2 * (r2 + 2 * xn * xn)
+        yd = yn * radial + p1 * (r2 + 2 * yn * yn) + 2 * p2 * xn * yn
+        return xd, yd
+
+    def undistort(self, xd: np.ndarray, yd: np.ndarray, iterations: int = 30) -> tuple[np.ndarray, np.ndarray]:
+        """Invert :meth:`distort` by Newton's method (exact Jacobian)."""
+        if not self.is_distorted:
+            return xd.copy(), yd.copy()
+        k1, k2, p1, p2, k3 = self.distortion
+        x, y = xd.copy(), yd.copy()
+        for _ in range(iterations):
+            r2 = x * x + y * y
+            radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+            drad = k1 + r2 * (2 * k2 + 3 * k3 * r2)  # d radial / d r2
+            fx_, fy_ = self.distort(x, y)
+            ex, ey = fx_ - xd, fy_ - yd
+            j11 = radial + 2 * x * x * drad + 2 * p1 * y + 6 * p2 * x
+            j12 = 2 * x * y * drad + 2 * p1 * x + 2 * p2 * y
+            j21 = 2 * x * y * drad + 2 * p1 * x + 2 * p2 * y
+            j22 = radial + 2 * y * y * drad + 6 * p1 * y + 2 * p2 * x
+            det = j11 * j22 - j12 * j21
+            dx = (j22 * ex - j12 * ey) / det
+            dy = (-j21 * ex + j11 * ey) / det
+            x -= dx
+            y -= dy
+            if max(np.max(np.abs(dx)), np.max(np.abs(dy))) < 1e-13:
+                break
+        return x, y
+
+    def pixel_normalised(self, supersample: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        """Ideal (undistorted) normalised image coordinates (H*N, W*N) of every sub-pixel centre."""
+        return self._normalised(V.integer("supersample", supersample, lo=1, hi=16))
+
+    @functools.lru_cache(maxsize=8)  # noqa: B019 - cameras are immutable and few
+    def _normalised(self, supersample: int):
+        u = _grid(self.width, supersample)
+        v = _grid(self.height, supersample)
+        uu, vv = np.meshgrid(u, v)
+        xd = (uu - self.cx) / self.fx
+        yd = (vv - self.cy) / self.fy
+        x, y = self.undistort(xd, yd)
+        x.setflags(write=False)
+        y.setflags(write=False)
+        return x, y
+
+    def directions(self, supersample: int = 1) -> np.ndarray:
+        """Unit ray directions (H*N, W*N, 3) in the sensor frame (x right, y down, z forward)."""
+        return self._directions(V.integer("supersample", supersample, lo=1, hi=16))
+
+    @functools.lru_cache(maxsize=8)  # noqa: B019
+    def _directions(self, supersample: int) -> np.ndarray:
+        x, y = self._normalised(supersample)
+        d = np.stack([x, y, np.ones_like(x)], axis=-1)
+        d /= np.linalg.norm(d, axis=-1, keepdims=True)
+        d.setflags(write=False)
+        return d
+
+    def rays(self, pose: Pose, supersample: int = 1) -> Rays:
+        """World-frame rays (H*N*W*N rows, row-major image order) from a sensor pose."""
+        d = self.directions(supersample).reshape(-1, 3)
+        return Rays(np.broadcast_to(pose.position, d.shape), d @ pose.rotation.T)
+
+    def project(self, points_sensor) -> np.ndarray:
+        """Project sensor-frame points (n, 3) to distorted pixel coordinates (n, 2) [px]."""
+        p = np.asarray(points_sensor, dtype=float).reshape(-1, 3)
+        xd, yd = self.distort(p[:, 0] / p[:, 2], p[:, 1] / p[:, 2])
+        return np.column_stack([self.fx * xd + self.cx, self.fy * yd + self.cy])
+
+    def to_dict(self) -> dict:
+        return {"type": "pinhole", "width": self.width, "height": self.height, "fx": self.fx, "fy": self.fy,
+                "cx": self.cx, "cy": self.cy, "distortion": list(self.distortion)}
+
+
+@dataclass(frozen=True, eq=False)
+class OrthographicCamera:
+    """Parallel rays along the sensor's +z over a ``size_x`` x ``size_y`` [m] window."""
+
+    width: int
+    height: int
+    size_x: float
+    size_y: float
+
+    def __post_init__(self):
+        V.integer("camera.width", self.width, lo=1, hi=100_000)
+        V.integer("camera.height", self.height, lo=1, hi=100_000)
+        V.positive("camera.size_x", self.size_x, "m")
+        V.positive("camera.size_y", self.size_y, "m")
+
+    def origins(self, supersample: int = 1) -> np.ndarray:
+        """Ray origins (H*N, W*N, 3) in the sensor frame (z = 0 plane)."""
+        n = V.integer("supersample", supersample, lo=1, hi=16)
+        u = (_grid(self.width, n) + 0.5) / self.width - 0.5
+        v = (_grid(self.height, n) + 0.5) / self.height - 0.5
+        uu, vv = np.meshgrid(u * self.size_x, v * self.size_y)
+        return np.stack([uu, vv, np.zeros_like(uu)], axis=-1)
+
+    def rays(self, pose: Pose, supersample: int = 1) -> Rays:
+        o = self.origins(supersample).reshape(-1, 3)
+        d = np.broadcast_to(pose.rotation[:, 2], o.shape)
+        return Rays(pose.apply(o), d)
+
+    def to_dict(self) -> dict:
+        return {"type": "orthographic", "width": self.width, "height": self.height,
+                "size_x": self.size_x, "size_y": self.size_y}

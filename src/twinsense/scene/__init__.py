@@ -1,0 +1,31 @@
+"""Scene model: poses, geometry, motion, materials, objects."""
+
+from twinsense.scene.geometry import (
+    Box,
+    Capsule,
+    Cylinder,
+    Geometry,
+    MeshFile,
+    Plane,
+    Sphere,
+    TriangleMesh,
+)
+from twinsense.scene.materials import Material, get_material, material_names, register_material
+from twinsense.scene.motion import (
+    ConstantVelocity,
+    Keyframes,
+    Motion,
+    MotionState,
+    Oscillation,
+    Static,
+    Waypoints,
+)
+from twinsense.scene.pose import Pose
+from twinsense.scene.scene import SENSOR_KINDS, Mount, Scene, SceneObject
+
+__all__ = [
+    "SENSOR_KINDS", "Box", "Capsule", "ConstantVelocity", "Cylinder", "Geometry", "Keyframes",
+    "Material", "MeshFile", "Motion", "MotionState", "Mount", "Oscillation", "Plane", "Pose",
+    "Scene", "SceneObject", "Sphere", "Static", "TriangleMesh", "Waypoints", "get_material",
+    "material_names", "register_material",
+]

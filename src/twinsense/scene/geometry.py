@@ -1,0 +1,290 @@
+"""Object geometry in its local frame, in metres.
+
+Primitives carry exact inside tests (the capacitive coupling needs them) and a
+triangle mesh for ray casting. Mesh files are read through trimesh with an
+explicit length unit, so a model in millimetres never silently becomes metres.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from twinsense import validation as V
+from twinsense.errors import ConfigError, GeometryError
+
+UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
+MESH_SUFFIXES = (".obj", ".stl", ".ply", ".gltf", ".glb", ".off")
+
+
+class Geometry:
+    """Base class: ``mesh`` (trimesh, local frame, metres) and ``contains``."""
+
+    kind: str = "geometry"
+
+    @functools.cached_property
+    def mesh(self) -> trimesh.Trimesh:
+        m = self._build_mesh()
+        m.vertices.flags.writeable = False
+        return m
+
+    def _build_mesh(self) -> trimesh.Trimesh:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def contains(self, points) -> np.ndarray:
+        """Inside test for points (n, 3) in the local frame -> bool (n,)."""
+        raise NotImplementedError
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """Axis-aligned bounds (2, 3) in the local frame [m]."""
+        return np.asarray(self.mesh.bounds, dtype=float)
+
+    def to_dict(self) -> dict:
+        raise NotImplementedError
+
+
+def _pts(points) -> np.ndarray:
+    p = np.asarray(points, dtype=float)
+    return p.reshape(-1, 3)
+
+
+@dataclass(frozen=True, eq=False)
+class Box(Geometry):
+    """Axis-aligned box centred on the origin; ``size`` = full edge lengths (3,) [m]."""
+
+    size: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    kind = "box"
+
+    def __post_init__(self) -> None:
+        s = V.vector("box.size", self.size, 3, "m")
+        if np.any(s <= 0):
+            raise ConfigError("box.size", list(self.size), "three edge lengths > 0 [m]")
+        object.__setattr__(self, "size", tuple(float(x) for x in s))
+
+    def _build_mesh(self):
+        return trimesh.creation.box(extents=self.size)
+
+    def contains(self, points):
+        p = _pts(points)
+        return np.all(np.abs(p) <= 0.5 * np.asarray(self.size), axis=1)
+
+    def to_dict(self):
+        return {"type": "box", "size": list(self.size)}
+
+
+@dataclass(frozen=True, eq=False)
+class Sphere(Geometry):
+    """Sphere centred on the origin. ``subdivisions`` sets the icosphere mesh."""
+
+    radius: float = 0.5
+    subdivisions: int = 4
+    kind = "sphere"
+
+    def __post_init__(self) -> None:
+        V.positive("sphere.radius", self.radius, "m")
+        V.integer("sphere.subdivisions", self.subdivisions, lo=0, hi=7)
+
+    def _build_mesh(self):
+        return trimesh.creation.icosphere(subdivisions=self.subdivisions, radius=self.radius)
+
+    def contains(self, points):
+        p = _pts(points)
+        return np.einsum("ij,ij->i", p, p) <= self.radius**2
+
+    def to_dict(self):
+        return {"type": "sphere", "radius": self.radius}
+
+
+@dataclass(frozen=True, eq=False)
+class Cylinder(Geometry):
+    """Cylinder along local z, centred on the origin; ``height`` is the full length."""
+
+    radius: float = 0.5
+    height: float = 1.0
+    sections: int = 64
+    kind = "cylinder"
+
+    def __post_init__(self) -> None:
+        V.positive("cylinder.radius", self.radius, "m")
+        V.positive("cylinder.height", self.height, "m")
+        V.integer("cylinder.sections", self.sections, lo=3)
+
+    def _build_mesh(self):
+        return trimesh.creation.cylinder(radius=self.radius, height=self.height, sections=self.sections)
+
+    def contains(self, points):
+        p = _pts(points)
+        return (p[:, 0] ** 2 + p[:, 1] ** 2 <= self.radius**2) & (np.abs(p[:, 2]) <= 0.5 * self.height)
+
+    def to_dict(self):
+        return {"type": "cylinder", "radius": self.radius, "height": self.height}
+
+
+@dataclass(frozen=True, eq=False)
+class Capsule(Geometry):
+    """Capsule along local z: a cylinder of length ``height`` capped by hemispheres."""
+
+    radius: float = 0.25
+    height: float = 1.0
+    kind = "capsule"
+
+    def __post_init__(self) -> None:
+        V.positive("capsule.radius", self.radius, "m")
+        V.non_negative("capsule.height", self.height, "m")
+
+    def _build_mesh(self):
+        return trimesh.creation.capsule(height=self.height, radius=self.radius, count=[32, 32])
+
+    def contains(self, points):
+        p = _pts(points)
+        z = np.clip(p[:, 2], -0.5 * self.height, 0.5 * self.height)
+        return p[:, 0] ** 2 + p[:, 1] ** 2 + (p[:, 2] - z) ** 2 <= self.radius**2
+
+    def to_dict(self):
+        return {"type": "capsule", "radius": self.radius, "height": self.height}
+
+
+@dataclass(frozen=True, eq=False)
+class Plane(Geometry):
+    """Finite plane (rectangle) in local z = 0, normal +z, ``size`` = (sx, sy) [m].
+
+    It has no volume, so nothing is inside it.
+    """
+
+    size: tuple[float, float] = (10.0, 10.0)
+    kind = "plane"
+
+    def __post_init__(self) -> None:
+        s = V.vector("plane.size", self.size, 2, "m")
+        if np.any(s <= 0):
+            raise ConfigError("plane.size", list(self.size), "two edge lengths > 0 [m]")
+        object.__setattr__(self, "size", tuple(float(x) for x in s))
+
+    def _build_mesh(self):
+        hx, hy = 0.5 * self.size[0], 0.5 * self.size[1]
+        v = np.array([[-hx, -hy, 0], [hx, -hy, 0], [hx, hy, 0], [-hx, hy, 0]], dtype=float)
+        f = np.array([[0, 1, 2], [0, 2, 3]])
+        return trimesh.Trimesh(v, f, process=False)
+
+    def contains(self, points):
+        return np.zeros(len(_pts(points)), dtype=bool)
+
+    def to_dict(self):
+        return {"type": "plane", "size": list(self.size)}
+
+
+@dataclass(frozen=True, eq=False)
+class TriangleMesh(Geometry):
+    """A mesh given as arrays: vertices (n, 3) [m] and faces (m, 3) int."""
+
+    vertices: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    faces: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), dtype=int))
+    name: str = "mesh"
+    kind = "mesh"
+
+    def __post_init__(self) -> None:
+        v = V.array(f"{self.name}.vertices", self.vertices, (None, 3), "m")
+        try:
+            f = np.asarray(self.faces, dtype=np.int64)
+        except (TypeError, ValueError):
+            raise ConfigError(f"{self.name}.faces", self.faces, "an integer array (m, 3)") from None
+        if f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
+            raise GeometryError(f"{self.name}: faces must be a non-empty (m, 3) integer array, got shape {f.shape}")
+        if f.min() < 0 or f.max() >= len(v):
+            raise GeometryError(f"{self.name}: face indices must lie in 0..{len(v) - 1}, "
+                                f"got {f.min()}..{f.max()}")
+        object.__setattr__(self, "vertices", v)
+        object.__setattr__(self, "faces", f)
+
+    def _build_mesh(self):
+        m = trimesh.Trimesh(self.vertices, self.faces, process=True)
+        m.remove_unreferenced_vertices()
+        if len(m.faces) == 0 or not np.all(np.isfinite(m.vertices)):
+            raise GeometryError(f"{self.name}: the mesh has no valid triangles")
+        return m
+
+    def contains(self, points):
+        m = self.mesh
+        if not m.is_watertight:
+            raise GeometryError(
+                f"{self.name}: inside tests need a closed (watertight) mesh; this one has open edges")
+        p = _pts(points)
+        return _mesh_contains(m, p)
+
+    def to_dict(self):
+        return {"type": "mesh", "name": self.name, "n_faces": int(len(self.faces))}
+
+
+def _mesh_contains(mesh: trimesh.Trimesh, points: np.ndarray) -> np.ndarray:
+    """Inside test for a closed mesh.
+
+    Small problems use the generalised winding number (exact, robust to grazing
+    rays); large ones use trimesh's ray-parity test (Embree), which is linear in
+    the number of points instead of points x triangles.
+    """
+    if len(points) * len(mesh.faces) > 2e7:
+        return np.asarray(mesh.contains(points), dtype=bool)
+    if len(points) == 0:
+        return np.zeros(0, dtype=bool)
+    out = np.zeros(len(points), dtype=bool)
+    lo, hi = mesh.bounds
+    cand = np.all((points >= lo) & (points <= hi), axis=1)
+    idx = np.nonzero(cand)[0]
+    tri = mesh.triangles  # (m, 3, 3)
+    # Chunk so the (points x triangles) work stays under ~32 MB per step.
+    chunk = max(1, int(4e6 // max(1, len(tri))))
+    for s in range(0, len(idx), chunk):
+        sel = idx[s:s + chunk]
+        a = tri[None, :, 0, :] - points[sel, None, :]
+        b = tri[None, :, 1, :] - points[sel, None, :]
+        c = tri[None, :, 2, :] - points[sel, None, :]
+        la, lb, lc = (np.linalg.norm(x, axis=2) for x in (a, b, c))
+        det = np.einsum("ijk,ijk->ij", a, np.cross(b, c))
+        den = (la * lb * lc + np.einsum("ijk,ijk->ij", a, b) * lc
+               + np.einsum("ijk,ijk->ij", b, c) * la + np.einsum("ijk,ijk->ij", c, a) * lb)
+        w = np.arctan2(det, den).sum(axis=1) / (2 * np.pi)
+        out[sel] = np.abs(w) > 0.5
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class MeshFile(TriangleMesh):
+    """A mesh read from OBJ, STL, PLY, OFF, glTF or GLB, scaled from ``unit`` to metres."""
+
+    path: str = ""
+    unit: str = "m"
+    kind = "mesh_file"
+
+    def __init__(self, path, unit: str = "m"):
+        if unit not in UNITS:
+            raise ConfigError("mesh.unit", unit, "one of: " + ", ".join(UNITS))
+        p = Path(path)
+        if p.suffix.lower() not in MESH_SUFFIXES:
+            raise ConfigError("mesh.path", str(path), "a mesh file ending in " + ", ".join(MESH_SUFFIXES))
+        if not p.is_file():
+            raise GeometryError(f"mesh.path: file not found: {str(path)!r}")
+        try:
+            loaded = trimesh.load(p, force="mesh", process=True)
+        except Exception as exc:  # trimesh raises many types for broken files
+            raise GeometryError(f"mesh.path: cannot read {str(path)!r} as a mesh: {exc}") from None
+        if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+            raise GeometryError(f"mesh.path: {str(path)!r} holds no triangles")
+        if not np.all(np.isfinite(loaded.vertices)):
+            raise GeometryError(f"mesh.path: {str(path)!r} has NaN or infinite vertex coordinates")
+        object.__setattr__(self, "path", str(path))
+        object.__setattr__(self, "unit", unit)
+        object.__setattr__(self, "name", p.name)
+        object.__setattr__(self, "vertices", np.asarray(loaded.vertices, dtype=float) * UNITS[unit])
+        object.__setattr__(self, "faces", np.asarray(loaded.faces, dtype=np.int64))
+
+    def to_dict(self):
+        return {"type": "mesh", "path": self.path, "unit": self.unit}
+
+
+GEOMETRY_TYPES = {"box": Box, "sphere": Sphere, "cylinder": Cylinder, "capsule": Capsule,
+                  "plane": Plane, "mesh": MeshFile}

@@ -1,0 +1,165 @@
+"""Rigid poses: position [m] and rotation, with composition and inverse.
+
+A ``Pose`` maps points from its child frame into its parent frame:
+``p_parent = R @ p_child + t``. ``a @ b`` is "b expressed in a's parent":
+``(a @ b).apply(p) == a.apply(b.apply(p))``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from twinsense import validation as V
+from twinsense.errors import ConfigError
+
+
+def _as_rotation_matrix(field_name: str, value: Any) -> np.ndarray:
+    r = V.array(field_name, value, (3, 3))
+    # A rotation matrix must be orthonormal with det +1; accept small float
+    # noise (1e-6) but not a scaled or mirrored matrix.
+    if not np.allclose(r @ r.T, np.eye(3), atol=1e-6) or np.linalg.det(r) < 0:
+        raise ConfigError(field_name, "non-orthonormal matrix", "a proper rotation (R R^T = I, det = +1)")
+    # Re-orthonormalise so errors do not accumulate under composition.
+    u, _, vt = np.linalg.svd(r)
+    return u @ vt
+
+
+@dataclass(frozen=True, eq=False)
+class Pose:
+    """Rigid transform child -> parent.
+
+    Attributes
+    ----------
+    position : (3,) float
+        Origin of the child frame in the parent frame [m].
+    rotation : (3, 3) float
+        Rotation matrix whose columns are the child axes in the parent frame.
+    """
+
+    position: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
+
+    def __post_init__(self) -> None:
+        pos = V.vector("Pose.position", self.position, 3, "m")
+        rot = _as_rotation_matrix("Pose.rotation", self.rotation)
+        pos.setflags(write=False)
+        rot.setflags(write=False)
+        object.__setattr__(self, "position", pos)
+        object.__setattr__(self, "rotation", rot)
+
+    # ------------------------------------------------------------ builders
+    @classmethod
+    def identity(cls) -> Pose:
+        return cls()
+
+    @classmethod
+    def from_euler_deg(cls, position=(0.0, 0.0, 0.0), rpy_deg=(0.0, 0.0, 0.0),
+                       order: str = "xyz") -> Pose:
+        """Position [m] and extrinsic Euler angles [deg] (default roll-pitch-yaw about x, y, z)."""
+        ang = V.vector("Pose.rpy_deg", rpy_deg, 3, "deg")
+        if not isinstance(order, str) or len(order) != 3 or set(order.lower()) - set("xyz"):
+            raise ConfigError("Pose.order", order, "three axis letters such as 'xyz' (extrinsic) or 'XYZ' (intrinsic)")
+        return cls(position, Rotation.from_euler(order, ang, degrees=True).as_matrix())
+
+    @classmethod
+    def from_quat(cls, position=(0.0, 0.0, 0.0), quat_xyzw=(0.0, 0.0, 0.0, 1.0)) -> Pose:
+        """Position [m] and unit quaternion in (x, y, z, w) order (scipy/ROS convention)."""
+        q = V.vector("Pose.quat_xyzw", quat_xyzw, 4)
+        n = np.linalg.norm(q)
+        if n < 1e-9:
+            raise ConfigError("Pose.quat_xyzw", quat_xyzw, "a non-zero quaternion (x, y, z, w)")
+        return cls(position, Rotation.from_quat(q / n).as_matrix())
+
+    @classmethod
+    def from_matrix(cls, matrix) -> Pose:
+        """From a homogeneous (4, 4) transform."""
+        m = V.array("Pose.matrix", matrix, (4, 4))
+        if not np.allclose(m[3], [0, 0, 0, 1]):
+            raise ConfigError("Pose.matrix", m[3].tolist(), "last row [0, 0, 0, 1]")
+        return cls(m[:3, 3], m[:3, :3])
+
+    @classmethod
+    def from_rotvec(cls, position=(0.0, 0.0, 0.0), rotvec=(0.0, 0.0, 0.0)) -> Pose:
+        """Position [m] and rotation vector (axis * angle [rad])."""
+        return cls(position, Rotation.from_rotvec(V.vector("Pose.rotvec", rotvec, 3, "rad")).as_matrix())
+
+    @classmethod
+    def look_at(cls, eye, target, up=(0.0, 0.0, 1.0)) -> Pose:
+        """Sensor pose at ``eye`` looking at ``target``, optical convention.
+
+        The child frame has +z towards the target (boresight), +x to the right
+        and +y down in the image, so ``up`` maps to -y.
+        """
+        e = V.vector("look_at.eye", eye, 3, "m")
+        g = V.vector("look_at.target", target, 3, "m")
+        u = V.vector("look_at.up", up, 3)
+        z = g - e
+        if np.linalg.norm(z) < 1e-12:
+            raise ConfigError("look_at.target", target, "a point different from eye")
+        z = z / np.linalg.norm(z)
+        x = np.cross(z, u)
+        if np.linalg.norm(x) < 1e-9:
+            raise ConfigError("look_at.up", up, "a direction not parallel to the viewing direction")
+        x = x / np.linalg.norm(x)
+        y = np.cross(z, x)
+        return cls(e, np.column_stack([x, y, z]))
+
+    # ------------------------------------------------------------ algebra
+    def __matmul__(self, other: Pose) -> Pose:
+        if not isinstance(other, Pose):
+            return NotImplemented
+        return Pose(self.rotation @ other.position + self.position, self.rotation @ other.rotation)
+
+    def inverse(self) -> Pose:
+        rt = self.rotation.T
+        return Pose(-rt @ self.position, rt)
+
+    def apply(self, points) -> np.ndarray:
+        """Transform points (n, 3) or (3,) from the child into the parent frame."""
+        p = np.asarray(points, dtype=float)
+        return p @ self.rotation.T + self.position
+
+    def apply_vectors(self, vectors) -> np.ndarray:
+        """Rotate direction vectors (n, 3) or (3,) (no translation)."""
+        return np.asarray(vectors, dtype=float) @ self.rotation.T
+
+    # ------------------------------------------------------------ views
+    @property
+    def matrix(self) -> np.ndarray:
+        """Homogeneous (4, 4) transform."""
+        m = np.eye(4)
+        m[:3, :3] = self.rotation
+        m[:3, 3] = self.position
+        return m
+
+    @property
+    def quat_xyzw(self) -> np.ndarray:
+        return Rotation.from_matrix(self.rotation).as_quat()
+
+    def euler_deg(self, order: str = "xyz") -> np.ndarray:
+        return Rotation.from_matrix(self.rotation).as_euler(order, degrees=True)
+
+    def isclose(self, other: Pose, atol: float = 1e-9) -> bool:
+        return bool(np.allclose(self.position, other.position, atol=atol)
+                    and np.allclose(self.rotation, other.rotation, atol=atol))
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Pose):
+            return NotImplemented
+        return bool(np.array_equal(self.position, other.position)
+                    and np.array_equal(self.rotation, other.rotation))
+
+    def __hash__(self) -> int:
+        return hash((self.position.tobytes(), self.rotation.tobytes()))
+
+    def __repr__(self) -> str:
+        p = np.array2string(self.position, precision=4)
+        e = np.array2string(self.euler_deg(), precision=2)
+        return f"Pose(position={p}, rpy_deg={e})"
+
+    def to_dict(self) -> dict:
+        return {"position": self.position.tolist(), "quat_xyzw": self.quat_xyzw.tolist()}

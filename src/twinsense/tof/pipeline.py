@@ -1,0 +1,127 @@
+"""The signal chain after rendering: pixel phasors -> raw frames -> depth products.
+
+Order (PHYSICS.md section 1): correlation images for every phase step and
+frequency from the summed sub-pixel phasors -> cross-talk blur -> shot,
+read and dark noise, ADC quantisation -> saturation -> demodulation ->
+unwrapping -> validity (saturation, low signal, flying pixels, noise).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from twinsense.tof.config import PHASE_STEPS, ToFConfig
+from twinsense.tof.demodulation import depth_noise, phase_amplitude, radial_distance
+from twinsense.tof.effects import crosstalk, digitize, gray_value
+from twinsense.tof.filters import flying_pixel_mask, noise_mask
+from twinsense.tof.frame import InvalidReason
+from twinsense.tof.signal import PixelPhasors, correlation_images
+
+
+@dataclass(frozen=True, eq=False)
+class ChainOutput:
+    """Per-pixel products of the signal chain (no geometry yet).
+
+    raw (F, 4, H, W) [DN]; gray (H, W) uint16 [DN]; phase, amplitude (F, H, W)
+    [rad], [DN]; distance, noise (H, W) float32 [m] (distance not yet zeroed
+    where invalid); invalid (H, W) uint8 without the flying-pixel bit (it needs
+    z-depths); tap_sum (H, W) float32 [e-] estimated from the gray value.
+    """
+
+    raw: np.ndarray
+    gray: np.ndarray
+    phase: np.ndarray
+    amplitude: np.ndarray
+    distance: np.ndarray
+    noise: np.ndarray
+    invalid: np.ndarray
+
+
+def expected_raw(phasors: PixelPhasors | list[PixelPhasors], config: ToFConfig
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Expected (noise-free) correlation and tap-sum images of the modulated raw frames.
+
+    Parameters
+    ----------
+    phasors : PixelPhasors, or a list of F*4 (+1 with the gray frame) of them
+        One for the whole sequence, or one per raw frame in capture order
+        (motion artefacts: each raw frame sees the scene at its own time).
+
+    Returns
+    -------
+    correlation : (F, 4, H, W) float32 [e-]
+    tap_sum : (F, 4, H, W) or (1, 1, H, W) float32 [e-]
+    gray_tap_sum : (H, W) float32 [e-], tap sum of the intensity frame
+    """
+    cd = config.demodulation_contrast
+    if isinstance(phasors, PixelPhasors):
+        corr = correlation_images(phasors, cd)
+        return corr, phasors.tap_sum[None, None], phasors.tap_sum
+    n_mod = config.n_frequencies * PHASE_STEPS
+    if len(phasors) != config.n_raw_frames:
+        raise ValueError(f"{len(phasors)} phasor sets for {config.n_raw_frames} raw frames")
+    corr = np.empty((config.n_frequencies, PHASE_STEPS, *phasors[0].tap_sum.shape), np.float32)
+    taps = np.empty_like(corr)
+    for r in range(n_mod):
+        f, i = divmod(r, PHASE_STEPS)
+        corr[f, i] = correlation_images(phasors[r], cd, f, (i,))[0, 0]
+        taps[f, i] = phasors[r].tap_sum
+    gray = phasors[-1].tap_sum if config.gray_frame else taps.mean(axis=(0, 1))
+    return corr, taps, gray
+
+
+def run_chain(phasors: PixelPhasors | list[PixelPhasors], config: ToFConfig,
+              rng: np.random.Generator | None) -> ChainOutput:
+    """Raw frames and per-pixel depth products from the expected pixel signals.
+
+    Draws the raw frames' noise first, then the gray frame's, from ``rng``
+    (the same generator state gives the same frame).
+    """
+    cfg = config
+    corr, taps, gray_taps = expected_raw(phasors, cfg)
+    # Cross-talk spreads charge, so it acts on the correlation and on the tap sums alike.
+    corr = crosstalk(corr, cfg.crosstalk_sigma_px)
+    taps = crosstalk(taps, cfg.crosstalk_sigma_px)
+    gray_taps = crosstalk(gray_taps, cfg.crosstalk_sigma_px)
+    dig = digitize(corr, taps, cfg, rng)
+    gray = gray_value(gray_taps, cfg, rng)
+    phase, amp = phase_amplitude(dig.difference_dn)
+    distance = radial_distance(phase, cfg)
+    noise = depth_noise(amp, gray.astype(np.float32) * np.float32(2.0 * cfg.electrons_per_dn), cfg)
+    invalid = np.zeros(distance.shape, np.uint8)
+    invalid[dig.saturated] |= InvalidReason.SATURATED
+    invalid[amp.min(axis=0) < cfg.min_amplitude_dn] |= InvalidReason.LOW_SIGNAL
+    if cfg.noise_filter:
+        invalid[noise_mask(noise, invalid == 0, cfg.max_noise)] |= InvalidReason.TOO_NOISY
+    return ChainOutput(dig.raw, gray, phase, amp, distance, noise, invalid)
+
+
+def finish_geometry(out: ChainOutput, pixel_dirs: np.ndarray, config: ToFConfig
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """z-depth, flying-pixel filter, zeroing of invalid pixels, confidence and sensor points.
+
+    Parameters
+    ----------
+    pixel_dirs : (H, W, 3) float
+        Unit ray direction of every pixel centre, sensor frame.
+
+    Returns
+    -------
+    distance, depth (H, W) float32 [m]; invalid (H, W) uint8; confidence (H, W) uint8;
+    points (H, W, 3) float32 [m], sensor frame.
+    """
+    cfg = config
+    invalid = out.invalid.copy()
+    dirs = pixel_dirs.astype(np.float32, copy=False)
+    z = out.distance * dirs[..., 2]
+    if cfg.flying_pixel_filter:
+        invalid[flying_pixel_mask(z, invalid == 0, cfg)] |= InvalidReason.FLYING_PIXEL
+    valid = invalid == 0
+    distance = np.where(valid, out.distance, np.float32(0.0))
+    depth = np.where(valid, z, np.float32(0.0))
+    points = distance[..., None] * dirs
+    conf = 255.0 * np.clip(1.0 - out.noise / (2.0 * cfg.max_noise), 0.0, 1.0)
+    confidence = np.where(valid, np.clip(np.rint(conf), 1, 255), 0).astype(np.uint8)
+    return distance, depth, invalid, confidence, points
