@@ -155,7 +155,7 @@ class ToFConfig:
     readout_time: float = 1.0e-3
     frame_rate: float = 25.0
     # illumination
-    illumination_power: float = 0.4
+    illumination_power: float = 0.8
     illumination_fwhm_deg: tuple[float, float] = (80.0, 60.0)
     wavelength: float = 850e-9
     # pixel and read-out
@@ -168,7 +168,7 @@ class ToFConfig:
     dark_current: float = 1000.0
     adc_bits: int = 12
     adc_offset_dn: float = 2048.0
-    electrons_per_dn: float = 48.8
+    electrons_per_dn: float = 25.0
     raw_valid_range_dn: tuple[float, float] = (400.0, 3750.0)
     # scene light and materials
     ambient_irradiance: float = 0.05
@@ -192,7 +192,7 @@ class ToFConfig:
     multipath_visibility: bool = True
     motion_artifacts: bool = False
 
-    def __post_init__(self) -> None:  # noqa: C901 - one check per field, in field order
+    def __post_init__(self) -> None:
         p = "ToFConfig"
         V.integer(f"{p}.width", self.width, lo=1, hi=10_000)
         V.integer(f"{p}.height", self.height, lo=1, hi=10_000)

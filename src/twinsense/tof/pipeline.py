@@ -91,10 +91,10 @@ def run_chain(phasors: PixelPhasors | list[PixelPhasors], config: ToFConfig,
     distance = radial_distance(phase, cfg)
     noise = depth_noise(amp, gray.astype(np.float32) * np.float32(2.0 * cfg.electrons_per_dn), cfg)
     invalid = np.zeros(distance.shape, np.uint8)
-    invalid[dig.saturated] |= InvalidReason.SATURATED
-    invalid[amp.min(axis=0) < cfg.min_amplitude_dn] |= InvalidReason.LOW_SIGNAL
+    invalid[dig.saturated] |= np.uint8(InvalidReason.SATURATED)
+    invalid[amp.min(axis=0) < cfg.min_amplitude_dn] |= np.uint8(InvalidReason.LOW_SIGNAL)
     if cfg.noise_filter:
-        invalid[noise_mask(noise, invalid == 0, cfg.max_noise)] |= InvalidReason.TOO_NOISY
+        invalid[noise_mask(noise, invalid == 0, cfg.max_noise)] |= np.uint8(InvalidReason.TOO_NOISY)
     return ChainOutput(dig.raw, gray, phase, amp, distance, noise, invalid)
 
 
@@ -117,7 +117,7 @@ def finish_geometry(out: ChainOutput, pixel_dirs: np.ndarray, config: ToFConfig
     dirs = pixel_dirs.astype(np.float32, copy=False)
     z = out.distance * dirs[..., 2]
     if cfg.flying_pixel_filter:
-        invalid[flying_pixel_mask(z, invalid == 0, cfg)] |= InvalidReason.FLYING_PIXEL
+        invalid[flying_pixel_mask(z, invalid == 0, cfg)] |= np.uint8(InvalidReason.FLYING_PIXEL)
     valid = invalid == 0
     distance = np.where(valid, out.distance, np.float32(0.0))
     depth = np.where(valid, z, np.float32(0.0))
