@@ -3,8 +3,9 @@
 Order of the chain (what a real receiver does): the scatterers' IF tones and
 the Tx-Rx leakage tone pass the high-pass and anti-alias filters (applied as
 the filters' steady-state response at each tone's beat frequency, exact for
-a tone that lasts the whole chirp); receiver noise is added, filtered by
-the same filters in the frequency domain; everything is amplified
+a tone that lasts the whole chirp; the settling transient at the chirp start
+is not modelled); receiver noise is added, shaped by the anti-alias filter
+in the frequency domain (:func:`shape_noise`); everything is amplified
 (:attr:`IFChain.voltage_gain`) to volts at the ADC input, the DC offset
 is added and the ADC quantises and clips.
 
@@ -15,6 +16,7 @@ input); after the gain in volts.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 from scipy import signal
@@ -110,6 +112,21 @@ def filter_cube(cube: np.ndarray, if_chain: IFChain, sample_rate: float) -> np.n
         return np.fft.ifft(np.fft.fft(cube, axis=-1) * h, axis=-1)
     h = filter_response(np.fft.rfftfreq(n, 1 / sample_rate), if_chain)
     return np.fft.irfft(np.fft.rfft(cube, axis=-1) * h, n=n, axis=-1)
+
+
+def shape_noise(noise: np.ndarray, config: RadarConfig) -> np.ndarray:
+    """Shape white receiver noise by the anti-alias filter (not by the high-pass).
+
+    The high-pass sits between mixer and IF amplifier; the noise that
+    dominates after the gain is the amplifier's own, which only the
+    anti-alias filter shapes. The BGT60TR13C recording in shared/data/real
+    shows exactly that: a flat floor down to the lowest bins, no dip below
+    the 80 kHz high-pass corner, and a gentle roll-off towards fs/2.
+    """
+    ifc = config.if_chain
+    if ifc.aaf_cutoff <= 0:
+        return noise
+    return filter_cube(noise, replace(ifc, hp_cutoff=0.0), config.chirp.sample_rate)
 
 
 def thermal_noise(config: RadarConfig, rng: np.random.Generator) -> np.ndarray:

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from twinsense.radar.config import RadarConfig
-from twinsense.render import PinholeCamera, cast
+from twinsense.render import PinholeCamera, Rays, cast
 
 
 @dataclass(frozen=True, eq=False)
@@ -142,8 +142,6 @@ class ScatterRenderer:
         pose = sensor_state.pose
         rot = pose.rotation
         rays_dir = self._dirs @ rot.T
-        from twinsense.render import Rays
-
         hits = cast(scene, Rays(pose.position, rays_dir), t, kind="radar", backend=self.backend)
         sel = np.flatnonzero(hits.hit)
         dist = hits.distance[sel]

@@ -145,15 +145,14 @@ class FMCWRadar:
         """One frame from given scatterers (sensor frame), without a scene."""
         cfg = self.config
         if rng is None:
-            rng = np.random.default_rng(int(round(t * 1e6)) & 0xFFFFFFFF)
+            rng = np.random.default_rng(round(t * 1e6) & 0xFFFFFFFF)
         amp = received_amplitude(scatterers, cfg)
         w = effects.filtered_weights(amp, scatterers.points, scatterers.velocities, cfg)
         keep = np.abs(w) > 0
         sig = synthesize(scatterers.points[keep], scatterers.velocities[keep], w[keep], cfg,
                          eps=self.eps)
         sig = (sig + effects.leakage(cfg)) * cfg.if_chain.voltage_gain
-        noise = effects.filter_cube(effects.thermal_noise(cfg, rng), cfg.if_chain,
-                                    cfg.chirp.sample_rate)
+        noise = effects.shape_noise(effects.thermal_noise(cfg, rng), cfg)
         # The DC offset sits on every real channel (on I and on Q alike).
         dc = cfg.if_chain.dc_offset * ((1 + 1j) if cfg.if_chain.complex_if else 1.0)
         adc = effects.adc(sig + noise + dc, cfg.if_chain)

@@ -1,0 +1,63 @@
+"""FMCW radar: configuration, antennas, scene scatterers, IF synthesis, device
+effects, device formats, presets, the :class:`FMCWRadar` sensor and the
+processing chain (:mod:`twinsense.radar.processing`).
+
+Raw cube axis order follows the Infineon Radar SDK: ``(rx, chirp, sample)``.
+"""
+
+from twinsense.radar import presets as _presets  # noqa: F401  (registers the presets)
+from twinsense.radar.antennas import (
+    SPEED_OF_LIGHT,
+    AntennaArray,
+    ElementPattern,
+    l_shaped_positions,
+    planar_positions,
+    ula,
+    ula_positions,
+)
+from twinsense.radar.config import ChirpConfig, IFChain, NoiseConfig, RadarConfig
+from twinsense.radar.formats import (
+    InfineonConfig,
+    TICfg,
+    load_infineon_config,
+    read_ti_cfg,
+    save_infineon_config,
+    write_infineon_recording,
+)
+from twinsense.radar.presets import PRESET_CONFIGS, make_radar, preset_config
+from twinsense.radar.processing import *  # noqa: F403
+from twinsense.radar.processing import __all__ as _processing_all
+from twinsense.radar.scatterers import Scatterers, ScatterRenderer, received_amplitude
+from twinsense.radar.sensor import FMCWRadar, RadarFrame
+from twinsense.radar.synthesis import synthesize, synthesize_exact
+
+__all__ = [
+    "PRESET_CONFIGS",
+    "SPEED_OF_LIGHT",
+    "AntennaArray",
+    "ChirpConfig",
+    "ElementPattern",
+    "FMCWRadar",
+    "IFChain",
+    "InfineonConfig",
+    "NoiseConfig",
+    "RadarConfig",
+    "RadarFrame",
+    "ScatterRenderer",
+    "Scatterers",
+    "TICfg",
+    "l_shaped_positions",
+    "load_infineon_config",
+    "make_radar",
+    "planar_positions",
+    "preset_config",
+    "read_ti_cfg",
+    "received_amplitude",
+    "save_infineon_config",
+    "synthesize",
+    "synthesize_exact",
+    "ula",
+    "ula_positions",
+    "write_infineon_recording",
+    *_processing_all,
+]
