@@ -3,8 +3,8 @@
 - Infineon ifxdaq / Radar Fusion GUI recordings: ``radar.npy`` of shape
   ``(frame, rx, chirp, sample)``, unsigned 12-bit ADC codes of the real IF
   signal stored as uint16, beside a ``config.json`` whose
-  ``device_config.fmcw_single_shape`` holds the chirp parameters
-  (``start_frequency_Hz``, ``end_frequency_Hz``, ``sample_rate_Hz``, ...).
+  ``device_config.fmcw_single_shape`` holds the chirp parameters (parsed by
+  :class:`twinsense.radar.formats.InfineonConfig`).
 - TI DCA1000 ``adc_data.bin``: little-endian int16 words in LVDS order. For a
   complex ADC each group of four words carries two samples, ``(I0, I1, Q0,
   Q1)``, or ``(Q0, Q1, I0, I1)`` when the ADC buffer's sample swap is set
@@ -25,9 +25,7 @@ import numpy as np
 
 from twinsense import validation as V
 from twinsense.errors import ConfigError, RecordingError
-
-C = 299_792_458.0
-
+from twinsense.radar.formats import InfineonConfig, TICfg, read_ti_cfg
 
 # ---------------------------------------------------------------- Infineon
 
@@ -38,41 +36,16 @@ class InfineonRecording:
 
     Attributes
     ----------
-    frames : (n_frames, n_rx, n_chirps, n_samples) uint16
+    frames : (n_frames, n_rx, n_chirps, n_samples) uint16, read-only
         ADC codes (0 .. 2^adc_bits - 1) around a mid-scale offset.
-    start_frequency, end_frequency : float
-        Ramp start and end [Hz].
-    sample_rate : float
-        ADC sample rate [Hz].
-    chirp_repetition_time, frame_repetition_time : float
-        [s].
-    rx_antennas, tx_antennas : tuple of int
-        1-based antenna numbers used (RX1..RX3, TX1).
-    if_gain_db : float
-        IF amplifier gain [dB].
-    hp_cutoff, aaf_cutoff : float
-        High-pass and anti-alias filter corners [Hz].
-    tx_power_level : int
-        Infineon's 0..31 Tx power setting (unitless).
-    mimo_mode : str
-        ``"off"`` or ``"tdm"``.
+    config : InfineonConfig
+        The ``fmcw_single_shape`` of its config.json (SDK field names and units).
     adc_bits : int
-        ADC resolution.
+        ADC resolution (12 for the BGT60 family).
     """
 
     frames: np.ndarray
-    start_frequency: float
-    end_frequency: float
-    sample_rate: float
-    chirp_repetition_time: float
-    frame_repetition_time: float
-    rx_antennas: tuple[int, ...]
-    tx_antennas: tuple[int, ...]
-    if_gain_db: float
-    hp_cutoff: float
-    aaf_cutoff: float
-    tx_power_level: int
-    mimo_mode: str
+    config: InfineonConfig
     adc_bits: int = 12
 
     @property
@@ -88,9 +61,24 @@ class InfineonRecording:
         return self.frames.shape[2]
 
     @property
+    def sample_rate(self) -> float:
+        """ADC sample rate [Hz]."""
+        return float(self.config.sample_rate_Hz)
+
+    @property
+    def chirp_repetition_time(self) -> float:
+        """Time between chirp starts [s]."""
+        return float(self.config.chirp_repetition_time_s)
+
+    @property
+    def frame_repetition_time(self) -> float:
+        """Time between frame starts [s]."""
+        return float(self.config.frame_repetition_time_s)
+
+    @property
     def bandwidth(self) -> float:
         """Swept bandwidth [Hz] (the Infineon SDK sweeps it during the sampling time)."""
-        return self.end_frequency - self.start_frequency
+        return float(self.config.end_frequency_Hz - self.config.start_frequency_Hz)
 
     @property
     def slope(self) -> float:
@@ -104,11 +92,11 @@ class InfineonRecording:
     @property
     def carrier_frequency(self) -> float:
         """Centre of the ramp [Hz]."""
-        return 0.5 * (self.start_frequency + self.end_frequency)
+        return 0.5 * float(self.config.start_frequency_Hz + self.config.end_frequency_Hz)
 
     @property
     def timestamps(self) -> np.ndarray:
-        """(n_frames,) frame start times [s] from the first frame (nominal frame period)."""
+        """(n_frames,) nominal frame start times [s] from the first frame."""
         return np.arange(self.num_frames) * self.frame_repetition_time
 
     def normalised(self) -> np.ndarray:
@@ -136,58 +124,31 @@ def load_infineon_recording(path: str | Path) -> InfineonRecording:
     RecordingError
         Missing or unreadable files.
     ConfigError
-        A config that disagrees with the array (names the field).
+        A config.json that is invalid or disagrees with the array (names the field).
     """
     folder = _find_infineon_dir(Path(path))
     try:
         frames = np.load(folder / "radar.npy", allow_pickle=False)
-        cfg = json.loads((folder / "config.json").read_text())
+        doc = json.loads((folder / "config.json").read_text())
     except (OSError, ValueError) as exc:
         raise RecordingError(f"{folder}: cannot read the recording: {exc}") from exc
-    try:
-        shape = cfg["device_config"]["fmcw_single_shape"]
-    except (KeyError, TypeError):
-        raise RecordingError(f"{folder}/config.json: no device_config.fmcw_single_shape") from None
-    if frames.ndim != 4:
-        raise RecordingError(f"{folder}/radar.npy: shape {frames.shape}, expected "
-                             "(frame, rx, chirp, sample)")
     src = str(folder / "config.json")
-
-    def get(key: str):
-        if key not in shape:
-            raise ConfigError(f"fmcw_single_shape.{key}", None, "a value", source=src)
-        return shape[key]
-
+    config = InfineonConfig.from_dict(doc, source=src)
+    if frames.ndim != 4 or frames.dtype != np.uint16:
+        raise RecordingError(f"{folder}/radar.npy: {frames.dtype} array of shape "
+                             f"{frames.shape}, expected uint16 (frame, rx, chirp, sample)")
     n_rx, n_chirps, n_samples = frames.shape[1:]
-    for key, n in (("num_samples_per_chirp", n_samples), ("num_chirps_per_frame", n_chirps)):
-        if int(get(key)) != n:
-            raise ConfigError(f"fmcw_single_shape.{key}", get(key),
-                              f"{n} (radar.npy has shape {frames.shape})", source=src)
-    rx = tuple(int(a) for a in get("rx_antennas"))
-    if len(rx) != n_rx:
-        raise ConfigError("fmcw_single_shape.rx_antennas", list(rx),
-                          f"{n_rx} antennas (radar.npy has shape {frames.shape})", source=src)
-    frames = np.asarray(frames)
+    tdm = len(config.tx_antennas) if config.mimo_mode == "tdm" else 1
+    for key, have, want in (("num_samples_per_chirp", config.num_samples_per_chirp, n_samples),
+                            ("num_chirps_per_frame", config.num_chirps_per_frame * tdm,
+                             n_chirps),
+                            ("rx_antennas", len(config.rx_antennas), n_rx)):
+        if have != want:
+            raise ConfigError(f"fmcw_single_shape.{key}", getattr(config, key),
+                              f"{want}{' antennas' if key == 'rx_antennas' else ''} "
+                              f"(radar.npy has shape {frames.shape})", source=src)
     frames.setflags(write=False)
-    f0 = V.positive("start_frequency_Hz", get("start_frequency_Hz"), "Hz")
-    f1 = V.number("end_frequency_Hz", get("end_frequency_Hz"), lo=f0, lo_open=True, unit="Hz")
-    return InfineonRecording(
-        frames=frames,
-        start_frequency=f0,
-        end_frequency=f1,
-        sample_rate=V.positive("sample_rate_Hz", get("sample_rate_Hz"), "Hz"),
-        chirp_repetition_time=V.positive("chirp_repetition_time_s",
-                                         get("chirp_repetition_time_s"), "s"),
-        frame_repetition_time=V.positive("frame_repetition_time_s",
-                                         get("frame_repetition_time_s"), "s"),
-        rx_antennas=rx,
-        tx_antennas=tuple(int(a) for a in get("tx_antennas")),
-        if_gain_db=float(shape.get("if_gain_dB", 0.0)),
-        hp_cutoff=float(shape.get("hp_cutoff_Hz", 0.0)),
-        aaf_cutoff=float(shape.get("aaf_cutoff_Hz", 0.0)),
-        tx_power_level=int(shape.get("tx_power_level", 0)),
-        mimo_mode=str(shape.get("mimo_mode", "off")),
-    )
+    return InfineonRecording(frames=frames, config=config)
 
 
 # ---------------------------------------------------------------- TI DCA1000
@@ -263,3 +224,25 @@ def load_dca1000(path: str | Path, *, n_rx: int, n_samples: int, n_chirps: int,
                           f"at most the {chirps.shape[0]} chirps in {p.name}")
     cube = chirps[: n_frames * n_chirps].reshape(n_frames, n_chirps, n_rx, n_samples)
     return cube.transpose(0, 2, 1, 3)
+
+
+def load_ti_capture(bin_path: str | Path, cfg: TICfg | str | Path, *, iq_swap: bool = True,
+                    interleaved: bool = False, n_chirps: int | None = None) -> np.ndarray:
+    """Load a DCA1000 capture with the layout of its mmWave ``.cfg``.
+
+    ``cfg`` gives the receivers (``channelCfg``), samples per chirp
+    (``profileCfg``), real/complex ADC (``adcCfg``) and chirps per frame
+    (``frameCfg``). The ADC-buffer layout (``adcbufCfg``) is passed here:
+    the defaults match the SDK demos' ``adcbufCfg -1 0 1 1 1`` (sample swap,
+    non-interleaved). ``n_chirps`` overrides the chirps per frame, e.g. for a
+    capture shorter than one frame.
+
+    Returns
+    -------
+    (n_frames, n_rx, n_chirps, n_samples) array (complex64 for a complex ADC).
+    """
+    c = cfg if isinstance(cfg, TICfg) else read_ti_cfg(cfg)
+    return load_dca1000(bin_path, n_rx=len(c.rx_channels), n_samples=c.profiles[0].num_samples,
+                        n_chirps=n_chirps or c.chirps_per_frame,
+                        complex_if=c.adc_format != "real", iq_swap=iq_swap,
+                        interleaved=interleaved)
