@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from twinsense.errors import ConfigError, RecordingError
-from twinsense.radar.processing import ProcessingSettings, process_cube
 from twinsense.radar.formats import read_ti_cfg
+from twinsense.radar.processing import ProcessingSettings, process_cube
 from twinsense.radar.recordings import (
     decode_dca1000,
     load_dca1000,
@@ -91,7 +91,7 @@ def test_infineon_strongest_return_through_the_chain(infineon):
 
 
 def test_infineon_missing_folder_is_a_recording_error(tmp_path):
-    with pytest.raises(RecordingError, match="no radar.npy"):
+    with pytest.raises(RecordingError, match=r"no radar\.npy"):
         load_infineon_recording(tmp_path)
 
 
