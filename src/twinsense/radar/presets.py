@@ -100,16 +100,16 @@ PRESET_CONFIGS: dict[str, tuple[Callable[[], RadarConfig], str]] = {
 _SENSOR_KEYS = ("name", "mount", "processing", "process", "backend", "eps")
 
 
-def preset_config(name: str, **overrides: Any) -> RadarConfig:
-    """The :class:`RadarConfig` of preset ``name`` with ``overrides``.
+def preset_config(preset: str, /, **overrides: Any) -> RadarConfig:
+    """The :class:`RadarConfig` of ``preset`` with ``overrides``.
 
     An override names a RadarConfig field (``tx_power_dbm=10``), a field of a
     sub-config (``num_chirps=4``, ``if_gain_db=30``, ``noise_figure_db=10``)
     or a nested path (``chirp__num_chirps=4``).
     """
-    if name not in PRESET_CONFIGS:
-        raise UnknownNameError("radar preset", name, list(PRESET_CONFIGS))
-    cfg = PRESET_CONFIGS[name][0]()
+    if preset not in PRESET_CONFIGS:
+        raise UnknownNameError("radar preset", preset, list(PRESET_CONFIGS))
+    cfg = PRESET_CONFIGS[preset][0]()
     top = {f.name for f in fields(RadarConfig)}
     subs = {part: {f.name for f in fields(type(getattr(cfg, part)))}
             for part in ("chirp", "if_chain", "noise")}
@@ -121,20 +121,20 @@ def preset_config(name: str, **overrides: Any) -> RadarConfig:
         owners = [part for part, names in subs.items() if key in names]
         if len(owners) != 1:
             valid = sorted(top | set().union(*subs.values()))
-            raise ConfigError(f"{name} override {key!r}", value,
+            raise ConfigError(f"{preset} override {key!r}", value,
                               "a field of RadarConfig or of its chirp / if_chain / noise: "
                               + ", ".join(valid))
         resolved[f"{owners[0]}__{key}"] = value
     return cfg.with_overrides(**resolved) if resolved else cfg
 
 
-def make_radar(name: str, **overrides: Any):
-    """An :class:`FMCWRadar` from preset ``name``; sensor keywords (name, mount,
+def make_radar(preset: str, /, **overrides: Any):
+    """An :class:`FMCWRadar` from ``preset``; sensor keywords (name, mount,
     processing, process, backend, eps) go to the sensor, the rest to the config."""
     from twinsense.radar.sensor import FMCWRadar
 
     sensor_kw = {k: overrides.pop(k) for k in list(overrides) if k in _SENSOR_KEYS}
-    return FMCWRadar(preset_config(name, **overrides), **sensor_kw)
+    return FMCWRadar(preset_config(preset, **overrides), **sensor_kw)
 
 
 def _register() -> None:

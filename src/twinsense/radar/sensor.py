@@ -117,11 +117,12 @@ class FMCWRadar:
         return self.config.frame_rate
 
     @classmethod
-    def preset(cls, name: str, **overrides: Any) -> FMCWRadar:
-        """A radar from a named preset (see :mod:`twinsense.radar.presets`)."""
+    def preset(cls, preset: str, /, **overrides: Any) -> FMCWRadar:
+        """A radar from a named preset (see :mod:`twinsense.radar.presets`); ``overrides``
+        take sensor keywords (name, mount, processing, ...) and config fields."""
         from twinsense.radar.presets import make_radar
 
-        return make_radar(name, **overrides)
+        return make_radar(preset, **overrides)
 
     def config_dict(self) -> dict[str, Any]:
         return {"kind": self.kind, "name": self.name, "mount": self.mount.to_dict(),
