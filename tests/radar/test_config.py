@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from twinsense.errors import ConfigError, UnknownNameError
+from twinsense.presets import list_presets, make_sensor
 from twinsense.radar import (
     SPEED_OF_LIGHT,
     AntennaArray,
@@ -23,7 +24,6 @@ from twinsense.radar import (
     ula,
     ula_positions,
 )
-from twinsense.presets import list_presets, make_sensor
 
 
 def _chirp(**kw):
@@ -86,12 +86,14 @@ def test_nan_values_are_rejected():
 
 def test_tdm_sequence_must_divide_the_chirps():
     arr = AntennaArray(np.zeros((3, 3)), ula_positions(4, 2.5e-3))
-    with pytest.raises(ConfigError, match=r"num_chirps = 8 .*multiple of the TDM sequence length 3"):
+    with pytest.raises(ConfigError,
+                       match=r"num_chirps = 8 .*multiple of the TDM sequence length 3"):
         RadarConfig(_chirp(), arr)
 
 
 def test_other_field_errors():
-    with pytest.raises(ConfigError, match=r"NoiseConfig.mode = 'loud'.*one of: none, thermal, variance"):
+    with pytest.raises(ConfigError,
+                       match=r"NoiseConfig.mode = 'loud'.*one of: none, thermal, variance"):
         NoiseConfig(mode="loud")
     with pytest.raises(ConfigError, match=r"NoiseConfig.variance = 0.0 .*mode = 'variance'"):
         NoiseConfig(mode="variance")
