@@ -395,3 +395,196 @@ def cached_mesh(key: str, build, *, use_cache: bool = True) -> SimplexMesh:
     except OSError:
         pass  # a read-only home only costs the rebuild next time
     return mesh
+
+
+@dataclass(frozen=True)
+class MeshSettings:
+    """Size settings of the default layout mesher.
+
+    Attributes
+    ----------
+    margin : float
+        Air beyond the layout's extent in x and y [m].
+    height : float
+        Air above the highest electrode [m].
+    depth : float
+        Air below the lowest electrode or substrate bottom [m].
+    h_min : float
+        Cell size at electrode edges and the electrode plane [m].
+    h_max : float
+        Largest cell size [m].
+    growth : float
+        Size ratio of neighbouring cells away from features (> 1).
+    refine : tuple of (6,) tuples
+        Boxes (x_min, x_max, y_min, y_max, z_min, z_max) [m] meshed at
+        ``h_refine`` (where objects move, to resolve them).
+    h_refine : float
+        Cell size inside the refine boxes [m] (default ``h_min``... set > 0).
+    region : (6,) tuple or None
+        Explicit mesh box (x_min, x_max, y_min, y_max, z_min, z_max) [m];
+        overrides margin, height and depth.
+    use_cache : bool
+        Read and write the on-disk cache.
+    """
+
+    margin: float = 0.02
+    height: float = 0.04
+    depth: float = 0.01
+    h_min: float = 1e-3
+    h_max: float = 8e-3
+    growth: float = 1.3
+    refine: tuple = ()
+    h_refine: float = 4e-3
+    region: tuple | None = None
+    use_cache: bool = True
+
+    def __post_init__(self) -> None:
+        from twinsense import validation as v
+
+        v.non_negative("MeshSettings.margin", self.margin, "m")
+        v.positive("MeshSettings.height", self.height, "m")
+        v.non_negative("MeshSettings.depth", self.depth, "m")
+        v.positive("MeshSettings.h_min", self.h_min, "m")
+        v.number("MeshSettings.h_max", self.h_max, lo=self.h_min, unit="m (>= h_min)")
+        v.number("MeshSettings.growth", self.growth, lo=1.0, lo_open=True)
+        v.positive("MeshSettings.h_refine", self.h_refine, "m")
+        boxes = []
+        for i, b in enumerate(self.refine):
+            arr = v.vector(f"MeshSettings.refine[{i}]", b, 6, "m")
+            if not (arr[1] > arr[0] and arr[3] > arr[2] and arr[5] > arr[4]):
+                raise ConfigError(f"MeshSettings.refine[{i}]", b, "a box with min < max on every axis")
+            boxes.append(tuple(float(x) for x in arr))
+        object.__setattr__(self, "refine", tuple(boxes))
+        if self.region is not None:
+            r = v.vector("MeshSettings.region", self.region, 6, "m")
+            if not (r[1] > r[0] and r[3] > r[2] and r[5] > r[4]):
+                raise ConfigError("MeshSettings.region", self.region, "a box with min < max on every axis")
+            object.__setattr__(self, "region", tuple(float(x) for x in r))
+
+
+@dataclass(frozen=True, eq=False)
+class LayoutMesh:
+    """A mesh of a layout's sensing volume with the layout mapped onto it.
+
+    Attributes
+    ----------
+    mesh : SimplexMesh
+        Tetrahedra in the layout frame [m].
+    terminal_nodes : tuple of (k_i,) int64
+        Nodes of each terminal electrode (``layout.terminals`` order).
+    ground_nodes : (g,) int64
+        Nodes of ground electrodes.
+    permittivity : (m,) float
+        Relative permittivity of every cell with no scene object (substrate or 1).
+    region : (6,) float
+        The meshed box [m].
+    """
+
+    mesh: SimplexMesh
+    terminal_nodes: tuple
+    ground_nodes: np.ndarray
+    permittivity: np.ndarray
+    region: tuple
+
+
+def layout_axes(layout, settings: MeshSettings) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple]:
+    """The graded grid lines (x, y, z) [m] and the region that mesh ``layout``."""
+    from twinsense.capacitive.layouts import Electrode
+
+    lb = layout.bounds
+    s = settings
+    if s.region is not None:
+        region = s.region
+    else:
+        region = (lb[0, 0] - s.margin, lb[1, 0] + s.margin, lb[0, 1] - s.margin,
+                  lb[1, 1] + s.margin, lb[0, 2] - s.depth, lb[1, 2] + s.height)
+    feats: list[list[float]] = [[], [], []]
+    fine: list[list[tuple[float, float]]] = [[], [], []]
+    for e in layout.electrodes:
+        if isinstance(e, Electrode):
+            feats[2].append(e.z)
+            if e.rectilinear:
+                feats[0].extend(e.polygon[:, 0].tolist())
+                feats[1].extend(e.polygon[:, 1].tolist())
+            else:
+                b = e.bounds
+                fine[0].append((b[0, 0], b[1, 0]))
+                fine[1].append((b[0, 1], b[1, 1]))
+        else:
+            b = e.bounds
+            for k in range(3):
+                fine[k].append((b[0, k], b[1, k]))
+    if layout.substrate is not None:
+        feats[2].extend([-layout.substrate.thickness, 0.0])
+        if layout.substrate.extent is not None:
+            x0, x1, y0, y1 = layout.substrate.extent
+            feats[0].extend([x0, x1])
+            feats[1].extend([y0, y1])
+    axes = []
+    for k in range(3):
+        lo, hi = region[2 * k], region[2 * k + 1]
+        for r in s.refine:
+            fine[k].append((r[2 * k], r[2 * k + 1]))
+        ax = graded_axis(lo, hi, feats[k], s.h_min, s.h_max, s.growth, fine_intervals=fine[k])
+        if s.refine:
+            # Inside refine boxes the spacing must not exceed h_refine.
+            ax = _cap_spacing(ax, s.refine, k, s.h_refine)
+        axes.append(ax)
+    return axes[0], axes[1], axes[2], tuple(float(x) for x in region)
+
+
+def _cap_spacing(ax: np.ndarray, boxes, k: int, h: float) -> np.ndarray:
+    out = [ax[0]]
+    for a, b in zip(ax[:-1], ax[1:]):
+        inside = any(r[2 * k] < b and r[2 * k + 1] > a for r in boxes)
+        n = int(np.ceil((b - a) / h - 1e-9)) if inside else 1
+        out.extend(np.linspace(a, b, n + 1)[1:].tolist())
+    return np.asarray(out)
+
+
+def mesh_layout(layout, settings: MeshSettings | None = None) -> LayoutMesh:
+    """Mesh the sensing volume of ``layout`` (default mesher, cached on disk).
+
+    Raises ConfigError for an electrode outside the meshed region or one that
+    covers no mesh node, and for overlapping or touching electrodes.
+    """
+    from twinsense.capacitive.fem import check_disjoint
+    from twinsense.capacitive.layouts import Electrode
+
+    s = settings or MeshSettings()
+    x, y, z, region = layout_axes(layout, s)
+    lo = np.array(region[0::2])
+    hi = np.array(region[1::2])
+    for i, e in enumerate(layout.electrodes):
+        b = e.bounds
+        if np.any(b[0] < lo - 1e-12) or np.any(b[1] > hi + 1e-12):
+            raise ConfigError(f"Layout.electrodes[{i}]", e.name,
+                              f"an electrode inside the mesh region {tuple(np.round(region, 6))} [m]")
+    key = "tensor-v1|" + "|".join(np.asarray(a).tobytes().hex() for a in (x, y, z))
+    mesh = cached_mesh(key, lambda: tensor_tet_mesh(x, y, z), use_cache=s.use_cache)
+    tol = 1e-6 * min(np.diff(x).min(), np.diff(y).min(), np.diff(z).min())
+    node_sets = []
+    for e in layout.electrodes:
+        if isinstance(e, Electrode):
+            nodes = e.nodes(mesh.points, tol)
+        else:
+            nodes = e.nodes(mesh.points, mesh.cells, mesh.centroids)
+        if len(nodes) == 0:
+            raise ConfigError(f"electrode {e.name!r}", e.name,
+                              "an electrode that covers at least one mesh node (refine h_min)")
+        node_sets.append(nodes)
+    check_disjoint(node_sets, [e.name for e in layout.electrodes], "Layout.electrodes")
+    terminal = tuple(n for n, e in zip(node_sets, layout.electrodes) if e.role != "ground")
+    ground = [n for n, e in zip(node_sets, layout.electrodes) if e.role == "ground"]
+    ground_nodes = np.concatenate(ground) if ground else np.zeros(0, np.int64)
+    eps = np.ones(mesh.n_cells)
+    sub = layout.substrate
+    if sub is not None:
+        c = mesh.centroids
+        in_sub = (c[:, 2] < 0.0) & (c[:, 2] > -sub.thickness)
+        if sub.extent is not None:
+            x0, x1, y0, y1 = sub.extent
+            in_sub &= (c[:, 0] > x0) & (c[:, 0] < x1) & (c[:, 1] > y0) & (c[:, 1] < y1)
+        eps[in_sub] = sub.permittivity
+    eps.setflags(write=False)
+    return LayoutMesh(mesh, terminal, ground_nodes, eps, region)
