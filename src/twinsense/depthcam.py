@@ -65,10 +65,11 @@ class DepthCamera:
         return self.config.frame_rate
 
     @classmethod
-    def preset(cls, name: str = "generic", **overrides) -> DepthCamera:
+    def preset(cls, preset_name: str = "generic", /, **overrides) -> DepthCamera:
+        """Build from a registered preset; ``overrides`` may set ``name``, ``mount`` and config fields."""
         from twinsense.presets import make_sensor
 
-        return make_sensor("camera", name, **overrides)
+        return make_sensor("camera", preset_name, **overrides)
 
     def capture(self, scene: Scene, t: float, rng: np.random.Generator | None = None) -> DepthFrame:
         cam = self.config.camera

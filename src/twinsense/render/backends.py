@@ -178,8 +178,8 @@ class NumpyIntersector(Intersector):
                 q = np.cross(tv, e1[None])
                 v = np.einsum("ijk,ijk->ij", dd, q) * inv
                 t = np.einsum("jk,ijk->ij", e2, q) * inv
-            eps = 1e-12
-            ok = (np.abs(det) > 1e-300) & (u >= -eps) & (v >= -eps) & (u + v <= 1 + eps) & (t > 1e-9)
+                eps = 1e-12
+                ok = (np.abs(det) > 1e-300) & (u >= -eps) & (v >= -eps) & (u + v <= 1 + eps) & (t > 1e-9)
             t = np.where(ok, t, np.inf)
             j = np.argmin(t, axis=1)
             tb = t[np.arange(len(j)), j]

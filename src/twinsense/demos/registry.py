@@ -1,0 +1,25 @@
+"""Named demos for ``twinsense demo NAME`` and ``make demo``.
+
+Each entry is ``name -> (module path, function name, description)``; the
+function takes ``(out_dir, progress=False)`` and returns a dict of written
+files. Modules are imported only when their demo runs.
+"""
+
+from __future__ import annotations
+
+import importlib
+from pathlib import Path
+
+from twinsense.errors import UnknownNameError
+
+DEMOS: dict[str, tuple[str, str, str]] = {
+    "depth": ("twinsense.demos.depth", "run_depth_demo",
+              "office scene, ideal depth camera: depth PNG and recording"),
+}
+
+
+def run_demo(name: str, out_dir, progress: bool = False) -> dict[str, Path]:
+    if name not in DEMOS:
+        raise UnknownNameError("demo", name, list(DEMOS))
+    mod, fn, _ = DEMOS[name]
+    return getattr(importlib.import_module(mod), fn)(out_dir, progress=progress)

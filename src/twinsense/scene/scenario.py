@@ -1,0 +1,421 @@
+"""Scenario files (YAML): scene, sensors, duration, seed and outputs.
+
+The file is validated with pydantic; every error names the file, the path to
+the field (``objects[2].motion.speed``), the bad value and what is allowed.
+A loaded scenario builds exactly the objects the Python API would build.
+
+Example::
+
+    name: corridor
+    duration: 2.0          # [s]
+    seed: 7
+    materials:             # optional user materials
+      - {name: dark_paint, nir_reflectance: 0.05}
+    objects:
+      - name: wall
+        geometry: {type: plane, size: [4, 3]}
+        material: drywall
+        pose: {position: [3, 0, 1.5], rpy_deg: [0, -90, 0]}
+      - name: cart
+        geometry: {type: mesh, path: cart.stl, unit: mm}   # relative to this file
+        material: aluminium
+        motion: {type: waypoints, points: [[1, -1, 0], [1, 1, 0]], speed: 0.5, mode: back_and_forth}
+        layers: [tof, radar]
+    sensors:
+      - name: tof
+        kind: tof
+        preset: pmd_pico_flexx
+        overrides: {mode: 5}
+        mount: {pose: {look_at: {eye: [0, 0, 1], target: [3, 0, 1]}}}
+    outputs: {recording: recording.h5, plots: true}
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from twinsense.errors import ConfigError, GeometryError, TwinsenseError
+from twinsense.scene import geometry as G
+from twinsense.scene import motion as M
+from twinsense.scene.materials import Material, get_material, material_names
+from twinsense.scene.pose import Pose
+from twinsense.scene.scene import SENSOR_KINDS, Mount, Scene, SceneObject
+
+
+class ScenarioError(TwinsenseError, ValueError):
+    """Errors in a scenario file, each with its file, field path, value and what is allowed."""
+
+    def __init__(self, source: str, problems: list[tuple[str, Any, str]]):
+        self.source = source
+        self.problems = problems
+        lines = [f"{source}: {len(problems)} problem{'s' if len(problems) > 1 else ''}"]
+        for loc, value, allowed in problems:
+            v = repr(value)
+            v = v if len(v) <= 80 else v[:77] + "..."
+            lines.append(f"  {loc} = {v}: {allowed}")
+        super().__init__("\n".join(lines))
+
+
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+Pos = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+Vec3 = tuple[Finite, Finite, Finite]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class LookAtSpec(_Model):
+    eye: Vec3
+    target: Vec3
+    up: Vec3 = (0.0, 0.0, 1.0)
+
+
+class PoseSpec(_Model):
+    """position [m] with rpy_deg [deg] or quat_xyzw, or look_at, or a 4x4 matrix."""
+
+    position: Vec3 = (0.0, 0.0, 0.0)
+    rpy_deg: Vec3 | None = None
+    quat_xyzw: tuple[Finite, Finite, Finite, Finite] | None = None
+    look_at: LookAtSpec | None = None
+    matrix: list[list[Finite]] | None = None
+
+    @model_validator(mode="after")
+    def _one_rotation(self):
+        given = [k for k in ("rpy_deg", "quat_xyzw", "look_at", "matrix") if getattr(self, k) is not None]
+        if len(given) > 1:
+            raise ValueError(f"give one of rpy_deg, quat_xyzw, look_at, matrix (got {', '.join(given)})")
+        return self
+
+    def build(self) -> Pose:
+        if self.look_at is not None:
+            return Pose.look_at(self.look_at.eye, self.look_at.target, self.look_at.up)
+        if self.matrix is not None:
+            return Pose.from_matrix(self.matrix)
+        if self.quat_xyzw is not None:
+            return Pose.from_quat(self.position, self.quat_xyzw)
+        return Pose.from_euler_deg(self.position, self.rpy_deg or (0.0, 0.0, 0.0))
+
+
+class BoxSpec(_Model):
+    type: Literal["box"]
+    size: tuple[Pos, Pos, Pos]
+
+
+class SphereSpec(_Model):
+    type: Literal["sphere"]
+    radius: Pos
+    subdivisions: int = Field(4, ge=0, le=7)
+
+
+class CylinderSpec(_Model):
+    type: Literal["cylinder"]
+    radius: Pos
+    height: Pos
+    sections: int = Field(64, ge=3)
+
+
+class CapsuleSpec(_Model):
+    type: Literal["capsule"]
+    radius: Pos
+    height: Annotated[float, Field(ge=0, allow_inf_nan=False)]
+
+
+class PlaneSpec(_Model):
+    type: Literal["plane"]
+    size: tuple[Pos, Pos]
+
+
+class MeshSpec(_Model):
+    type: Literal["mesh"]
+    path: str
+    unit: Literal["m", "cm", "mm"]
+
+
+GeometrySpec = Annotated[BoxSpec | SphereSpec | CylinderSpec | CapsuleSpec | PlaneSpec | MeshSpec,
+                         Field(discriminator="type")]
+
+
+class StaticSpec(_Model):
+    type: Literal["static"]
+
+
+class ConstantVelocitySpec(_Model):
+    type: Literal["constant_velocity"]
+    velocity: Vec3 = (0.0, 0.0, 0.0)
+    angular_velocity: Vec3 = (0.0, 0.0, 0.0)
+
+
+class WaypointsSpec(_Model):
+    type: Literal["waypoints"]
+    points: list[Vec3] = Field(min_length=2)
+    speed: Pos
+    mode: Literal["once", "loop", "back_and_forth"] = "once"
+    start_time: Finite = 0.0
+
+
+class KeyframeSpec(_Model):
+    t: Finite
+    pose: PoseSpec
+
+
+class KeyframesSpec(_Model):
+    type: Literal["keyframes"]
+    keyframes: list[KeyframeSpec] = Field(min_length=2)
+
+
+class OscillationSpec(_Model):
+    type: Literal["oscillation"]
+    amplitude: Vec3
+    frequency: Pos
+    phase_deg: Finite = 0.0
+    angular_amplitude: Vec3 = (0.0, 0.0, 0.0)
+
+
+MotionSpec = Annotated[StaticSpec | ConstantVelocitySpec | WaypointsSpec | KeyframesSpec | OscillationSpec,
+                       Field(discriminator="type")]
+
+
+class MaterialSpec(_Model):
+    name: str = Field(min_length=1)
+    base: str | None = None
+    nir_reflectance: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] | None = None
+    nir_specular: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] | None = None
+    nir_retroreflective: bool | None = None
+    radar_reflectivity: Annotated[float, Field(ge=0, allow_inf_nan=False)] | None = None
+    radar_specular: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] | None = None
+    permittivity: Annotated[float, Field(ge=1, allow_inf_nan=False)] | None = None
+    conductor: Literal["none", "grounded", "floating"] | None = None
+
+
+class ObjectSpec(_Model):
+    name: str = Field(min_length=1)
+    geometry: GeometrySpec
+    material: str = "plastic"
+    pose: PoseSpec = PoseSpec()
+    motion: MotionSpec | None = None
+    layers: list[Literal["tof", "radar", "capacitive", "camera"]] = list(SENSOR_KINDS)
+
+
+class MountSpec(_Model):
+    pose: PoseSpec = PoseSpec()
+    parent: str | None = None
+
+
+class SensorSpec(_Model):
+    name: str = Field(min_length=1)
+    kind: str
+    preset: str
+    overrides: dict[str, Any] = {}
+    frame_rate: Pos | None = None
+    mount: MountSpec = MountSpec()
+
+
+class OutputsSpec(_Model):
+    recording: str | None = "recording.h5"
+    plots: bool = True
+
+
+class ScenarioSpec(_Model):
+    name: str = "scenario"
+    duration: Pos = 1.0
+    seed: int = Field(0, ge=0)
+    materials: list[MaterialSpec] = []
+    objects: list[ObjectSpec] = []
+    sensors: list[SensorSpec] = []
+    outputs: OutputsSpec = OutputsSpec()
+
+    @field_validator("objects")
+    @classmethod
+    def _unique_objects(cls, v):
+        names = [o.name for o in v]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise ValueError(f"object names must be unique; repeated: {', '.join(dup)}")
+        return v
+
+    @field_validator("sensors")
+    @classmethod
+    def _unique_sensors(cls, v):
+        names = [o.name for o in v]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise ValueError(f"sensor names must be unique; repeated: {', '.join(dup)}")
+        return v
+
+
+@dataclass
+class Scenario:
+    """A loaded scenario: the scene, the sensors and the run settings."""
+
+    name: str
+    scene: Scene
+    sensors: list
+    duration: float
+    seed: int
+    outputs: OutputsSpec
+    source: str = "<dict>"
+    raw: dict = field(default_factory=dict)
+
+    def run(self, out_dir, progress: bool = False):
+        """Simulate and write the recording under ``out_dir``; returns the SimulationResult."""
+        from twinsense.simulate import simulate
+
+        out_dir = Path(out_dir)
+        out = out_dir / (self.outputs.recording or "recording.h5") if self.outputs.recording else None
+        return simulate(self.scene, self.sensors, self.duration, out=out, seed=self.seed, progress=progress,
+                        scenario=self.raw, keep_frames=False)
+
+
+def _loc(loc: tuple) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        elif part in ("box", "sphere", "cylinder", "capsule", "plane", "mesh", "static", "constant_velocity",
+                      "waypoints", "keyframes", "oscillation", "function-after[_one_rotation()]"):
+            continue  # discriminated-union tags add nothing for the user
+        else:
+            out += ("." if out else "") + str(part)
+    return out or "(top level)"
+
+
+def _pydantic_problems(err: ValidationError) -> list[tuple[str, Any, str]]:
+    probs = []
+    for e in err.errors():
+        msg = e["msg"]
+        if e["type"] == "union_tag_invalid":
+            msg = "'type' must be one of: " + str(e.get("ctx", {}).get("expected_tags", ""))
+        elif e["type"] == "extra_forbidden":
+            msg = "unknown field (check the spelling)"
+        elif e["type"] == "finite_number":
+            msg = "a finite number (not NaN or inf)"
+        probs.append((_loc(e["loc"]), e.get("input"), msg))
+    return probs
+
+
+def _build_material(spec: MaterialSpec) -> Material:
+    base = get_material(spec.base) if spec.base else Material(spec.name)
+    values = base.to_dict()
+    values.update({k: v for k, v in spec.model_dump().items() if v is not None and k not in ("base",)})
+    return Material(**values)
+
+
+def _build_geometry(spec, base_dir: Path):
+    d = spec.model_dump()
+    kind = d.pop("type")
+    if kind == "mesh":
+        p = Path(d["path"])
+        if not p.is_absolute():
+            p = base_dir / p
+        return G.MeshFile(p, unit=d["unit"])
+    return G.GEOMETRY_TYPES[kind](**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+
+
+def _build_motion(spec: ObjectSpec):
+    pose = spec.pose.build()
+    m = spec.motion
+    if m is None or m.type == "static":
+        return M.Static(pose)
+    if m.type == "constant_velocity":
+        return M.ConstantVelocity(pose, m.velocity, m.angular_velocity)
+    if m.type == "waypoints":
+        return M.Waypoints(m.points, m.speed, m.mode, pose.rotation, m.start_time)
+    if m.type == "keyframes":
+        return M.Keyframes([k.t for k in m.keyframes], tuple(k.pose.build() for k in m.keyframes))
+    return M.Oscillation(pose, m.amplitude, m.frequency, m.phase_deg, m.angular_amplitude)
+
+
+def scenario_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = None) -> Scenario:
+    """Validate and build a scenario from parsed YAML/JSON data."""
+    base_dir = base_dir or Path.cwd()
+    if not isinstance(data, dict):
+        raise ScenarioError(source, [("(top level)", type(data).__name__, "a mapping with objects, sensors, ...")])
+    try:
+        spec = ScenarioSpec.model_validate(data)
+    except ValidationError as err:
+        raise ScenarioError(source, _pydantic_problems(err)) from None
+    problems: list[tuple[str, Any, str]] = []
+    # User materials first (objects may use them); they shadow library names
+    # for this scenario only.
+    local_mats: dict[str, Material] = {}
+    for i, ms in enumerate(spec.materials):
+        try:
+            local_mats[ms.name] = _build_material(ms)
+        except ConfigError as e:
+            problems.append((f"materials[{i}].{e.field.split('.')[-1]}", e.value, e.allowed))
+    scene = Scene(name=spec.name)
+    for i, os_ in enumerate(spec.objects):
+        mat = local_mats.get(os_.material)
+        if mat is None:
+            if os_.material not in material_names():
+                problems.append((f"objects[{i}].material", os_.material,
+                                 "one of: " + ", ".join(sorted({*material_names(), *local_mats}))))
+                continue
+            mat = get_material(os_.material)
+        try:
+            geom = _build_geometry(os_.geometry, base_dir)
+            geom.mesh  # noqa: B018 - load now so a broken mesh is reported here
+            scene.add(SceneObject(os_.name, geom, mat, _build_motion(os_), frozenset(os_.layers)))
+        except ConfigError as e:
+            sub = "motion" if e.field.startswith("motion") else "geometry"
+            tail = e.field.split(".", 1)[-1]
+            problems.append((f"objects[{i}].{sub}.{tail}", e.value, e.allowed))
+        except GeometryError as e:
+            problems.append((f"objects[{i}].geometry", os_.geometry.model_dump().get("path", "?"), str(e)))
+    sensors = []
+    for i, ss in enumerate(spec.sensors):
+        if ss.mount.parent is not None and ss.mount.parent not in {o.name for o in spec.objects}:
+            problems.append((f"sensors[{i}].mount.parent", ss.mount.parent,
+                             "the name of an object in this scenario: " + ", ".join(o.name for o in spec.objects)))
+            continue
+        try:
+            from twinsense.presets import make_sensor
+
+            overrides = dict(ss.overrides)
+            if ss.frame_rate is not None:
+                overrides["frame_rate"] = ss.frame_rate
+            mount = Mount(ss.mount.pose.build(), ss.mount.parent)
+            sensors.append(make_sensor(ss.kind, ss.preset, name=ss.name, mount=mount, **overrides))
+        except ConfigError as e:
+            problems.append((f"sensors[{i}].{_sensor_field(e)}", e.value, e.allowed))
+        except TypeError as e:
+            problems.append((f"sensors[{i}].overrides", ss.overrides, str(e)))
+    if problems:
+        raise ScenarioError(source, problems)
+    return Scenario(spec.name, scene, sensors, spec.duration, spec.seed, spec.outputs, source, data)
+
+
+def _sensor_field(e: ConfigError) -> str:
+    """Map a sensor-side error field to the scenario's field path."""
+    if e.field == "sensor.kind":
+        return "kind"
+    if e.field.startswith("sensor.preset"):
+        return "preset"
+    last = e.field.split(".")[-1]
+    if last == "overrides" and isinstance(e.value, str):
+        return f"overrides.{e.value}"  # an unknown override key
+    if last == "frame_rate":
+        return "frame_rate"
+    return f"overrides.{last}"
+
+
+def load_scenario(path) -> Scenario:
+    """Read, validate and build a scenario YAML file."""
+    p = Path(path)
+    if not p.is_file():
+        raise ScenarioError(str(path), [("(file)", str(path), "an existing YAML file")])
+    try:
+        data = yaml.safe_load(p.read_text())
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else "?"
+        raise ScenarioError(str(p), [(f"(YAML syntax, {where})", getattr(exc, "problem", str(exc)),
+                                      "valid YAML")]) from None
+    return scenario_from_dict(data, source=str(p), base_dir=p.parent)
+

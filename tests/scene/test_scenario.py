@@ -1,0 +1,159 @@
+"""Scenario files: same scene as the Python API, and clear errors for bad input."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from twinsense import (
+    Box,
+    DepthCamera,
+    Material,
+    Mount,
+    Oscillation,
+    Plane,
+    Pose,
+    Scene,
+    ScenarioError,
+    Sphere,
+    Waypoints,
+    get_material,
+    load_scenario,
+)
+from twinsense.scene.scenario import scenario_from_dict
+
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "office_depth.yaml"
+
+
+def python_scene():
+    s = Scene(name="corridor")
+    paint = Material(**{**get_material("drywall").to_dict(), "name": "dark_paint", "nir_reflectance": 0.05})
+    s.add_object("back_wall", Plane((4.0, 3.0)), paint, pose=Pose.from_euler_deg((4, 0, 1.5), (0, -90, 0)))
+    s.add_object("floor", Plane((6.0, 4.0)), "concrete")
+    s.add_object("cart", Box((0.4, 0.3, 0.5)), "aluminium",
+                 motion=Waypoints([[2, -1, 0.25], [2, 1, 0.25]], 0.5, "back_and_forth",
+                                  Pose.from_euler_deg(rpy_deg=(0, 0, 15)).rotation),
+                 layers=["camera", "tof", "radar"])
+    s.add_object("ball", Sphere(0.2), "plastic", motion=Oscillation(Pose((3, 0.8, 1.0)), (0, 0, 0.1), 1.0))
+    return s
+
+
+def test_yaml_and_python_build_the_same_scene():
+    sc = load_scenario(EXAMPLE)
+    ref = python_scene()
+    assert sc.scene.to_dict() == ref.to_dict()
+    assert sc.scene.object("back_wall").material == ref.object("back_wall").material
+    cam = sc.sensors[0]
+    cam_py = DepthCamera.preset("generic", name="depth", width=64, height=48, frame_rate=10.0,
+                                mount=Mount(Pose.look_at((0, 0, 1.2), (4, 0, 0.8))))
+    for t in (0.0, 0.33):
+        a, b = cam.capture(sc.scene, t), cam_py.capture(ref, t)
+        np.testing.assert_array_equal(a.depth, b.depth)
+        np.testing.assert_array_equal(a.object_id, b.object_id)
+    assert sc.duration == 0.5 and sc.seed == 7
+
+
+def test_run_writes_recording(tmp_path):
+    from twinsense import open_recording
+
+    res = load_scenario(EXAMPLE).run(tmp_path)
+    with open_recording(res.path) as rec:
+        assert len(rec["depth"]) == 5 and rec["depth"]["depth"].shape == (5, 48, 64)
+        assert rec.scenario["name"] == "corridor"
+
+
+def base():
+    return yaml.safe_load(EXAMPLE.read_text())
+
+
+def errors_of(data, tmp_path=None):
+    with pytest.raises(ScenarioError) as info:
+        scenario_from_dict(data, source="test.yaml", base_dir=tmp_path or Path.cwd())
+    return str(info.value)
+
+
+def test_wrong_types_nan_and_negative_sizes():
+    d = base()
+    d["objects"][2]["motion"]["speed"] = "fast"
+    d["objects"][3]["geometry"]["radius"] = -0.2
+    d["objects"][0]["pose"]["position"][1] = float("nan")
+    d["duration"] = 0
+    msg = errors_of(d)
+    assert msg.startswith("test.yaml: 4 problems")
+    assert "objects[2].motion.speed = 'fast'" in msg and "valid number" in msg
+    assert "objects[3].geometry.radius = -0.2: Input should be greater than 0" in msg
+    assert "objects[0].pose.position[1] = nan: a finite number" in msg
+    assert "duration = 0" in msg
+
+
+def test_unknown_material_preset_kind_and_fields():
+    d = base()
+    d["objects"][1]["material"] = "concret"
+    d["sensors"][0]["preset"] = "kinect"
+    msg = errors_of(d)
+    assert "objects[1].material = 'concret': one of: " in msg and "concrete" in msg
+    assert "sensors[0].preset = 'kinect'" in msg and "generic" in msg
+    d = base()
+    d["sensors"][0]["kind"] = "sonar"
+    assert "sensors[0].kind = 'sonar'" in errors_of(d)
+    d = base()
+    d["objects"][0]["geometry"]["type"] = "torus"
+    assert "objects[0].geometry = " in errors_of(d) and "'box'" in errors_of(d)
+    d = base()
+    d["objects"][0]["colour"] = "red"
+    assert "objects[0].colour" in errors_of(d) and "unknown field" in errors_of(d)
+    d = base()
+    d["sensors"][0]["overrides"]["zoom"] = 2
+    assert "sensors[0].overrides.zoom" in errors_of(d)
+
+
+def test_missing_and_broken_mesh(tmp_path):
+    d = base()
+    d["objects"][2]["geometry"] = {"type": "mesh", "path": "cart.stl", "unit": "mm"}
+    msg = errors_of(d, tmp_path)
+    assert "objects[2].geometry = 'cart.stl'" in msg and "file not found" in msg
+    (tmp_path / "cart.stl").write_text("solid broken\n facet\nendsolid\n")
+    assert "cannot read" in errors_of(d, tmp_path) or "no triangles" in errors_of(d, tmp_path)
+    d["objects"][2]["geometry"]["unit"] = "inch"
+    assert "objects[2].geometry.unit = 'inch'" in errors_of(d, tmp_path)
+
+
+def test_mesh_in_millimetres_is_scaled(tmp_path):
+    import trimesh
+
+    trimesh.creation.box(extents=(400, 300, 500)).export(tmp_path / "cart.stl")
+    d = base()
+    d["objects"][2]["geometry"] = {"type": "mesh", "path": "cart.stl", "unit": "mm"}
+    sc = scenario_from_dict(d, base_dir=tmp_path)
+    np.testing.assert_allclose(sc.scene.object("cart").geometry.mesh.extents, [0.4, 0.3, 0.5])
+
+
+def test_file_level_errors(tmp_path):
+    with pytest.raises(ScenarioError, match="an existing YAML file"):
+        load_scenario(tmp_path / "none.yaml")
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("objects: [\n  - name: a\n")
+    with pytest.raises(ScenarioError, match=r"(?s)bad.yaml: .*YAML syntax, line"):
+        load_scenario(bad)
+    lst = tmp_path / "list.yaml"
+    lst.write_text("- 1\n- 2\n")
+    with pytest.raises(ScenarioError, match="a mapping"):
+        load_scenario(lst)
+
+
+def test_duplicate_names_and_bad_parent():
+    d = base()
+    d["objects"][1]["name"] = "back_wall"
+    assert "repeated: back_wall" in errors_of(d)
+    d = base()
+    d["sensors"][0]["mount"]["parent"] = "robot"
+    assert "sensors[0].mount.parent = 'robot'" in errors_of(d)
+
+
+def test_pose_forms():
+    d = base()
+    d["objects"][0]["pose"] = {"position": [1, 2, 3], "rpy_deg": [0, 0, 90], "quat_xyzw": [0, 0, 0, 1]}
+    assert "give one of rpy_deg, quat_xyzw" in errors_of(d)
+    d["objects"][0]["pose"] = {"matrix": np.eye(4).tolist()}
+    assert scenario_from_dict(d).scene.object("back_wall").pose_at(0).isclose(Pose())

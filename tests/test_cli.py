@@ -1,0 +1,55 @@
+"""The command line, run as a user would (console script in a subprocess)."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+EXE = Path(sys.executable).with_name("twinsense")
+
+
+def run(*args, cwd=None):
+    return subprocess.run([str(EXE), *args], capture_output=True, text=True, cwd=cwd, timeout=300)
+
+
+def test_info_lists_backend_and_extras():
+    r = run("info")
+    assert r.returncode == 0, r.stderr
+    assert "twinsense" in r.stdout and "ray casting: embree" in r.stdout and "gmsh" in r.stdout
+
+
+def test_validate_ok_and_errors(tmp_path):
+    r = run("validate", str(ROOT / "examples" / "office_depth.yaml"))
+    assert r.returncode == 0 and ": ok (4 objects, 1 sensors" in r.stdout
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("objects:\n  - name: a\n    geometry: {type: sphere, radius: -1}\n")
+    r = run("validate", str(bad))
+    assert r.returncode == 2
+    assert "objects[0].geometry.radius = -1" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_run_writes_recording(tmp_path):
+    r = run("run", str(ROOT / "examples" / "office_depth.yaml"), "-o", str(tmp_path), "--no-progress")
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "recording.h5").exists() and "depth: 5" in r.stdout
+
+
+def test_presets_and_demo_list():
+    r = run("presets")
+    assert r.returncode == 0 and "camera:" in r.stdout and "generic" in r.stdout
+    r = run("demo", "list")
+    assert r.returncode == 0 and "depth" in r.stdout
+
+
+def test_unknown_demo_is_a_clear_error(tmp_path):
+    r = run("demo", "nope", "-o", str(tmp_path))
+    assert r.returncode == 2 and "demo = 'nope'" in r.stderr and "Traceback" not in r.stderr
+
+
+@pytest.mark.parametrize("demo", ["depth"])
+def test_depth_demo(tmp_path, demo):
+    r = run("demo", demo, "-o", str(tmp_path), "--no-progress")
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "depth.png").stat().st_size > 10_000
