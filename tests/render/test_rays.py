@@ -26,7 +26,7 @@ def test_directions_project_back_to_subpixel_centres(cam, n):
 
 def test_supersample_groups_average_to_pixel_centre():
     cam = PinholeCamera(8, 6, 10.0, 10.0, 3.5, 2.5)
-    x, y = cam.pixel_normalised(2)
+    x, _ = cam.pixel_normalised(2)
     # The 2 x 2 sub-pixels of each pixel are symmetric about its centre (no distortion).
     xm = x.reshape(6, 2, 8, 2).mean(axis=(1, 3))
     x1, _ = cam.pixel_normalised(1)

@@ -40,7 +40,8 @@ def build_office_scene(detail: int = 0, person: bool = True) -> Scene:
     s.add_object("floor", Plane((L + 1, W)), "concrete", pose=Pose((L / 2 - 0.5, 0, 0)))
     s.add_object("ceiling", Plane((L + 1, W)), "drywall", pose=Pose.from_euler_deg((L / 2 - 0.5, 0, H), (180, 0, 0)))
     s.add_object("back_wall", Plane((H, W)), "drywall", pose=Pose.from_euler_deg((L, 0, H / 2), (0, -90, 0)))
-    s.add_object("left_wall", Plane((L + 1, H)), "drywall", pose=Pose.from_euler_deg((L / 2 - 0.5, W / 2, H / 2), (90, 0, 0)))
+    s.add_object("left_wall", Plane((L + 1, H)), "drywall",
+                 pose=Pose.from_euler_deg((L / 2 - 0.5, W / 2, H / 2), (90, 0, 0)))
     s.add_object("right_wall", Plane((L + 1, H)), "drywall",
                  pose=Pose.from_euler_deg((L / 2 - 0.5, -W / 2, H / 2), (-90, 0, 0)))
     # Desks: a top and four legs each.

@@ -13,6 +13,7 @@ answers ``intersect(origins, directions) -> (t, geom_id, prim_id)`` with
 
 from __future__ import annotations
 
+import itertools
 import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -117,7 +118,7 @@ class EmbreeIntersector(Intersector):
             # embreex releases the GIL while tracing, so threads scale.
             bounds = np.linspace(0, n, self.threads + 1).astype(int)
             parts = list(_pool(self.threads).map(
-                lambda ab: self._run(o32[ab[0]:ab[1]], d32[ab[0]:ab[1]]), zip(bounds[:-1], bounds[1:])))
+                lambda ab: self._run(o32[ab[0]:ab[1]], d32[ab[0]:ab[1]]), itertools.pairwise(bounds)))
             geom = np.concatenate([p["geomID"] for p in parts])
             prim = np.concatenate([p["primID"] for p in parts])
         else:

@@ -45,9 +45,14 @@ class SceneCaster:
         self._static_lut = np.array([-1, *self._static], dtype=np.int32)
         self._mat_lut = np.concatenate([[-1], self._mat]).astype(np.int32)
         self._moving_bvh = []
+        self._moving_centre = []
+        self._moving_radius = []
         for i in self._moving:
             m = objs[i].geometry.mesh
             self._moving_bvh.append(make_intersector(backend, [(m.vertices, np.asarray(m.faces))]))
+            c = 0.5 * (m.vertices.min(axis=0) + m.vertices.max(axis=0))
+            self._moving_centre.append(c)
+            self._moving_radius.append(float(np.linalg.norm(m.vertices - c, axis=1).max()) * (1 + 1e-9) + 1e-9)
 
     def cast(self, rays: Rays, t: float = 0.0) -> Hits:
         """Closest hits of ``rays`` (world frame) against the scene posed at time ``t`` [s]."""
@@ -70,12 +75,20 @@ class SceneCaster:
             rot, pos = st.pose.rotation, st.pose.position
             # Rays into the object's frame: x_local = R^T (x - p). A rigid
             # motion preserves lengths, so the local distance is the world one.
-            t_m, _, p, n_local = self._moving_bvh[k].intersect((o - pos) @ rot, d @ rot)
-            closer = t_m < dist  # inf < inf is False: misses never win
-            np.copyto(dist, t_m, where=closer)
-            np.copyto(obj, i, where=closer)
-            np.copyto(tri, p, where=closer)
-            np.copyto(normal, n_local @ rot.T, where=closer[:, None])
+            # Cull: only rays that pass through the object's bounding sphere
+            # before their current closest hit can hit it.
+            centre = pos + rot @ self._moving_centre[k]
+            sel = _rays_near_sphere(o, d, centre, self._moving_radius[k], dist)
+            if len(sel) == 0:
+                continue
+            os_ = o[sel] if o.strides[0] else o[:len(sel)]
+            t_m, _, p, n_local = self._moving_bvh[k].intersect((os_ - pos) @ rot, d[sel] @ rot)
+            win = t_m < dist[sel]  # inf < inf is False: misses never win
+            sel, t_m, p, n_local = sel[win], t_m[win], p[win], n_local[win]
+            dist[sel] = t_m
+            obj[sel] = i
+            tri[sel] = p
+            normal[sel] = n_local @ rot.T
         hit = obj >= 0
         point = o + d * np.where(hit, dist, np.nan)[:, None]
         # Turn normals towards the incoming ray; |cos| is the incidence cosine.
@@ -89,6 +102,16 @@ class SceneCaster:
                 velocity[sel] = st.point_velocity(point[sel])
         mat = self._mat_lut[obj + 1]
         return Hits(dist, point, normal, cos_inc, obj, mat, tri, velocity)
+
+
+def _rays_near_sphere(o: np.ndarray, d: np.ndarray, centre: np.ndarray, radius: float,
+                      t_max: np.ndarray) -> np.ndarray:
+    """Indices of rays (unit d) that enter the sphere before distance ``t_max``."""
+    w = centre - o if o.strides[0] else centre - o[0]
+    tca = w @ d.T if w.ndim == 1 else np.einsum("ij,ij->i", w, d)
+    w2 = w @ w if w.ndim == 1 else np.einsum("ij,ij->i", w, w)
+    d2 = w2 - tca * tca
+    return np.nonzero((d2 <= radius * radius) & (tca + radius > 0) & (tca - radius < t_max))[0]
 
 
 _CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()

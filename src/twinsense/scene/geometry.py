@@ -217,7 +217,7 @@ class TriangleMesh(Geometry):
         return _mesh_contains(m, p)
 
     def to_dict(self):
-        return {"type": "mesh", "name": self.name, "n_faces": int(len(self.faces))}
+        return {"type": "mesh", "name": self.name, "n_faces": len(self.faces)}
 
 
 def _mesh_contains(mesh: trimesh.Trimesh, points: np.ndarray) -> np.ndarray:
