@@ -1,4 +1,4 @@
-"""Command line: ``twinsense run | validate | presets | demo | info``.
+"""Command line: ``twinsense run | validate | presets | demo | sweep | info``.
 
 A thin layer over the Python API; every command has ``--help``.
 """
@@ -78,6 +78,37 @@ def demo(name: str = typer.Argument(..., help="demo name (see 'twinsense demo li
         _fail(exc)
     for key, path in files.items():
         typer.echo(f"{key}: {path}")
+
+
+@app.command()
+def sweep(scenario: Path = typer.Argument(..., help="scenario YAML file"),
+          param: list[str] = typer.Option(..., "-p", "--param",
+                                          help="FIELD=V1,V2,... (repeatable), e.g. seed=0,1,2"),
+          out: Path = typer.Option(Path("out/sweep"), "-o", "--out", help="output directory"),
+          backend: str = typer.Option("process", help="serial, process or ray"),
+          workers: int = typer.Option(None, help="local worker processes")) -> None:
+    """Run a scenario over a grid of parameter values (one recording per run)."""
+    import yaml
+
+    from twinsense.sweep import sweep as run_sweep
+
+    grid = {}
+    for item in param:
+        if "=" not in item:
+            _fail(ValueError(f"--param {item!r}: expected FIELD=V1,V2,..."))
+        key, values = item.split("=", 1)
+        grid[key.strip()] = [yaml.safe_load(v) for v in values.split(",")]
+    try:
+        results = run_sweep(scenario, grid, out, backend=backend, workers=workers)
+    except (TwinsenseError, ImportError) as exc:
+        _fail(exc)
+    ok = sum(r["status"] == "ok" for r in results)
+    typer.echo(f"{ok}/{len(results)} runs ok; manifest: {out / 'sweep.json'}")
+    for r in results:
+        if r["status"] != "ok":
+            typer.echo(f"  run {r['index']} {r['params']}: {r['error']}", err=True)
+    if ok < len(results):
+        raise typer.Exit(1)
 
 
 @app.command()
