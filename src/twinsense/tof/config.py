@@ -203,7 +203,7 @@ class ToFConfig:
         if self.fov_deg is not None:
             fov = V.vector(f"{p}.fov_deg", self.fov_deg, 2, "deg")
             for name, v in zip(("horizontal", "vertical"), fov):
-                V.number(f"{p}.fov_deg ({name})", v, lo=0, hi=170, lo_open=True, unit="deg")
+                V.number(f"{p}.fov_deg ({name})", float(v), lo=0, hi=170, lo_open=True, unit="deg")
             self._set("fov_deg", tuple(float(x) for x in fov))
         else:
             k = V.vector(f"{p}.intrinsics_px", self.intrinsics_px, 4, "px")
@@ -252,7 +252,7 @@ class ToFConfig:
         V.number(f"{p}.illumination_power", self.illumination_power, lo=0, unit="W")
         beam = V.vector(f"{p}.illumination_fwhm_deg", self.illumination_fwhm_deg, 2, "deg")
         for v in beam:
-            V.number(f"{p}.illumination_fwhm_deg", v, lo=1, hi=170, unit="deg")
+            V.number(f"{p}.illumination_fwhm_deg", float(v), lo=1, hi=170, unit="deg")
         self._set("illumination_fwhm_deg", tuple(float(x) for x in beam))
         V.number(f"{p}.wavelength", self.wavelength, lo=200e-9, hi=20e-6, unit="m")
 

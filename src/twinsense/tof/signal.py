@@ -131,7 +131,9 @@ def beam_profile(directions: np.ndarray, fwhm_deg: tuple[float, float]) -> np.nd
     d = np.asarray(directions, dtype=np.float64)
     tx = np.arctan2(d[..., 0], d[..., 2])
     ty = np.arctan2(d[..., 1], d[..., 2])
-    return _beam_shape(tx, ty, *fwhm_deg) / _beam_solid_angle(*fwhm_deg)
+    # The emitter (VCSEL behind a diffuser) lights the forward half-space only.
+    forward = d[..., 2] > 0
+    return np.where(forward, _beam_shape(tx, ty, *fwhm_deg), 0.0) / _beam_solid_angle(*fwhm_deg)
 
 
 class Radiometry:
