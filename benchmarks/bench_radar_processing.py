@@ -78,10 +78,10 @@ def main() -> None:
     stages = {
         "DC removal + range FFT (hann)": lambda: range_fft(remove_dc(cube), window="hann"),
         "Doppler FFT (hann)": lambda: doppler_fft(spec, window="hann"),
-        "2-D CA-CFAR (ring 90 cells)": lambda: cfar_2d(power, "ca"),
+        "2-D CA-CFAR (default ring, 132 cells)": lambda: cfar_2d(power, "ca"),
         "2-D GO-CFAR": lambda: cfar_2d(power, "go"),
-        "2-D OS-CFAR (rank filter)": lambda: cfar_2d(power, "os"),
-        "2-D OS-CFAR, small ring (1,1)/(2,4)": lambda: cfar_2d(power, "os", guard=(1, 1),
+        "2-D OS-CFAR (default ring, rank filter)": lambda: cfar_2d(power, "os"),
+        "2-D OS-CFAR, ring (1,1)/(2,4): 68 cells": lambda: cfar_2d(power, "os", guard=(1, 1),
                                                                 train=(2, 4)),
         "monopulse, 9 detections": lambda: estimate_direction_cosine(snaps, rx, LAM, "monopulse"),
     }

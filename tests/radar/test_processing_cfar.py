@@ -204,3 +204,21 @@ def test_bad_parameters_raise_config_errors():
         ProcessingSettings(pfa=2)
     with pytest.raises(ConfigError, match=r"ProcessingSettings.range_window = 'kaiser'"):
         ProcessingSettings(range_window="kaiser")
+
+
+@pytest.mark.parametrize("modes", [("wrap", "reflect"), ("reflect", "reflect"),
+                                   ("reflect", "wrap")])
+def test_os_2d_edge_modes_equal_an_explicitly_padded_brute_force(modes):
+    p = _noise((9, 20), 20)
+    (gd, gr), (td, tr) = (1, 1), (2, 3)
+    pd, pr = gd + td, gr + tr
+    res = cfar_2d(p, "os", guard=(gd, gr), train=(td, tr), pfa=PFA, rank=10, modes=modes)
+    # numpy's "reflect" (edge not repeated) and "wrap", one axis at a time.
+    xp = np.pad(p, ((pd, pd), (0, 0)), mode=modes[0])
+    xp = np.pad(xp, ((0, 0), (pr, pr)), mode=modes[1])
+    ring = np.ones((2 * pd + 1, 2 * pr + 1), dtype=bool)
+    ring[td: td + 2 * gd + 1, tr: tr + 2 * gr + 1] = False
+    for i in range(p.shape[0]):
+        for j in range(p.shape[1]):
+            window = xp[i: i + 2 * pd + 1, j: j + 2 * pr + 1][ring]
+            assert res.noise[i, j] == np.sort(window)[9]

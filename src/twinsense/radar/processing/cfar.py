@@ -233,14 +233,18 @@ def cfar_1d(power: np.ndarray, method: str = "ca", *, guard: int = 2, train: int
     k = _os_rank(rank, n) if method == "os" else None
     alpha = threshold_factor(method, pfa, n, k)
     pad = g + t
-    xp = _pad(p_last, [(0, 0)] * (p_last.ndim - 1) + [(pad, pad)],
-              ("reflect",) * (p_last.ndim - 1) + (mode,))
     if method == "os":
         footprint = np.ones(2 * pad + 1, dtype=bool)
         footprint[t: t + 2 * g + 1] = False
-        fp = footprint.reshape((1,) * (xp.ndim - 1) + (-1,))
-        noise = rank_filter(xp, k - 1, footprint=fp, mode="constant")[..., pad: pad + length]
+        fp = footprint.reshape((1,) * (p_last.ndim - 1) + (-1,))
+        # As in cfar_2d: a wrapped axis uses the filter's own "wrap" mode unpadded.
+        opad = 0 if mode == "wrap" else pad
+        xp = _pad(p_last, [(0, 0)] * (p_last.ndim - 1) + [(opad, opad)],
+                  ("reflect",) * (p_last.ndim - 1) + (mode,))
+        noise = rank_filter(xp, k - 1, footprint=fp, mode="wrap")[..., opad: opad + length]
     else:
+        xp = _pad(p_last, [(0, 0)] * (p_last.ndim - 1) + [(pad, pad)],
+                  ("reflect",) * (p_last.ndim - 1) + (mode,))
         lead = _box_sums_1d(xp, 0, t, length) / t
         lag = _box_sums_1d(xp, t + 2 * g + 1, t, length) / t
         noise = spec.combine(lead, lag)
@@ -286,15 +290,23 @@ def cfar_2d(power: np.ndarray, method: str = "ca", *, guard: tuple[int, int] = (
     n = 2 * tr * (2 * pd + 1) if method in ("go", "so") else ring
     k = _os_rank(rank, n) if method == "os" else None
     alpha = threshold_factor(method, pfa, n, k)
-    xp = _pad(p, [(0, 0)] * (p.ndim - 2) + [(pd, pd), (pr, pr)],
-              ("reflect",) * (p.ndim - 2) + tuple(modes))
     if method == "os":
         footprint = np.ones((2 * pd + 1, 2 * pr + 1), dtype=bool)
         footprint[td: td + 2 * gd + 1, tr: tr + 2 * gr + 1] = False
-        fp = footprint.reshape((1,) * (xp.ndim - 2) + footprint.shape)
-        noise = rank_filter(xp, k - 1, footprint=fp, mode="constant")
-        noise = noise[..., pd: pd + d_len, pr: pr + r_len]
+        fp = footprint.reshape((1,) * (p.ndim - 2) + footprint.shape)
+        # The rank filter's cost grows with the cells it visits, so a wrapped
+        # axis is not padded but left to the filter's own "wrap" mode; only
+        # reflected axes are padded (and cropped again). A padded axis never
+        # reaches the filter's edge handling for the cells that are kept.
+        dpad = 0 if modes[0] == "wrap" else pd
+        rpad = 0 if modes[1] == "wrap" else pr
+        xp = _pad(p, [(0, 0)] * (p.ndim - 2) + [(dpad, dpad), (rpad, rpad)],
+                  ("reflect",) * (p.ndim - 2) + tuple(modes))
+        noise = rank_filter(xp, k - 1, footprint=fp, mode="wrap")
+        noise = noise[..., dpad: dpad + d_len, rpad: rpad + r_len]
     else:
+        xp = _pad(p, [(0, 0)] * (p.ndim - 2) + [(pd, pd), (pr, pr)],
+                  ("reflect",) * (p.ndim - 2) + tuple(modes))
         sat = _sat(xp)
         out = (d_len, r_len)
         if method == "ca":
