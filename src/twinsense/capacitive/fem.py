@@ -122,8 +122,9 @@ class AssemblyPattern:
         vals = (weights[:, None, None] * local).ravel()
         return np.bincount(self.slots.ravel(), weights=vals, minlength=self.nnz)
 
-    def scatter_add(self, data: np.ndarray, cells: np.ndarray, local: np.ndarray,
-                    delta: np.ndarray) -> None:
+    def scatter_add(
+        self, data: np.ndarray, cells: np.ndarray, local: np.ndarray, delta: np.ndarray
+    ) -> None:
         """Add ``delta[i] * local[i]`` of elements ``cells`` to ``data`` in place."""
         if len(cells) == 0:
             return
@@ -237,7 +238,8 @@ def check_disjoint(sets: Sequence[np.ndarray], names: Sequence[str], field: str)
             k = owner.setdefault(node, i)
             if k != i:
                 raise ConfigError(
-                    f"{field}[{i}]", names[i],
+                    f"{field}[{i}]",
+                    names[i],
                     f"an electrode that neither overlaps nor touches {names[k]!r}",
                 )
 
@@ -267,10 +269,17 @@ class ElectrostaticSystem:
         Centre of the open-space condition [m] (default: mean of terminal nodes).
     """
 
-    def __init__(self, mesh: SimplexMesh, terminals: Sequence[np.ndarray], *,
-                 names: Sequence[str] | None = None, grounded: np.ndarray | None = None,
-                 permittivity: np.ndarray | None = None, outer_boundary: str = "open",
-                 center=None) -> None:
+    def __init__(
+        self,
+        mesh: SimplexMesh,
+        terminals: Sequence[np.ndarray],
+        *,
+        names: Sequence[str] | None = None,
+        grounded: np.ndarray | None = None,
+        permittivity: np.ndarray | None = None,
+        outer_boundary: str = "open",
+        center=None,
+    ) -> None:
         self.mesh = mesh
         n = mesh.n_nodes
         if len(terminals) == 0:
@@ -280,8 +289,11 @@ class ElectrostaticSystem:
         for i, t in enumerate(terminals):
             t = np.unique(np.asarray(t, dtype=np.int64))
             if len(t) == 0:
-                raise ConfigError(f"electrodes[{i}]", names[i],
-                                  "an electrode that covers at least one mesh node (inside the mesh)")
+                raise ConfigError(
+                    f"electrodes[{i}]",
+                    names[i],
+                    "an electrode that covers at least one mesh node (inside the mesh)",
+                )
             if t[0] < 0 or t[-1] >= n:
                 raise ConfigError(f"electrodes[{i}]", names[i], f"node indices in [0, {n})")
             terms.append(t)
@@ -347,8 +359,9 @@ class ElectrostaticSystem:
             self.eps_r[changed] = eps_r[changed]
         return changed
 
-    def set_conductors(self, grounded: np.ndarray | None = None,
-                       floating: Sequence[np.ndarray] = ()) -> None:
+    def set_conductors(
+        self, grounded: np.ndarray | None = None, floating: Sequence[np.ndarray] = ()
+    ) -> None:
         """Set the dynamic conductors (scene objects).
 
         Parameters
@@ -443,5 +456,6 @@ def _check_permittivity(eps: np.ndarray, m: int | None) -> None:
         raise ConfigError("permittivity", f"array of shape {eps.shape}", f"shape ({m},)")
     bad = ~(np.isfinite(eps) & (eps > 0))
     if np.any(bad):
-        raise ConfigError("permittivity", float(eps[bad][0]),
-                          "a finite relative permittivity > 0 for every cell")
+        raise ConfigError(
+            "permittivity", float(eps[bad][0]), "a finite relative permittivity > 0 for every cell"
+        )

@@ -64,7 +64,9 @@ class Electrode:
             raise ConfigError("Electrode.name", self.name, "a non-empty string")
         poly = v.array(f"{self.name}.polygon", self.polygon, (None, 2), "m")
         if len(poly) < 3:
-            raise ConfigError(f"{self.name}.polygon", self.polygon, "at least 3 vertices (k, 2) [m]")
+            raise ConfigError(
+                f"{self.name}.polygon", self.polygon, "at least 3 vertices (k, 2) [m]"
+            )
         if abs(_area(poly)) <= 0:
             raise ConfigError(f"{self.name}.polygon", self.polygon, "a polygon with non-zero area")
         poly.setflags(write=False)
@@ -123,8 +125,11 @@ class SolidElectrode:
         if not isinstance(self.name, str) or not self.name:
             raise ConfigError("SolidElectrode.name", self.name, "a non-empty string")
         if not callable(getattr(self.geometry, "contains", None)):
-            raise ConfigError(f"{self.name}.geometry", self.geometry,
-                              "a geometry with contains(points) (Box, Sphere, TriangleMesh, ...)")
+            raise ConfigError(
+                f"{self.name}.geometry",
+                self.geometry,
+                "a geometry with contains(points) (Box, Sphere, TriangleMesh, ...)",
+            )
         v.choice(f"{self.name}.role", self.role, ROLES)
 
     def contains(self, points: np.ndarray) -> np.ndarray:
@@ -138,7 +143,9 @@ class SolidElectrode:
         b = np.asarray(self.geometry.bounds, float)
         if self.pose is None:
             return b
-        corners = np.array([[b[i, 0], b[j, 1], b[k, 2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+        corners = np.array(
+            [[b[i, 0], b[j, 1], b[k, 2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)]
+        )
         c = self.pose.apply(corners)
         return np.vstack([c.min(axis=0), c.max(axis=0)])
 
@@ -170,12 +177,19 @@ class Substrate:
 
     def __post_init__(self) -> None:
         v.positive("Substrate.thickness", self.thickness, "m")
-        v.number("Substrate.permittivity", self.permittivity, lo=0.0, lo_open=True,
-                 unit="relative, vacuum = 1")
+        v.number(
+            "Substrate.permittivity",
+            self.permittivity,
+            lo=0.0,
+            lo_open=True,
+            unit="relative, vacuum = 1",
+        )
         if self.extent is not None:
             e = v.vector("Substrate.extent", self.extent, 4, "m")
             if not (e[1] > e[0] and e[3] > e[2]):
-                raise ConfigError("Substrate.extent", self.extent, "x_min < x_max and y_min < y_max")
+                raise ConfigError(
+                    "Substrate.extent", self.extent, "x_min < x_max and y_min < y_max"
+                )
             object.__setattr__(self, "extent", tuple(float(x) for x in e))
 
 
@@ -208,8 +222,11 @@ class Layout:
                 raise ConfigError(f"Layout.electrodes[{i}].name", e.name, "a name not used twice")
             names.add(e.name)
         if not any(e.role == "sense" for e in els):
-            raise ConfigError("Layout.electrodes", [e.name for e in els],
-                              "at least one electrode with role 'sense'")
+            raise ConfigError(
+                "Layout.electrodes",
+                [e.name for e in els],
+                "at least one electrode with role 'sense'",
+            )
         if self.substrate is not None and not isinstance(self.substrate, Substrate):
             raise ConfigError("Layout.substrate", self.substrate, "a Substrate or None")
         object.__setattr__(self, "electrodes", els)
@@ -260,8 +277,9 @@ def _area(poly: np.ndarray) -> float:
     return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
 
 
-def rectangle(name: str, x0: float, y0: float, x1: float, y1: float, z: float = 0.0,
-              role: str = "sense") -> Electrode:
+def rectangle(
+    name: str, x0: float, y0: float, x1: float, y1: float, z: float = 0.0, role: str = "sense"
+) -> Electrode:
     """An axis-aligned rectangular electrode [x0, x1] x [y0, y1] [m]."""
     if not (x1 > x0 and y1 > y0):
         raise ConfigError(f"{name}.rectangle", (x0, y0, x1, y1), "x0 < x1 and y0 < y1 [m]")
@@ -273,8 +291,9 @@ def polygon(name: str, points, z: float = 0.0, role: str = "sense") -> Electrode
     return Electrode(name, np.asarray(points, float), z, role)
 
 
-def stripes(n: int, width: float, length: float, pitch: float, *, axis: str = "y",
-            prefix: str = "s") -> tuple[Electrode, ...]:
+def stripes(
+    n: int, width: float, length: float, pitch: float, *, axis: str = "y", prefix: str = "s"
+) -> tuple[Electrode, ...]:
     """``n`` parallel stripes centred on the origin.
 
     Parameters
@@ -294,13 +313,19 @@ def stripes(n: int, width: float, length: float, pitch: float, *, axis: str = "y
     for i in range(n):
         c = (i - 0.5 * (n - 1)) * pitch
         if axis == "y":
-            out.append(rectangle(f"{prefix}{i}", c - width / 2, -length / 2, c + width / 2, length / 2))
+            out.append(
+                rectangle(f"{prefix}{i}", c - width / 2, -length / 2, c + width / 2, length / 2)
+            )
         else:
-            out.append(rectangle(f"{prefix}{i}", -length / 2, c - width / 2, length / 2, c + width / 2))
+            out.append(
+                rectangle(f"{prefix}{i}", -length / 2, c - width / 2, length / 2, c + width / 2)
+            )
     return tuple(out)
 
 
-def pad_grid(nx: int, ny: int, size: float, pitch: float, *, prefix: str = "p") -> tuple[Electrode, ...]:
+def pad_grid(
+    nx: int, ny: int, size: float, pitch: float, *, prefix: str = "p"
+) -> tuple[Electrode, ...]:
     """An ``nx`` by ``ny`` grid of square pads of side ``size`` at ``pitch`` [m], centred."""
     nx = v.integer("pad_grid.nx", nx, lo=1)
     ny = v.integer("pad_grid.ny", ny, lo=1)
@@ -311,13 +336,23 @@ def pad_grid(nx: int, ny: int, size: float, pitch: float, *, prefix: str = "p") 
         for i in range(nx):
             cx = (i - 0.5 * (nx - 1)) * pitch
             cy = (j - 0.5 * (ny - 1)) * pitch
-            out.append(rectangle(f"{prefix}{j}_{i}", cx - size / 2, cy - size / 2,
-                                 cx + size / 2, cy + size / 2))
+            out.append(
+                rectangle(
+                    f"{prefix}{j}_{i}", cx - size / 2, cy - size / 2, cx + size / 2, cy + size / 2
+                )
+            )
     return tuple(out)
 
 
-def interdigital(n_fingers: int, finger_width: float, finger_length: float, gap: float,
-                 bus_width: float | None = None, *, names=("tx", "rx")) -> tuple[Electrode, Electrode]:
+def interdigital(
+    n_fingers: int,
+    finger_width: float,
+    finger_length: float,
+    gap: float,
+    bus_width: float | None = None,
+    *,
+    names=("tx", "rx"),
+) -> tuple[Electrode, Electrode]:
     """Two interleaved combs (a mutual-capacitance Tx/Rx pair), centred.
 
     Fingers run along y; comb 0 has its bus at the bottom and ``n_fingers``
@@ -338,7 +373,9 @@ def interdigital(n_fingers: int, finger_width: float, finger_length: float, gap:
     for k in range(2):
         fingers = n if k == 0 else n - 1
         if fingers == 0:
-            raise ConfigError("interdigital.n_fingers", n_fingers, "an integer >= 2 (both combs need fingers)")
+            raise ConfigError(
+                "interdigital.n_fingers", n_fingers, "an integer >= 2 (both combs need fingers)"
+            )
         xs = [x0 + (w + g) * k + pitch * i for i in range(fingers)]
         if k == 0:
             yb0, yb1 = y_lo - b, y_lo  # bus below
@@ -370,8 +407,16 @@ def _dedupe(p: np.ndarray) -> np.ndarray:
     return p[keep]
 
 
-def ring(name: str, r_in: float, r_out: float, *, center=(0.0, 0.0), segments: int = 64,
-         z: float = 0.0, role: str = "sense") -> Electrode:
+def ring(
+    name: str,
+    r_in: float,
+    r_out: float,
+    *,
+    center=(0.0, 0.0),
+    segments: int = 64,
+    z: float = 0.0,
+    role: str = "sense",
+) -> Electrode:
     """An annulus r_in <= r <= r_out [m] (``r_in = 0`` gives a disk), as a polygon.
 
     The annulus is one polygon that runs out along the outer circle and back

@@ -18,6 +18,7 @@ which both neighbours agree on, so the tetrahedral mesh is conforming for any
 from __future__ import annotations
 
 import hashlib
+import itertools
 import os
 from dataclasses import dataclass
 from functools import cached_property
@@ -60,10 +61,14 @@ class SimplexMesh:
         points = np.ascontiguousarray(self.points, dtype=float)
         cells = np.ascontiguousarray(self.cells, dtype=np.int64)
         if points.ndim != 2 or points.shape[1] not in (2, 3):
-            raise ConfigError("SimplexMesh.points", f"array of shape {points.shape}", "(n, 2) or (n, 3)")
+            raise ConfigError(
+                "SimplexMesh.points", f"array of shape {points.shape}", "(n, 2) or (n, 3)"
+            )
         d = points.shape[1]
         if cells.ndim != 2 or cells.shape[1] != d + 1 or len(cells) == 0:
-            raise ConfigError("SimplexMesh.cells", f"array of shape {cells.shape}", f"(m, {d + 1}), m > 0")
+            raise ConfigError(
+                "SimplexMesh.cells", f"array of shape {cells.shape}", f"(m, {d + 1}), m > 0"
+            )
         points.setflags(write=False)
         cells.setflags(write=False)
         object.__setattr__(self, "points", points)
@@ -96,9 +101,7 @@ class SimplexMesh:
     def boundary_facets(self) -> np.ndarray:
         """(k, d) node indices of the facets that belong to exactly one cell."""
         d = self.dim
-        faces = np.concatenate(
-            [np.delete(self.cells, i, axis=1) for i in range(d + 1)], axis=0
-        )
+        faces = np.concatenate([np.delete(self.cells, i, axis=1) for i in range(d + 1)], axis=0)
         key = np.sort(faces, axis=1)
         _, first, counts = np.unique(key, axis=0, return_index=True, return_counts=True)
         return faces[first[counts == 1]]
@@ -136,8 +139,15 @@ def _oriented(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     return cells
 
 
-def graded_axis(lo: float, hi: float, features=(), h_min: float = 1e-3, h_max: float = 1e-2,
-                growth: float = 1.3, fine_intervals=()) -> np.ndarray:
+def graded_axis(
+    lo: float,
+    hi: float,
+    features=(),
+    h_min: float = 1e-3,
+    h_max: float = 1e-2,
+    growth: float = 1.3,
+    fine_intervals=(),
+) -> np.ndarray:
     """Grid coordinates on [lo, hi] that contain every feature and are graded away from them.
 
     The target spacing is ``min(h_max, h_min + (growth - 1) * distance)``, with
@@ -188,7 +198,7 @@ def graded_axis(lo: float, hi: float, features=(), h_min: float = 1e-3, h_max: f
         return np.minimum(h_max, h_min + (growth - 1.0) * dist)
 
     out = [np.array([breaks[0]])]
-    for a, b in zip(breaks[:-1], breaks[1:]):
+    for a, b in itertools.pairwise(breaks):
         xs = np.linspace(a, b, 2001)
         inv = 1.0 / spacing(xs)
         cum = np.concatenate([[0.0], np.cumsum(0.5 * (inv[1:] + inv[:-1]) * np.diff(xs))])
@@ -311,9 +321,7 @@ def extruded_mesh(points2d: np.ndarray, triangles: np.ndarray, z) -> SimplexMesh
     if z.ndim != 1 or len(z) < 2 or np.any(np.diff(z) <= 0):
         raise ConfigError("extruded_mesh.z", z, "at least 2 strictly increasing heights")
     n = len(points2d)
-    pts = np.column_stack(
-        [np.tile(points2d, (len(z), 1)), np.repeat(z, n)]
-    )
+    pts = np.column_stack([np.tile(points2d, (len(z), 1)), np.repeat(z, n)])
     tri = np.asarray(triangles, np.int64)
     layers = np.arange(len(z) - 1)[:, None, None] * n
     bottom = (tri[None, :, :] + layers).reshape(-1, 3)
@@ -344,7 +352,9 @@ def spherical_shell_mesh(radii, subdivisions: int = 2) -> SimplexMesh:
 
     r = np.asarray(radii, float)
     if r.ndim != 1 or len(r) < 2 or r[0] <= 0 or np.any(np.diff(r) <= 0):
-        raise ConfigError("spherical_shell_mesh.radii", r, "at least 2 strictly increasing radii > 0")
+        raise ConfigError(
+            "spherical_shell_mesh.radii", r, "at least 2 strictly increasing radii > 0"
+        )
     ico = trimesh.creation.icosphere(subdivisions=subdivisions, radius=1.0)
     v = np.asarray(ico.vertices, float)
     v /= np.linalg.norm(v, axis=1, keepdims=True)
@@ -452,13 +462,17 @@ class MeshSettings:
         for i, b in enumerate(self.refine):
             arr = v.vector(f"MeshSettings.refine[{i}]", b, 6, "m")
             if not (arr[1] > arr[0] and arr[3] > arr[2] and arr[5] > arr[4]):
-                raise ConfigError(f"MeshSettings.refine[{i}]", b, "a box with min < max on every axis")
+                raise ConfigError(
+                    f"MeshSettings.refine[{i}]", b, "a box with min < max on every axis"
+                )
             boxes.append(tuple(float(x) for x in arr))
         object.__setattr__(self, "refine", tuple(boxes))
         if self.region is not None:
             r = v.vector("MeshSettings.region", self.region, 6, "m")
             if not (r[1] > r[0] and r[3] > r[2] and r[5] > r[4]):
-                raise ConfigError("MeshSettings.region", self.region, "a box with min < max on every axis")
+                raise ConfigError(
+                    "MeshSettings.region", self.region, "a box with min < max on every axis"
+                )
             object.__setattr__(self, "region", tuple(float(x) for x in r))
 
 
@@ -496,8 +510,14 @@ def layout_axes(layout, settings: MeshSettings) -> tuple[np.ndarray, np.ndarray,
     if s.region is not None:
         region = s.region
     else:
-        region = (lb[0, 0] - s.margin, lb[1, 0] + s.margin, lb[0, 1] - s.margin,
-                  lb[1, 1] + s.margin, lb[0, 2] - s.depth, lb[1, 2] + s.height)
+        region = (
+            lb[0, 0] - s.margin,
+            lb[1, 0] + s.margin,
+            lb[0, 1] - s.margin,
+            lb[1, 1] + s.margin,
+            lb[0, 2] - s.depth,
+            lb[1, 2] + s.height,
+        )
     feats: list[list[float]] = [[], [], []]
     fine: list[list[tuple[float, float]]] = [[], [], []]
     for e in layout.electrodes:
@@ -535,7 +555,7 @@ def layout_axes(layout, settings: MeshSettings) -> tuple[np.ndarray, np.ndarray,
 
 def _cap_spacing(ax: np.ndarray, boxes, k: int, h: float) -> np.ndarray:
     out = [ax[0]]
-    for a, b in zip(ax[:-1], ax[1:]):
+    for a, b in itertools.pairwise(ax):
         inside = any(r[2 * k] < b and r[2 * k + 1] > a for r in boxes)
         n = int(np.ceil((b - a) / h - 1e-9)) if inside else 1
         out.extend(np.linspace(a, b, n + 1)[1:].tolist())
@@ -558,8 +578,11 @@ def mesh_layout(layout, settings: MeshSettings | None = None) -> LayoutMesh:
     for i, e in enumerate(layout.electrodes):
         b = e.bounds
         if np.any(b[0] < lo - 1e-12) or np.any(b[1] > hi + 1e-12):
-            raise ConfigError(f"Layout.electrodes[{i}]", e.name,
-                              f"an electrode inside the mesh region {tuple(np.round(region, 6))} [m]")
+            raise ConfigError(
+                f"Layout.electrodes[{i}]",
+                e.name,
+                f"an electrode inside the mesh region {tuple(np.round(region, 6))} [m]",
+            )
     key = "tensor-v1|" + "|".join(np.asarray(a).tobytes().hex() for a in (x, y, z))
     mesh = cached_mesh(key, lambda: tensor_tet_mesh(x, y, z), use_cache=s.use_cache)
     tol = 1e-6 * min(np.diff(x).min(), np.diff(y).min(), np.diff(z).min())
@@ -570,8 +593,11 @@ def mesh_layout(layout, settings: MeshSettings | None = None) -> LayoutMesh:
         else:
             nodes = e.nodes(mesh.points, mesh.cells, mesh.centroids)
         if len(nodes) == 0:
-            raise ConfigError(f"electrode {e.name!r}", e.name,
-                              "an electrode that covers at least one mesh node (refine h_min)")
+            raise ConfigError(
+                f"electrode {e.name!r}",
+                e.name,
+                "an electrode that covers at least one mesh node (refine h_min)",
+            )
         node_sets.append(nodes)
     check_disjoint(node_sets, [e.name for e in layout.electrodes], "Layout.electrodes")
     terminal = tuple(n for n, e in zip(node_sets, layout.electrodes) if e.role != "ground")

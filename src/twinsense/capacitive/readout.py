@@ -49,8 +49,9 @@ def _quantise(x: np.ndarray, lsb: float) -> np.ndarray:
     return x if lsb == 0 else np.round(x / lsb) * lsb
 
 
-def read_out(values: np.ndarray, baseline: np.ndarray, config: ReadoutConfig,
-             rng: np.random.Generator | None) -> tuple[np.ndarray, np.ndarray]:
+def read_out(
+    values: np.ndarray, baseline: np.ndarray, config: ReadoutConfig, rng: np.random.Generator | None
+) -> tuple[np.ndarray, np.ndarray]:
     """Measured channel values and their change against the baseline.
 
     Parameters

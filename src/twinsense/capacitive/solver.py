@@ -72,8 +72,9 @@ class SolveInfo:
     rebuilt: bool
 
 
-def block_pcg(A: sp.csr_matrix, B: np.ndarray, X0: np.ndarray, precond, rtol: float,
-              maxiter: int) -> tuple[np.ndarray, np.ndarray]:
+def block_pcg(
+    A: sp.csr_matrix, B: np.ndarray, X0: np.ndarray, precond, rtol: float, maxiter: int
+) -> tuple[np.ndarray, np.ndarray]:
     """Independent PCG on every column of ``A X = B``, products done together.
 
     Parameters
@@ -142,7 +143,9 @@ class PCGSolver:
         """Rebuild the preconditioner at the next solve."""
         self._ml = None
 
-    def solve(self, A: sp.csr_matrix, B: np.ndarray, X0: np.ndarray) -> tuple[np.ndarray, SolveInfo]:
+    def solve(
+        self, A: sp.csr_matrix, B: np.ndarray, X0: np.ndarray
+    ) -> tuple[np.ndarray, SolveInfo]:
         """Solve ``A X = B`` column by column from ``X0``.
 
         Parameters
@@ -198,7 +201,10 @@ class BlockAMG:
         import scipy.linalg as sla
 
         ml = pyamg.smoothed_aggregation_solver(
-            A, symmetry="hermitian", strength=("symmetric", {"theta": theta}), max_coarse=300,
+            A,
+            symmetry="hermitian",
+            strength=("symmetric", {"theta": theta}),
+            max_coarse=300,
         )
         self.A = [lvl.A.tocsr() for lvl in ml.levels]
         self.P = [lvl.P.tocsr() for lvl in ml.levels[:-1]]
@@ -206,8 +212,9 @@ class BlockAMG:
         self.steps = steps
         self.theta = theta
         self.scaled_dinv = [self._jacobi(a) for a in self.A[:-1]]
-        self._omega0 = (self.scaled_dinv[0][:, 0] * self.A[0].diagonal()
-                        if self.scaled_dinv else None)
+        self._omega0 = (
+            self.scaled_dinv[0][:, 0] * self.A[0].diagonal() if self.scaled_dinv else None
+        )
         coarse = self.A[-1].toarray()
         # The coarsest operator is SPD up to round-off; a tiny shift keeps Cholesky happy.
         coarse += 1e-14 * np.trace(coarse) / len(coarse) * np.eye(len(coarse))

@@ -1,0 +1,37 @@
+"""Capacitive proximity sensors: electrode layouts, FEM electrostatics, readout.
+
+See PHYSICS.md section 3. The pipeline: :mod:`layouts` (electrodes) ->
+:mod:`mesh` (static tetrahedral mesh) -> :mod:`coupling` (scene objects to
+per-cell material) -> :mod:`fem` (P1 stiffness, conductors, boundary) ->
+:mod:`solver` (warm-started AMG-PCG, Maxwell matrix) -> :mod:`readout`;
+:class:`CapacitiveSensor` ties them together.
+"""
+
+from twinsense.capacitive.coupling import Inclusion, MaterialMap, map_inclusions
+from twinsense.capacitive.fem import EPS0, ElectrostaticSystem
+from twinsense.capacitive.layouts import (
+    Electrode,
+    Layout,
+    SolidElectrode,
+    Substrate,
+    backplane,
+    interdigital,
+    pad_grid,
+    polygon,
+    rectangle,
+    ring,
+    stripes,
+)
+from twinsense.capacitive.mesh import MeshSettings, SimplexMesh, mesh_layout
+from twinsense.capacitive.presets import make_capacitive
+from twinsense.capacitive.readout import ReadoutConfig
+from twinsense.capacitive.sensor import CapacitiveConfig, CapacitiveFrame, CapacitiveSensor
+from twinsense.capacitive.solver import MaxwellResult, MaxwellSolver, SolverConfig
+
+__all__ = [
+    "EPS0", "CapacitiveConfig", "CapacitiveFrame", "CapacitiveSensor", "Electrode",
+    "ElectrostaticSystem", "Inclusion", "Layout", "MaterialMap", "MaxwellResult",
+    "MaxwellSolver", "MeshSettings", "ReadoutConfig", "SimplexMesh", "SolidElectrode",
+    "SolverConfig", "Substrate", "backplane", "interdigital", "make_capacitive",
+    "map_inclusions", "mesh_layout", "pad_grid", "polygon", "rectangle", "ring", "stripes",
+]

@@ -1,0 +1,90 @@
+"""Named capacitive sensor presets.
+
+``printer-bed``: six stripe electrodes (10 mm by 200 mm at 30 mm pitch) on a
+1.6 mm FR-4 sheet on a 3-D printer's build plate, the CapSense Fig. 10
+set-up in shape (the paper's exact stripe dimensions are not published in
+the text we follow; these are of the same order).
+``pad-grid``: a 3 by 2 grid of 20 mm pads at 30 mm pitch on FR-4 over a
+ground plane, self-capacitance mode.
+``interdigital``: one Tx/Rx comb pair (5 fingers, 2 mm wide, 30 mm long,
+2 mm gaps) in mutual mode.
+"""
+
+from __future__ import annotations
+
+from dataclasses import fields
+from typing import Any
+
+from twinsense.capacitive import layouts as L
+from twinsense.capacitive.mesh import MeshSettings
+from twinsense.capacitive.sensor import CapacitiveConfig, CapacitiveSensor
+from twinsense.errors import UnknownNameError
+
+__all__ = ["PRESETS", "make_capacitive"]
+
+
+def _printer_bed() -> CapacitiveConfig:
+    layout = L.Layout(
+        L.stripes(6, 0.010, 0.200, 0.030),
+        L.Substrate(1.6e-3, 4.4, extent=(-0.11, 0.11, -0.11, 0.11)),
+        name="printer-bed",
+    )
+    mesh = MeshSettings(margin=0.02, height=0.06, depth=0.01, h_min=2.5e-3, h_max=0.012,
+                        growth=1.35)
+    return CapacitiveConfig(layout, mesh)
+
+
+def _pad_grid() -> CapacitiveConfig:
+    pads = L.pad_grid(3, 2, 0.020, 0.030)
+    layout = L.Layout(
+        (*pads, L.backplane("gnd", (-0.06, 0.06, -0.045, 0.045), z=-1.6e-3, role="ground")),
+        L.Substrate(1.6e-3, 4.4, extent=(-0.06, 0.06, -0.045, 0.045)),
+        name="pad-grid",
+    )
+    mesh = MeshSettings(margin=0.02, height=0.05, depth=0.01, h_min=2e-3, h_max=0.01)
+    return CapacitiveConfig(layout, mesh)
+
+
+def _interdigital() -> CapacitiveConfig:
+    tx, rx = L.interdigital(5, 0.002, 0.030, 0.002)
+    layout = L.Layout((tx, rx), L.Substrate(1.6e-3, 4.4, extent=(-0.03, 0.03, -0.03, 0.03)),
+                      name="interdigital")
+    mesh = MeshSettings(margin=0.015, height=0.04, depth=0.01, h_min=1e-3, h_max=0.01)
+    return CapacitiveConfig(layout, mesh, mode="mutual")
+
+
+PRESETS = {
+    "printer-bed": (_printer_bed, "6 stripes on a 3-D printer build plate (CapSense Fig. 10)"),
+    "pad-grid": (_pad_grid, "3x2 pads over a ground plane, self-capacitance"),
+    "interdigital": (_interdigital, "Tx/Rx interdigital comb, mutual capacitance"),
+}
+
+
+def make_capacitive(preset: str, /, **overrides: Any) -> CapacitiveSensor:
+    """A CapacitiveSensor from ``preset``; ``overrides`` take ``name``, ``mount``
+    and any CapacitiveConfig field."""
+    if preset not in PRESETS:
+        raise UnknownNameError("capacitive preset", preset, list(PRESETS))
+    config = PRESETS[preset][0]()
+    sensor_kw = {k: overrides.pop(k) for k in ("name", "mount") if k in overrides}
+    valid = {f.name for f in fields(CapacitiveConfig)}
+    for key in overrides:
+        if key not in valid:
+            raise UnknownNameError("capacitive preset override", key, sorted(valid | {"name", "mount"}))
+    if overrides:
+        kw = {f.name: getattr(config, f.name) for f in fields(CapacitiveConfig)}
+        kw.update(overrides)
+        config = CapacitiveConfig(**kw)
+    sensor_kw.setdefault("name", preset)
+    return CapacitiveSensor(config, **sensor_kw)
+
+
+def _register() -> None:
+    from twinsense.presets import register_preset
+
+    for preset, (_, description) in PRESETS.items():
+        register_preset("capacitive", preset,
+                        lambda _p=preset, **kw: make_capacitive(_p, **kw), description)
+
+
+_register()
