@@ -30,7 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from twinsense.capacitive.mesh import SimplexMesh
-from twinsense.errors import ConfigError
+from twinsense.errors import ConfigError, UnknownNameError
 
 __all__ = [
     "EPS0",
@@ -226,7 +226,7 @@ def reduce_floating(c_full: np.ndarray, n_driven: int) -> np.ndarray:
 def check_outer(value: str) -> str:
     """Validate an outer boundary name."""
     if value not in OUTER_BOUNDARIES:
-        raise ConfigError("outer_boundary", value, "one of: " + ", ".join(OUTER_BOUNDARIES))
+        raise UnknownNameError("outer_boundary", value, list(OUTER_BOUNDARIES))
     return value
 
 
