@@ -312,3 +312,18 @@ def test_fast_caster_agrees_with_shared_renderer(look_x):
     np.testing.assert_allclose(fast.cos_incidence[hit], ref.cos_incidence[hit], atol=1e-5)
     np.testing.assert_allclose(fast.normal[hit], ref.normal[hit], atol=1e-5)
     assert np.all(np.isinf(fast.distance[~hit]))
+
+
+def test_render_workers_give_the_same_frames(look_x):
+    """Tracing part of the rays in a worker process changes nothing in the output."""
+    scene = _saturation_scene()
+    scene.add_object("mover", Box((0.3, 0.3, 0.3)), "wood",
+                     motion=ConstantVelocity(Pose(position=(1.2, 0.4, 0.1)), (0, -1.0, 0)))
+    kw = dict(mount=look_x, width=40, height=30)
+    serial = ToFCamera.preset("generic", **kw)
+    parallel = ToFCamera.preset("generic", render_workers=1, **kw)
+    for t in (0.0, 0.2):
+        a = serial.capture(scene, t, np.random.default_rng(3))
+        b = parallel.capture(scene, t, np.random.default_rng(3))
+        for name, arr in a.streams().items():
+            np.testing.assert_array_equal(arr, b.streams()[name], err_msg=name)

@@ -83,3 +83,14 @@ def test_replaced_validates():
         cfg.replaced(supersample=99)
     with pytest.raises(UnknownNameError):
         cfg.replaced(bogus=1)
+
+
+def test_presets_are_registered_for_scenarios():
+    from twinsense.presets import list_presets, make_sensor
+
+    names = list_presets("tof")["tof"]
+    assert set(names) == {"pmd_pico_flexx", "paper_pico_flexx", "generic"}
+    cam = make_sensor("tof", "pmd_pico_flexx", name="front", mode="MODE_5_45FPS_500", frame_rate=30.0)
+    assert isinstance(cam, ToFCamera)
+    assert cam.name == "front" and cam.frame_rate == 30.0
+    assert cam.config.modulation_frequencies == (60.24e6,)

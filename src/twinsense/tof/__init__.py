@@ -7,3 +7,19 @@ from twinsense.tof.presets import PICO_FLEXX_MODES, TOF_PRESETS, tof_preset
 
 __all__ = ["PICO_FLEXX_MODES", "TOF_PRESETS", "InvalidReason", "ToFCamera", "ToFConfig", "ToFFrame",
            "capture_sequence", "tof_preset"]
+
+_DESCRIPTIONS = {
+    "pmd_pico_flexx": "pmd CamBoard pico flexx: 224 x 171, calibrated lens, Royale modes (mode=...)",
+    "paper_pico_flexx": "seed paper's pico flexx: 224 x 171, 72 x 45 deg, 20 MHz, 7.5 m",
+    "generic": "plain AMCW ToF camera, 62 x 45 deg, 80.32 + 60.24 MHz",
+}
+
+
+def _register() -> None:
+    from twinsense.presets import register_preset
+
+    for name in TOF_PRESETS:
+        register_preset("tof", name, lambda _p=name, **kw: ToFCamera.preset(_p, **kw), _DESCRIPTIONS[name])
+
+
+_register()

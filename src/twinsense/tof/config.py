@@ -146,7 +146,7 @@ class ToFConfig:
     intrinsics_px: tuple[float, float, float, float] | None = None
     distortion: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
     supersample: int = 2
-    f_number: float = 1.2
+    f_number: float = 1.0
     lens_transmission: float = 0.9
     # modulation and timing
     modulation_frequencies: tuple[float, ...] = (80.32e6, 60.24e6)
@@ -160,8 +160,8 @@ class ToFConfig:
     wavelength: float = 850e-9
     # pixel and read-out
     pixel_pitch: float = 17.5e-6
-    fill_factor: float = 0.6
-    quantum_efficiency: float = 0.3
+    fill_factor: float = 0.8
+    quantum_efficiency: float = 0.35
     demodulation_contrast: float = 0.75
     full_well: float = 100_000.0
     read_noise: float = 20.0

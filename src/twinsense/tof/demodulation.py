@@ -66,12 +66,13 @@ def unwrap_weights(frequencies: tuple[float, ...]) -> np.ndarray:
 def unwrap_two_frequencies(d1: np.ndarray, d2: np.ndarray, f1: float, f2: float) -> np.ndarray:
     """Joint unwrapping of two wrapped distances [m] to the range c / (2 gcd(f1, f2)).
 
-    For each of the k1 = f1/g candidate wrap counts n1 of the first
-    frequency, the second frequency's nearest wrap count gives a residual;
-    the candidate with the smallest residual wins, and the two unwrapped
-    distances are averaged with :func:`unwrap_weights`. A wrong candidate has
-    a residual of at least c / (2 g k1 k2), so the choice is right while the
-    distance noise stays below half that (0.31 m for 80.32 + 60.24 MHz).
+    With f_i = k_i g and R = c / (2 g), the true distance is d = d1 + n1 R/k1
+    = d2 + n2 R/k2, so m = k2 n1 - k1 n2 = round(k1 k2 (d2 - d1) / R) is an
+    integer, and n1 follows from m by the Chinese remainder theorem
+    (n1 = m k2^-1 mod k1). The two unwrapped distances are then averaged with
+    :func:`unwrap_weights`. Rounding picks the right m while the distance
+    errors stay below R / (2 k1 k2) (0.31 m for 80.32 + 60.24 MHz); the
+    result equals testing all k1 wrap counts and keeping the most consistent.
 
     Parameters
     ----------
@@ -83,25 +84,22 @@ def unwrap_two_frequencies(d1: np.ndarray, d2: np.ndarray, f1: float, f2: float)
     (...,) float32 in [0, c / (2 g)) [m].
     """
     g = _gcd_hz(f1, f2)
-    k1 = round(f1) // g
-    r1 = np.float32(C_LIGHT / (2.0 * f1))
-    r2 = np.float32(C_LIGHT / (2.0 * f2))
-    rng = np.float32(C_LIGHT / (2.0 * g))
+    k1, k2 = round(f1) // g, round(f2) // g
+    rng = C_LIGHT / (2.0 * g)
+    r1, r2 = np.float32(rng / k1), np.float32(rng / k2)
     w2 = np.float32(unwrap_weights((f1, f2))[1])
     d1 = np.asarray(d1, dtype=np.float32)
     d2 = np.asarray(d2, dtype=np.float32)
-    best_err = np.full(d1.shape, np.inf, dtype=np.float32)
-    best_x = np.zeros(d1.shape, dtype=np.float32)
-    for n1 in range(k1):
-        x1 = d1 + np.float32(n1) * r1
-        err = x1 - d2
-        err -= np.rint(err / r2) * r2  # residual to the nearest wrap of frequency 2
-        better = np.abs(err) < np.abs(best_err)
-        best_err[better] = err[better]
-        best_x[better] = x1[better]
-    # x2 = x1 - err; weighted mean w1 x1 + w2 x2 = x1 - w2 err.
-    d = best_x - w2 * best_err
-    return np.mod(d, rng).astype(np.float32)
+    m = np.rint((d2 - d1) * np.float32(k1 * k2 / rng))
+    inv = pow(k2, -1, k1) if k1 > 1 else 0
+    table = np.array([(r * inv) % k1 for r in range(k1)], dtype=np.float32)
+    n1 = table[np.mod(m, k1).astype(np.intp)]
+    n2 = (k2 * n1 - m) / np.float32(k1)
+    x1 = d1 + n1 * r1
+    x2 = d2 + n2 * r2
+    # Weighted mean w1 x1 + w2 x2 = x1 + w2 (x2 - x1).
+    d = x1 + w2 * (x2 - x1)
+    return np.mod(d, np.float32(rng)).astype(np.float32)
 
 
 def radial_distance(phase: np.ndarray, config: ToFConfig) -> np.ndarray:

@@ -62,7 +62,7 @@ class Digitized:
 
 
 def digitize(correlation: np.ndarray, tap_sum: np.ndarray, config: ToFConfig,
-             rng: np.random.Generator | None) -> Digitized:
+             normals: np.ndarray | None) -> Digitized:
     """Noise, ADC quantisation and saturation of the correlation samples.
 
     Noise (``config.noise``): the tap electrons are Poisson (signal, ambient
@@ -84,8 +84,9 @@ def digitize(correlation: np.ndarray, tap_sum: np.ndarray, config: ToFConfig,
     tap_sum : (F or 1, 4 or 1, H, W) float32
         Expected electrons of both taps S [e-] (broadcast against ``correlation``).
     config : ToFConfig
-    rng : numpy.random.Generator or None
-        Required when ``config.noise`` is on.
+    normals : (F, 4, H, W) float32 or None
+        Standard normal draws for the noise (required when ``config.noise`` is
+        on; see :func:`twinsense.tof.pipeline.draw_noise`). Overwritten.
 
     Returns
     -------
@@ -93,42 +94,57 @@ def digitize(correlation: np.ndarray, tap_sum: np.ndarray, config: ToFConfig,
     """
     cfg = config
     d = correlation
-    s = np.broadcast_to(tap_sum, d.shape)
+    s = tap_sum
     if cfg.noise:
-        if rng is None:
-            raise ValueError("a numpy.random.Generator is needed when ToFConfig.noise is on")
-        z = rng.standard_normal(d.shape, dtype=np.float32)
+        if normals is None or normals.shape != d.shape:
+            raise ValueError("standard normal draws of the raw frames' shape are needed when "
+                             "ToFConfig.noise is on")
+        # sigma depends on S only, so it is computed on S's (possibly broadcast) shape.
         sigma = np.sqrt(np.maximum(s, 0.0) + np.float32(2.0 * cfg.read_noise ** 2))
-        d = d + sigma * z
-    half = np.abs(d) * np.float32(0.5)
-    tap_max = s * np.float32(0.5) + half
-    saturated = np.any(tap_max > np.float32(cfg.full_well), axis=(0, 1))
-    code = d * np.float32(1.0 / cfg.electrons_per_dn)
-    code += np.float32(cfg.adc_offset_dn)
-    top = float(2 ** cfg.adc_bits - 1)
+        normals *= sigma
+        normals += d
+        d = normals
+    e = np.float32(cfg.electrons_per_dn)
+    off = np.float32(cfg.adc_offset_dn)
+    lo, hi = cfg.raw_valid_range_dn
+    # max(A, B) = (S + |D|) / 2 > full well  <=>  |D| > 2 FW - S; the raw window bounds D too.
+    well = np.float32(2.0 * cfg.full_well) - s
+    upper = np.minimum(well, np.float32((hi - cfg.adc_offset_dn) * cfg.electrons_per_dn))
+    lower = np.maximum(-well, np.float32((lo - cfg.adc_offset_dn) * cfg.electrons_per_dn))
+    bad = (d > upper) | (d < lower)
+    f, k = bad.shape[:2]
+    saturated = np.logical_or.reduce(bad.reshape(f * k, -1), axis=0).reshape(bad.shape[2:])
+    code = d * (np.float32(1.0) / e)
+    code += off
     if cfg.quantization:
         np.rint(code, out=code)
-    np.clip(code, 0.0, top, out=code)
-    lo, hi = cfg.raw_valid_range_dn
-    saturated |= np.any((code < lo) | (code > hi), axis=(0, 1))
+        # Quantisation can carry a value just inside the window onto its edge value: the
+        # device compares the digital value.
+        saturated |= np.logical_or.reduce(((code < lo) | (code > hi)).reshape(f * k, -1), axis=0
+                                          ).reshape(bad.shape[2:])
+    np.clip(code, 0.0, float(2 ** cfg.adc_bits - 1), out=code)
     raw = code.astype(np.uint16) if cfg.quantization else code
-    return Digitized(raw, code - np.float32(cfg.adc_offset_dn), saturated)
+    code -= off
+    return Digitized(raw, code, saturated)
 
 
-def gray_value(tap_sum: np.ndarray, config: ToFConfig, rng: np.random.Generator | None) -> np.ndarray:
+def gray_value(tap_sum: np.ndarray, config: ToFConfig, normals: np.ndarray | None) -> np.ndarray:
     """Gray-value image: mean tap electrons of the intensity frame in DN, (H, W) uint16.
 
     Parameters
     ----------
     tap_sum : (H, W) float32
         Expected electrons of both taps [e-].
+    normals : (H, W) float32 or None
+        Standard normal draws (required when ``config.noise`` is on).
     """
     cfg = config
     s = tap_sum
     if cfg.noise:
-        if rng is None:
-            raise ValueError("a numpy.random.Generator is needed when ToFConfig.noise is on")
+        if normals is None or normals.shape != s.shape:
+            raise ValueError("standard normal draws of the image's shape are needed when "
+                             "ToFConfig.noise is on")
         sigma = np.sqrt(np.maximum(s, 0.0) + np.float32(2.0 * cfg.read_noise ** 2))
-        s = s + sigma * rng.standard_normal(s.shape, dtype=np.float32)
+        s = s + sigma * normals
     code = np.clip(np.rint(s * np.float32(0.5 / cfg.electrons_per_dn)), 0, 2 ** cfg.adc_bits - 1)
     return code.astype(np.uint16)

@@ -77,18 +77,32 @@ class ToFRayCaster:
         self.version = scene.version
         objs = scene.objects
         visible = scene.visible(kind)
-        self._static = np.array([i for i in visible if objs[i].is_static], dtype=np.int32)
+        static = [i for i in visible if objs[i].is_static]
         self._moving = [i for i in visible if not objs[i].is_static]
+        # geomID -> object index; the extra trailing -1 maps Embree's miss id (-1) to -1.
+        self._static_lookup = np.array([*static, -1], dtype=np.int32)
         meshes = []
-        for i in self._static:
+        for i in static:
             m = objs[i].geometry.mesh
             meshes.append((objs[i].pose_at(0.0).apply(m.vertices), m.faces))
         self._static_scene = _embree_scene(meshes) if meshes else None
         self._moving_scenes = []
+        self._moving_spheres = []
         for i in self._moving:
             m = objs[i].geometry.mesh
             self._moving_scenes.append(_embree_scene([(m.vertices, m.faces)]))
+            centre = 0.5 * (m.vertices.min(axis=0) + m.vertices.max(axis=0))
+            radius = float(np.max(np.linalg.norm(m.vertices - centre, axis=1))) * (1 + 1e-6) + 1e-6
+            self._moving_spheres.append((centre, radius))
         self.n_triangles = sum(len(o.geometry.mesh.faces) for o in objs)
+        self._origins: np.ndarray | None = None
+
+    def _common_origins(self, origin, n: int) -> np.ndarray:
+        o = np.asarray(origin, dtype=np.float32)
+        if self._origins is None or len(self._origins) != n or not np.array_equal(self._origins[0], o):
+            self._origins = np.empty((n, 3), np.float32)
+            self._origins[:] = o
+        return self._origins
 
     def cast(self, origin: np.ndarray, directions: np.ndarray, t: float = 0.0,
              normals: bool = False, origins: np.ndarray | None = None) -> RayHits:
@@ -108,41 +122,49 @@ class ToFRayCaster:
         d32 = np.ascontiguousarray(directions, dtype=np.float32)
         n = len(d32)
         if origins is None:
-            o32 = np.empty((n, 3), np.float32)
-            o32[:] = np.asarray(origin, dtype=np.float32)
+            o32 = self._common_origins(origin, n)
         else:
             o32 = np.ascontiguousarray(origins, dtype=np.float32)
-        dist = np.full(n, np.inf, np.float32)
-        obj = np.full(n, -1, np.int32)
-        ng = np.zeros((n, 3), np.float32)
         if self._static_scene is not None:
             r = self._static_scene[0].run(o32, d32, output=1)
-            hit = r["geomID"] >= 0
-            dist[hit] = r["tfar"][hit]
-            obj[hit] = self._static[r["geomID"][hit]]
-            ng[hit] = r["Ng"][hit]
+            geom = r["geomID"]
+            obj = self._static_lookup[geom]
+            dist = r["tfar"]
+            dist[geom < 0] = np.inf
+            ng = r["Ng"]
+        else:
+            obj = np.full(n, -1, np.int32)
+            dist = np.full(n, np.inf, np.float32)
+            ng = np.zeros((n, 3), np.float32)
         for k, i in enumerate(self._moving):
             pose = self.scene.objects[i].pose_at(t)
+            centre, radius = self._moving_spheres[k]
+            sel = _rays_near_sphere(o32, d32, pose.apply(centre[None])[0], radius, dist)
+            if len(sel) == 0:
+                continue
             rot = pose.rotation.astype(np.float32)
             # Rays into the object's frame: x_local = R^T (x - p); distances are unchanged.
-            ol = np.ascontiguousarray((o32 - pose.position.astype(np.float32)) @ rot)
-            dl = np.ascontiguousarray(d32 @ rot)
+            ol = np.ascontiguousarray((o32[sel] - pose.position.astype(np.float32)) @ rot)
+            dl = np.ascontiguousarray(d32[sel] @ rot)
             r = self._moving_scenes[k][0].run(ol, dl, output=1)
-            closer = (r["geomID"] >= 0) & (r["tfar"] < dist)
-            dist[closer] = r["tfar"][closer]
-            obj[closer] = i
-            ng[closer] = r["Ng"][closer] @ rot.T
-        # Embree's geometric normal is not normalised.
-        norm = np.sqrt(np.einsum("ij,ij->i", ng, ng))
-        dn = np.einsum("ij,ij->i", ng, d32)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            cos = np.where(norm > 0, np.abs(dn) / norm, 0.0).astype(np.float32)
+            win = (r["geomID"] >= 0) & (r["tfar"] < dist[sel])
+            sel = sel[win]
+            dist[sel] = r["tfar"][win]
+            obj[sel] = i
+            ng[sel] = r["Ng"][win] @ rot.T
+        # Embree's geometric normal is not normalised (and undefined on a miss).
+        gx, gy, gz = ng[:, 0], ng[:, 1], ng[:, 2]
+        norm = np.sqrt(gx * gx + gy * gy + gz * gz)
+        dn = gx * d32[:, 0] + gy * d32[:, 1] + gz * d32[:, 2]
+        hit = obj >= 0
+        norm[~hit] = 1.0
+        cos = np.abs(dn) / norm
+        cos[~hit] = 0.0
         out_normals = None
         if normals:
-            sign = np.where(dn > 0, -1.0, 1.0).astype(np.float32)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                out_normals = np.where(norm[:, None] > 0, ng * (sign / norm)[:, None], 0.0)
-            out_normals = out_normals.astype(np.float32)
+            scale = np.where(dn > 0, -1.0, 1.0).astype(np.float32) / norm
+            out_normals = ng * scale[:, None]
+            out_normals[~hit] = 0.0
         return RayHits(dist, cos, obj, out_normals)
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray, max_distance: np.ndarray,
@@ -161,6 +183,17 @@ class ToFRayCaster:
             dl = np.ascontiguousarray(d32 @ rot)
             blocked |= self._moving_scenes[k][0].run(ol, dl, dists=dmax.copy(), query="OCCLUDED") >= 0
         return blocked
+
+
+def _rays_near_sphere(o: np.ndarray, d: np.ndarray, centre: np.ndarray, radius: float,
+                      dist: np.ndarray) -> np.ndarray:
+    """Indices of rays that enter the sphere before their current closest hit."""
+    c = centre.astype(np.float32)
+    vx, vy, vz = c[0] - o[:, 0], c[1] - o[:, 1], c[2] - o[:, 2]
+    along = vx * d[:, 0] + vy * d[:, 1] + vz * d[:, 2]
+    perp2 = vx * vx + vy * vy + vz * vz - along * along
+    r = np.float32(radius)
+    return np.nonzero((perp2 <= r * r) & (along + r > 0) & (along - r < dist))[0]
 
 
 _CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
