@@ -302,6 +302,9 @@ class RadarConfig:
         Render resolution (one scatterer per hit pixel).
     specular_lobe_deg : float
         Width (1/e half-angle) of the specular lobe of surface scattering [deg].
+    multipath : bool
+        Add second-bounce paths over mirror-like surfaces
+        (see :mod:`twinsense.radar.scatterers`).
     """
 
     chirp: ChirpConfig
@@ -314,6 +317,7 @@ class RadarConfig:
     render_width: int = 256
     render_height: int = 128
     specular_lobe_deg: float = 10.0
+    multipath: bool = False
 
     def __post_init__(self) -> None:
         p = "RadarConfig"
@@ -328,6 +332,8 @@ class RadarConfig:
         V.integer(f"{p}.render_height", self.render_height, lo=1, hi=20000)
         V.number(f"{p}.specular_lobe_deg", self.specular_lobe_deg, lo=0, lo_open=True, hi=90,
                  unit="deg")
+        if not isinstance(self.multipath, bool):
+            raise ConfigError(f"{p}.multipath", self.multipath, "true or false")
         c, ifc = self.chirp, self.if_chain
         if ifc.max_sample_rate is not None and c.sample_rate > ifc.max_sample_rate:
             raise ConfigError("ChirpConfig.sample_rate", c.sample_rate,
@@ -437,4 +443,4 @@ class RadarConfig:
                 "tx_power_dbm": self.tx_power_dbm, "hfov_deg": self.hfov_deg,
                 "vfov_deg": self.vfov_deg, "render_width": self.render_width,
                 "render_height": self.render_height,
-                "specular_lobe_deg": self.specular_lobe_deg}
+                "specular_lobe_deg": self.specular_lobe_deg, "multipath": self.multipath}

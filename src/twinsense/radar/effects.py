@@ -51,29 +51,41 @@ def filter_response(frequency: np.ndarray | float, if_chain: IFChain) -> np.ndar
     return np.where(f < 0, np.conj(h), h)
 
 
-def beat_frequency(points: np.ndarray, velocities: np.ndarray | None,
-                   config: RadarConfig) -> np.ndarray:
+def beat_frequency(points: np.ndarray, velocities: np.ndarray | None, config: RadarConfig,
+                   points_rx: np.ndarray | None = None,
+                   velocities_rx: np.ndarray | None = None) -> np.ndarray:
     """(n,) beat frequency of each scatterer at the frame start [Hz].
 
-    ``S * 2R/c + 2 v_r / lambda`` with R the distance from the sensor origin
-    and v_r the radial velocity (positive away) — the frequency at which the
-    IF filters see the tone.
+    ``S (R_t + R_r) / c + (v_t + v_r) / lambda`` with R the leg lengths from
+    the sensor origin and v the range rates (positive away) — the frequency
+    at which the IF filters see the tone. Monostatic: R_t = R_r, v_t = v_r.
     """
-    p = np.asarray(points, dtype=float)
-    r = np.linalg.norm(p, axis=1)
-    f = config.chirp.slope * 2 * r / SPEED_OF_LIGHT
-    if velocities is not None:
+
+    def leg(p, v):
+        p = np.asarray(p, dtype=float)
+        r = np.sqrt(np.einsum("ij,ij->i", p, p))
+        if v is None:
+            return r, np.zeros_like(r)
         with np.errstate(invalid="ignore", divide="ignore"):
-            vr = np.einsum("ij,ij->i", p, np.asarray(velocities, float)) / r
-        f = f + 2 * np.nan_to_num(vr) / config.chirp.wavelength
-    return f
+            rate = np.einsum("ij,ij->i", p, np.asarray(v, float)) / r
+        return r, np.nan_to_num(rate)
+
+    r_t, v_t = leg(points, velocities)
+    r_r, v_r = (r_t, v_t) if points_rx is None else leg(points_rx, velocities_rx)
+    return (config.chirp.slope * (r_t + r_r) / SPEED_OF_LIGHT
+            + (v_t + v_r) / config.chirp.wavelength)
 
 
 def filtered_weights(amplitudes: np.ndarray, points: np.ndarray,
-                     velocities: np.ndarray | None, config: RadarConfig) -> np.ndarray:
+                     velocities: np.ndarray | None, config: RadarConfig,
+                     points_rx: np.ndarray | None = None,
+                     velocities_rx: np.ndarray | None = None) -> np.ndarray:
     """(n,) complex tone weights: peak amplitudes times the IF filter response at each beat."""
-    return np.asarray(amplitudes, float) * filter_response(
-        beat_frequency(points, velocities, config), config.if_chain)
+    ifc = config.if_chain
+    if ifc.hp_cutoff <= 0 and ifc.aaf_cutoff <= 0:
+        return np.asarray(amplitudes, dtype=complex)
+    f = beat_frequency(points, velocities, config, points_rx, velocities_rx)
+    return np.asarray(amplitudes, float) * filter_response(f, ifc)
 
 
 def leakage(config: RadarConfig) -> np.ndarray:

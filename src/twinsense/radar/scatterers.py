@@ -23,6 +23,20 @@ radar equation (Patole et al. 2017, eq. 1):
 with G_t, G_r the element patterns towards the scatterer. Velocities come
 from the scene's analytic motion, minus the sensor's own motion (its linear
 velocity and the rotation of its frame), expressed in the sensor frame.
+
+Second bounce (``RadarConfig.multipath``): a pixel whose surface has a
+specular share Gamma (``Material.radar_specular``, taken as the mirror's
+power reflectance) sends its ray on in the mirror direction; where that ray
+hits a second surface P2, three paths reach the receivers: out and back over
+the mirror (tx -> P1 -> P2 -> P1 -> rx, factor Gamma^2) and the two mixed
+paths (tx -> P2 -> P1 -> rx and tx -> P1 -> P2 -> rx, factor Gamma each,
+only if P2 is in direct view of the radar). The image of P2 in the mirror
+plane, P2' = P2 - 2 ((P2 - P1).n) n, turns each mirror leg into a straight
+line, exact for every antenna element of a planar mirror: the paths become
+(tx leg, rx leg) = (P2', P2'), (P2, P2') and (P2', P2). P2's patch scatters
+with the same law as a direct pixel, its footprint set by the unfolded range
+R1 + R2; the bistatic radar equation uses the two leg lengths. Mirrors are
+taken as static during a frame.
 """
 
 from __future__ import annotations
@@ -47,26 +61,62 @@ class Scatterers:
     velocities : (n, 3) float
         Velocities relative to the sensor [m/s], sensor frame.
     rcs : (n,) float
-        Radar cross-section [m^2].
+        Radar cross-section [m^2] (including mirror losses of multipath).
     object_id : (n,) int32
-        Index into ``scene.objects`` (-1 if not from a scene).
+        Index into ``scene.objects`` of the (last) scattering surface (-1 if not from a scene).
+    points_rx, velocities_rx : (n, 3) float or None
+        Bistatic paths only: the point (and its velocity) whose distance to a
+        receiver closes the path; ``points`` then closes the transmit leg.
+        None: monostatic, the same as ``points`` / ``velocities``.
+    bounces : (n,) int8 or None
+        1 for direct returns, 2 for second-bounce paths (None: all direct).
     """
 
     points: np.ndarray
     velocities: np.ndarray
     rcs: np.ndarray
     object_id: np.ndarray
+    points_rx: np.ndarray | None = None
+    velocities_rx: np.ndarray | None = None
+    bounces: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         p = np.asarray(self.points, dtype=float).reshape(-1, 3)
         n = len(p)
-        for name, arr, shape in (("velocities", self.velocities, (n, 3)), ("rcs", self.rcs, (n,))):
-            a = np.asarray(arr, dtype=float)
+        checks = [("velocities", (n, 3)), ("rcs", (n,))]
+        if self.points_rx is not None:
+            checks += [("points_rx", (n, 3)), ("velocities_rx", (n, 3))]
+        elif self.velocities_rx is not None:
+            raise ValueError("Scatterers.velocities_rx needs points_rx")
+        for name, shape in checks:
+            a = np.asarray(getattr(self, name), dtype=float)
             if a.shape != shape:
                 raise ValueError(f"Scatterers.{name} must have shape {shape}, got {a.shape}")
             object.__setattr__(self, name, a)
         object.__setattr__(self, "points", p)
         object.__setattr__(self, "object_id", np.asarray(self.object_id, dtype=np.int32))
+        b = np.ones(n, np.int8) if self.bounces is None else np.asarray(self.bounces, np.int8)
+        if b.shape != (n,):
+            raise ValueError(f"Scatterers.bounces must have shape ({n},), got {b.shape}")
+        object.__setattr__(self, "bounces", b)
+
+    @property
+    def is_bistatic(self) -> bool:
+        return self.points_rx is not None
+
+    @staticmethod
+    def concatenate(parts: list[Scatterers]) -> Scatterers:
+        """One set from several (bistatic if any part is)."""
+        bistatic = any(s.is_bistatic for s in parts)
+
+        def cat(name, fallback=None):
+            return np.concatenate([getattr(s, name) if getattr(s, name) is not None
+                                   else getattr(s, fallback) for s in parts])
+
+        return Scatterers(cat("points"), cat("velocities"), cat("rcs"), cat("object_id"),
+                          cat("points_rx", "points") if bistatic else None,
+                          cat("velocities_rx", "velocities") if bistatic else None,
+                          cat("bounces"))
 
     def __len__(self) -> int:
         return len(self.points)
@@ -84,15 +134,23 @@ def received_amplitude(scatterers: Scatterers, config: RadarConfig) -> np.ndarra
     """(n,) peak IF amplitude sqrt(2 P_r) of each scatterer at the receiver input [sqrt(W)].
 
     Radar equation with the element patterns towards the scatterer (seen
-    from the sensor origin; the array is small against the ranges).
+    from the sensor origin; the array is small against the ranges). For a
+    bistatic path the transmit leg ends at ``points`` and the receive leg at
+    ``points_rx``: P_r = P_t G_t G_r lambda^2 sigma / ((4 pi)^3 R_t^2 R_r^2).
     """
     p = scatterers.points
-    r = np.linalg.norm(p, axis=1)
+    pr_ = scatterers.points_rx if scatterers.is_bistatic else p
+    r2_t = np.einsum("ij,ij->i", p, p)
+    r2_r = r2_t if pr_ is p else np.einsum("ij,ij->i", pr_, pr_)
     lam = config.chirp.wavelength
-    g = config.antennas.tx_pattern.gain(p) * config.antennas.rx_pattern.gain(p)
+    ant = config.antennas
+    if ant.tx_pattern == ant.rx_pattern and pr_ is p:
+        g = ant.tx_pattern.gain(p) ** 2
+    else:
+        g = ant.tx_pattern.gain(p) * ant.rx_pattern.gain(pr_)
     with np.errstate(divide="ignore", invalid="ignore"):
-        pr = config.tx_power * g * lam**2 * scatterers.rcs / ((4 * math.pi) ** 3 * r**4)
-    return np.sqrt(2.0 * np.where(r > 0, pr, 0.0))
+        power = config.tx_power * g * lam**2 * scatterers.rcs / ((4 * math.pi) ** 3 * r2_t * r2_r)
+    return np.sqrt(2.0 * np.where((r2_t > 0) & (r2_r > 0), power, 0.0))
 
 
 def backscatter_rcs(distance: np.ndarray, cos_incidence: np.ndarray, solid_angle: np.ndarray,
@@ -143,19 +201,77 @@ class ScatterRenderer:
         rot = pose.rotation
         rays_dir = self._dirs @ rot.T
         hits = cast(scene, Rays(pose.position, rays_dir), t, kind="radar", backend=self.backend)
-        sel = np.flatnonzero(hits.hit)
+        hit = hits.hit
+        # In a closed room every ray hits: a slice avoids copying every array.
+        sel = slice(None) if hit.all() else np.flatnonzero(hit)
         dist = hits.distance[sel]
         points = self._dirs[sel] * dist[:, None]
-        # Relative velocity in the (possibly rotating) sensor frame:
-        # d/dt R^T (p - o) = R^T (v_p - v_o - w x (p - o)).
-        rel = hits.velocity[sel] - sensor_state.linear_velocity
-        if np.any(sensor_state.angular_velocity):
-            rel = rel - np.cross(sensor_state.angular_velocity, hits.point[sel] - pose.position)
-        velocities = rel @ rot
+        velocities = self._relative_velocity(hits.velocity[sel], hits.point[sel], sensor_state)
         mats = scene.materials
         refl = np.array([m.radar_reflectivity for m in mats], dtype=float)
         spec = np.array([m.radar_specular for m in mats], dtype=float)
         mid = hits.material_id[sel]
         rcs = backscatter_rcs(dist, hits.cos_incidence[sel], self._solid_angle[sel], refl[mid],
                               spec[mid], math.radians(self.config.specular_lobe_deg))
-        return Scatterers(points, velocities, rcs, hits.object_id[sel])
+        direct = Scatterers(points, velocities, rcs, hits.object_id[sel])
+        if not self.config.multipath:
+            return direct
+        idx = np.arange(len(hit))[sel]
+        second = self._second_bounce(scene, sensor_state, t, hits, idx, rays_dir[idx], refl, spec)
+        return Scatterers.concatenate([direct, second]) if len(second) else direct
+
+    @staticmethod
+    def _relative_velocity(v_world: np.ndarray, p_world: np.ndarray, sensor_state) -> np.ndarray:
+        """World velocities of world points -> velocities relative to the sensor, sensor frame.
+
+        d/dt R^T (p - o) = R^T (v_p - v_o - w x (p - o)) for a sensor moving at v_o, turning at w.
+        """
+        rel = v_world - sensor_state.linear_velocity
+        if np.any(sensor_state.angular_velocity):
+            rel = rel - np.cross(sensor_state.angular_velocity, p_world - sensor_state.pose.position)
+        return rel @ sensor_state.pose.rotation
+
+    def _second_bounce(self, scene, sensor_state, t, hits, idx, ray_dir, refl, spec) -> Scatterers:
+        """Second-bounce paths over mirror-like first surfaces (module docstring)."""
+        pose = sensor_state.pose
+        gamma = spec[hits.material_id[idx]]
+        cand = np.flatnonzero(gamma > 0)
+        if len(cand) == 0:
+            return Scatterers.point_targets(np.zeros((0, 3)), np.zeros(0))
+        i1 = idx[cand]
+        p1, n1, d = hits.point[i1], hits.normal[i1], ray_dir[cand]
+        out = d - 2.0 * np.einsum("ij,ij->i", d, n1)[:, None] * n1
+        # Normals face the incoming ray; start just off the surface on that side.
+        h2 = cast(scene, Rays(p1 + 1e-6 * n1, out), t, kind="radar", backend=self.backend)
+        ok = np.flatnonzero(h2.hit)
+        if len(ok) == 0:
+            return Scatterers.point_targets(np.zeros((0, 3)), np.zeros(0))
+        i1, p1, n1, g = i1[ok], p1[ok], n1[ok], gamma[cand][ok]
+        p2, v2 = h2.point[ok], h2.velocity[ok]
+        r1, r2 = hits.distance[i1], h2.distance[ok] + 1e-6
+        image = p2 - 2.0 * np.einsum("ij,ij->i", p2 - p1, n1)[:, None] * n1
+        v_image = v2 - 2.0 * np.einsum("ij,ij->i", v2, n1)[:, None] * n1
+        mid2 = h2.material_id[ok]
+        sigma = backscatter_rcs(r1 + r2, h2.cos_incidence[ok], self._solid_angle[i1], refl[mid2],
+                                spec[mid2], math.radians(self.config.specular_lobe_deg))
+        inv = pose.rotation
+        img_s = (image - pose.position) @ inv
+        p2_s = (p2 - pose.position) @ inv
+        vimg_s = self._relative_velocity(v_image, image, sensor_state)
+        v2_s = self._relative_velocity(v2, p2, sensor_state)
+        obj = h2.object_id[ok]
+        # The mixed paths need P2 in direct view: cast from the radar towards it.
+        to_p2 = p2 - pose.position
+        r_direct = np.linalg.norm(to_p2, axis=1)
+        h3 = cast(scene, Rays(pose.position, to_p2 / r_direct[:, None]), t, kind="radar",
+                  backend=self.backend)
+        seen = np.abs(h3.distance - r_direct) <= 1e-6 + 1e-6 * r_direct
+        m = np.flatnonzero(seen)
+        points = np.concatenate([img_s, p2_s[m], img_s[m]])
+        points_rx = np.concatenate([img_s, img_s[m], p2_s[m]])
+        vel = np.concatenate([vimg_s, v2_s[m], vimg_s[m]])
+        vel_rx = np.concatenate([vimg_s, vimg_s[m], v2_s[m]])
+        rcs = np.concatenate([g * g * sigma, g[m] * sigma[m], g[m] * sigma[m]])
+        ids = np.concatenate([obj, obj[m], obj[m]])
+        return Scatterers(points, vel, rcs, ids, points_rx, vel_rx,
+                          np.full(len(points), 2, dtype=np.int8))

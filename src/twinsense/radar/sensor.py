@@ -148,10 +148,16 @@ class FMCWRadar:
         if rng is None:
             rng = np.random.default_rng(round(t * 1e6) & 0xFFFFFFFF)
         amp = received_amplitude(scatterers, cfg)
-        w = effects.filtered_weights(amp, scatterers.points, scatterers.velocities, cfg)
-        keep = np.abs(w) > 0
-        sig = synthesize(scatterers.points[keep], scatterers.velocities[keep], w[keep], cfg,
-                         eps=self.eps)
+        s = scatterers
+        w = effects.filtered_weights(amp, s.points, s.velocities, cfg, s.points_rx,
+                                     s.velocities_rx)
+        keep = w != 0  # behind the antennas or filtered out entirely
+        arrays = (s.points, s.velocities, s.points_rx, s.velocities_rx)
+        if not keep.all():
+            arrays = tuple(None if a is None else a[keep] for a in arrays)
+            w = w[keep]
+        sig = synthesize(arrays[0], arrays[1], w, cfg, points_rx=arrays[2],
+                         velocities_rx=arrays[3], eps=self.eps)
         sig = (sig + effects.leakage(cfg)) * cfg.if_chain.voltage_gain
         noise = effects.shape_noise(effects.thermal_noise(cfg, rng), cfg)
         # The DC offset sits on every real channel (on I and on Q alike).

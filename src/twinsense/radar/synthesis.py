@@ -41,6 +41,7 @@ Two implementations:
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 
 import finufft
 import numpy as np
@@ -51,7 +52,7 @@ from twinsense.radar.config import RadarConfig
 _TWO_PI = 2.0 * math.pi
 
 
-def _check_inputs(points, velocities, weights):
+def _check_inputs(points, velocities, weights, points_rx=None, velocities_rx=None):
     p = np.ascontiguousarray(points, dtype=float)
     if p.ndim != 2 or p.shape[1] != 3:
         raise ValueError(f"points must have shape (n, 3), got {p.shape}")
@@ -61,7 +62,18 @@ def _check_inputs(points, velocities, weights):
     w = np.ascontiguousarray(weights, dtype=complex)
     if w.shape != (len(p),):
         raise ValueError(f"weights must have shape ({len(p)},), got {w.shape}")
-    return p, v, w
+    if points_rx is None:
+        if velocities_rx is not None:
+            raise ValueError("velocities_rx needs points_rx")
+        return p, v, w, p, v
+    pr = np.ascontiguousarray(points_rx, dtype=float)
+    if pr.shape != p.shape:
+        raise ValueError(f"points_rx must have shape {p.shape}, got {pr.shape}")
+    vr = (np.zeros_like(pr) if velocities_rx is None
+          else np.ascontiguousarray(velocities_rx, dtype=float))
+    if vr.shape != p.shape:
+        raise ValueError(f"velocities_rx must have shape {p.shape}, got {vr.shape}")
+    return p, v, w, pr, vr
 
 
 def _output(cube: np.ndarray, config: RadarConfig) -> np.ndarray:
@@ -69,7 +81,8 @@ def _output(cube: np.ndarray, config: RadarConfig) -> np.ndarray:
 
 
 def synthesize_exact(points: np.ndarray, velocities: np.ndarray | None, weights: np.ndarray,
-                     config: RadarConfig, *, chunk: int = 256) -> np.ndarray:
+                     config: RadarConfig, *, points_rx: np.ndarray | None = None,
+                     velocities_rx: np.ndarray | None = None, chunk: int = 256) -> np.ndarray:
     """Reference IF cube, evaluated sample by sample.
 
     Parameters
@@ -81,13 +94,18 @@ def synthesize_exact(points: np.ndarray, velocities: np.ndarray | None, weights:
     weights : (n,) complex
         Complex peak amplitude of each scatterer's IF tone [sqrt(W)].
     config : RadarConfig
+    points_rx, velocities_rx : (n, 3) float, optional
+        For bistatic paths (multipath): the point and velocity whose distance
+        to each receiver closes the path, ``tau = (|p - tx| + |p_rx - rx|) / c``.
+        Default: the same as ``points`` / ``velocities`` (monostatic).
 
     Returns
     -------
     (n_rx, n_chirps, n_samples) float64 (real IF) or complex128 (complex IF)
         IF signal at the receiver input [sqrt(W)].
     """
-    p, v, w = _check_inputs(points, velocities, weights)
+    p, v, w, pr, vr = _check_inputs(points, velocities, weights, points_rx, velocities_rx)
+    bistatic = pr is not p
     c = config.chirp
     arr = config.antennas
     t_fast = c.sample_times()
@@ -97,12 +115,15 @@ def synthesize_exact(points: np.ndarray, velocities: np.ndarray | None, weights:
     f0, slope = c.start_frequency, c.slope
     for lo in range(0, len(p), chunk):
         ps, vs, ws = p[lo:lo + chunk], v[lo:lo + chunk], w[lo:lo + chunk]
+        prs, vrs = pr[lo:lo + chunk], vr[lo:lo + chunk]
         for m in range(c.num_chirps):
             t_abs = chirp_start[m] + t_fast  # (N,)
             pos = ps[:, None, :] + vs[:, None, :] * t_abs[None, :, None]  # (n, N, 3)
+            pos_rx = prs[:, None, :] + vrs[:, None, :] * t_abs[None, :, None] if bistatic else pos
             r_tx = np.linalg.norm(pos - arr.tx_positions[tx_of[m]], axis=-1)
             for a in range(arr.num_rx):
-                tau = (r_tx + np.linalg.norm(pos - arr.rx_positions[a], axis=-1)) / SPEED_OF_LIGHT
+                r_rx = np.linalg.norm(pos_rx - arr.rx_positions[a], axis=-1)
+                tau = (r_tx + r_rx) / SPEED_OF_LIGHT
                 phase = (_TWO_PI * f0 * tau + _TWO_PI * slope * tau * t_fast
                          - math.pi * slope * tau**2)
                 cube[a, m] += ws @ np.exp(1j * phase)
@@ -114,35 +135,21 @@ def _wrap(x: np.ndarray) -> np.ndarray:
     return x - _TWO_PI * np.floor((x + math.pi) / _TWO_PI)
 
 
-def _nufft_rows(x: np.ndarray, strengths: np.ndarray, num_samples: int, eps: float) -> np.ndarray:
-    """Type-1 NUFFT: out[..., n] = sum_i strengths[..., i] exp(1j x_i (n - N/2)).
-
-    ``strengths`` is (n,) or (n_trans, n); the output is (num_samples,) or (n_trans, num_samples).
-    """
-    if len(x) == 0:
-        return np.zeros((*strengths.shape[:-1], num_samples), dtype=complex)
-    n_trans = 1 if strengths.ndim == 1 else strengths.shape[0]
-    plan = finufft.Plan(1, (num_samples,), n_trans=n_trans, eps=eps, isign=1, nthreads=1,
-                        modeord=0)
-    plan.setpts(x)
-    return plan.execute(np.ascontiguousarray(strengths))
-
-
 def _element_taylor(d: np.ndarray, v: np.ndarray, speed2: np.ndarray) -> tuple[np.ndarray, ...]:
     """Distance |d + v s| = r0 + r1 s + r2 s^2 + r3 s^3 + O(s^4) (closed-form coefficients).
 
     From r(s)^2 = r0^2 + 2 (d.v) s + |v|^2 s^2: r1 = d.v / r0,
     r2 = (|v|^2 - r1^2) / (2 r0), r3 = -r1 r2 / r0.
     """
-    r0 = np.sqrt(np.einsum("ij,ij->i", d, d))
-    r1 = np.einsum("ij,ij->i", d, v) / r0
+    r0 = np.sqrt(np.einsum("...j,...j->...", d, d))
+    r1 = np.einsum("...j,...j->...", d, v) / r0
     r2 = (speed2 - r1 * r1) / (2.0 * r0)
     r3 = -r1 * r2 / r0
     return r0, r1, r2, r3
 
 
 def _taylor_order(pmax: float, tol: float) -> int:
-    """Smallest K with pmax^(K+1) / (K+1)! <= tol (remainder of the exp series, pmax <= 1)."""
+    """Smallest K with pmax^(K+1) / (K+1)! <= tol (remainder of the exp series)."""
     k, term = 0, pmax
     while term > tol and k < 60:
         k += 1
@@ -154,6 +161,7 @@ def _exp_poly(a: np.ndarray, order: int) -> np.ndarray:
     """Coefficients of sum_{k<=order} (j P(u))^k / k! in powers of u.
 
     ``a`` is (n, D) with P(u) = sum_d a[:, d] u^d; returns (n, order * (D-1) + 1) complex.
+    General form of :func:`_exp_quad_cubic` (used by the tests as its reference).
     """
     n, deg = a.shape
     total = np.zeros((n, order * (deg - 1) + 1), dtype=complex)
@@ -173,15 +181,136 @@ def _exp_poly(a: np.ndarray, order: int) -> np.ndarray:
     return total
 
 
+def _exp_quad_cubic(a2: np.ndarray, a3: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray]:
+    """Taylor coefficients of exp(j (a2 u^2 + a3 u^3)) up to order ``order``.
+
+    (j P)^k / k! = (j^k / k!) sum_i C(k, i) a2^(k-i) a3^i u^(2k+i). Returns the
+    degrees that occur, (n_deg,), and the coefficients, shape (n_deg, *a2.shape).
+    """
+    degrees = [0, *range(2, 3 * order + 1)]
+    index = {d: i for i, d in enumerate(degrees)}
+    out = np.zeros((len(degrees), *a2.shape), dtype=complex)
+    out[0] = 1.0
+    p2 = [np.ones_like(a2)]
+    p3 = [np.ones_like(a3)]
+    for _ in range(order):
+        p2.append(p2[-1] * a2)
+        p3.append(p3[-1] * a3)
+    for k in range(1, order + 1):
+        scale = 1j**k / math.factorial(k)
+        for i in range(k + 1):
+            out[index[2 * k + i]] += (scale * math.comb(k, i)) * (p2[k - i] * p3[i])
+    return np.asarray(degrees), out
+
+
+class _Plans:
+    """finufft type-1 plans for rows of ``num_samples`` modes, one per batch size."""
+
+    def __init__(self, num_samples: int, eps: float):
+        self.num_samples = num_samples
+        self.eps = eps
+        self._plans: dict[int, finufft.Plan] = {}
+
+    def rows(self, x: np.ndarray, strengths: np.ndarray) -> np.ndarray:
+        """out[..., n] = sum_i strengths[..., i] exp(1j x_i (n - N/2)); strengths (n,) or (b, n)."""
+        if len(x) == 0:
+            return np.zeros((*strengths.shape[:-1], self.num_samples), dtype=complex)
+        b = 1 if strengths.ndim == 1 else strengths.shape[0]
+        plan = self._plans.get(b)
+        if plan is None:
+            plan = finufft.Plan(1, (self.num_samples,), n_trans=b, eps=self.eps, isign=1,
+                                nthreads=1, modeord=0)
+            self._plans[b] = plan
+        plan.setpts(x)
+        return plan.execute(np.ascontiguousarray(strengths))
+
+
+def _distance(points: np.ndarray, element: np.ndarray) -> np.ndarray:
+    d = points - element
+    return np.sqrt(np.einsum("ij,ij->i", d, d))
+
+
+def _static_rows(ps, prs, ws, arr, tx_of, n_rx, f0, slope, fs, t_c, n_samp, eps):
+    """{(tx, rx): row} for static scatterers: one NUFFT per pair (run on two threads)."""
+    txs = sorted(set(tx_of.tolist()))
+    r_tx = {k: _distance(ps, arr.tx_positions[k]) for k in txs}
+    r_rx = [_distance(prs, arr.rx_positions[a]) for a in range(n_rx)]
+    fc = f0 + slope * t_c
+
+    def job(key):
+        k, a = key
+        tau = (r_tx[k] + r_rx[a]) * (1.0 / SPEED_OF_LIGHT)
+        phi0 = _TWO_PI * fc * tau - math.pi * slope * tau * tau
+        x = _wrap((_TWO_PI * slope / fs) * tau)
+        return _Plans(n_samp, eps).rows(x, ws * np.exp(1j * phi0))
+
+    keys = [(k, a) for k in txs for a in range(n_rx)]
+    if len(keys) > 1 and len(ps) > 20_000:
+        # finufft and large numpy operations release the GIL: the pairs run in parallel.
+        with ThreadPoolExecutor(max_workers=2) as pool:
+            return dict(zip(keys, pool.map(job, keys)))
+    return {key: job(key) for key in keys}
+
+
+def _moving_rows(pm, vm, prm, vrm, wm, arr, tx_of, n_rx, f0, slope, fs, t_c, n_samp,
+                 chirp_centre, eps, cube, chunk=32768):
+    """Add moving scatterers to ``cube`` (rx, chirp, sample): one NUFFT per (rx, chirp)."""
+    n_chirps = len(chirp_centre)
+    fc = f0 + slope * t_c
+    half = n_samp / 2 / fs  # s = u * half, u in [-1, 1)
+    u = (np.arange(n_samp) - n_samp // 2) / (n_samp / 2)
+    plans = _Plans(n_samp, eps)
+    tx_pos = arr.tx_positions[tx_of]  # (M, 3)
+    for lo in range(0, len(pm), chunk):
+        p, v, w = pm[lo:lo + chunk], vm[lo:lo + chunk], wm[lo:lo + chunk]
+        pr, vr = prm[lo:lo + chunk], vrm[lo:lo + chunk]
+        speed2 = np.einsum("ij,ij->i", v, v)
+        speed2_rx = np.einsum("ij,ij->i", vr, vr)
+        pos = p[None, :, :] + v[None, :, :] * chirp_centre[:, None, None]  # (M, n, 3)
+        pos_rx = pr[None, :, :] + vr[None, :, :] * chirp_centre[:, None, None]
+        tx = _element_taylor(pos - tx_pos[:, None, :], v, speed2)
+        for a in range(n_rx):
+            rx = _element_taylor(pos_rx - arr.rx_positions[a], vr, speed2_rx)
+            t0, t1, t2, t3 = ((et + er) * (1.0 / SPEED_OF_LIGHT) for et, er in zip(tx, rx))
+            # phi(s) = 2 pi f0 tau + 2 pi S tau (t_c + s) - pi S tau^2, tau = t0 + t1 s + ...
+            phi0 = _TWO_PI * fc * t0 - math.pi * slope * t0 * t0
+            phi1 = _TWO_PI * (fc * t1 + slope * t0) - _TWO_PI * slope * t0 * t1
+            phi2 = (_TWO_PI * (fc * t2 + slope * t1)
+                    - math.pi * slope * (t1 * t1 + 2 * t0 * t2))
+            phi3 = _TWO_PI * (fc * t3 + slope * t2) - _TWO_PI * slope * (t0 * t3 + t1 * t2)
+            x = _wrap(phi1 / fs)
+            strength = w * np.exp(1j * phi0)  # (M, n)
+            a2, a3 = phi2 * half**2, phi3 * half**3
+            order = _taylor_order(float(np.max(np.abs(a2) + np.abs(a3))), eps * 0.1)
+            if order == 0:
+                for m in range(n_chirps):
+                    cube[a, m] += plans.rows(x[m], strength[m])
+                continue
+            degrees, coeffs = _exp_quad_cubic(a2, a3, order)  # (D, M, n)
+            # |u| <= 1, so dropping degree d changes a sample by at most
+            # max|coeff_d| (relative to the scatterer's amplitude): drop the
+            # smallest degrees while their sum stays below the tolerance.
+            size = np.abs(coeffs).reshape(len(degrees), -1).max(axis=1)
+            order_idx = np.argsort(size)
+            drop = order_idx[np.cumsum(size[order_idx]) <= eps * 0.1]
+            used = np.setdiff1d(np.arange(len(degrees)), drop)
+            degrees, coeffs = degrees[used], coeffs[used]
+            upow = u[None, :] ** degrees[:, None]  # (D, N)
+            for m in range(n_chirps):
+                rows = plans.rows(x[m], coeffs[:, m, :] * strength[m])
+                cube[a, m] += np.einsum("dn,dn->n", rows, upow)
+
+
 def synthesize(points: np.ndarray, velocities: np.ndarray | None, weights: np.ndarray,
-               config: RadarConfig, *, eps: float = 1e-8) -> np.ndarray:
+               config: RadarConfig, *, points_rx: np.ndarray | None = None,
+               velocities_rx: np.ndarray | None = None, eps: float = 1e-8) -> np.ndarray:
     """Fast IF cube; agrees with :func:`synthesize_exact` to about ``eps`` relative.
 
     Same parameters and result as :func:`synthesize_exact`. ``eps`` is the
     requested relative accuracy of the non-uniform FFTs and of the Taylor
     series for motion within a chirp.
     """
-    p, v, w = _check_inputs(points, velocities, weights)
+    p, v, w, pr, vr = _check_inputs(points, velocities, weights, points_rx, velocities_rx)
     c = config.chirp
     arr = config.antennas
     n_rx, n_chirps, n_samp = config.cube_shape
@@ -192,51 +321,19 @@ def synthesize(points: np.ndarray, velocities: np.ndarray | None, weights: np.nd
     cube = np.zeros((n_rx, n_chirps, n_samp), dtype=complex)
 
     moving = np.any(v != 0.0, axis=1)
-    ps, ws = p[~moving], w[~moving]
-    if len(ps):
+    if vr is not v:
+        moving |= np.any(vr != 0.0, axis=1)
+    if moving.all():
+        static = None
+    else:
+        static = slice(None) if not moving.any() else ~moving
+    if static is not None:
         # Static: one NUFFT per (tx, rx) pair, copied to that transmitter's chirps.
-        r_tx = {k: np.linalg.norm(ps - arr.tx_positions[k], axis=1) for k in set(tx_of.tolist())}
-        r_rx = [np.linalg.norm(ps - arr.rx_positions[a], axis=1) for a in range(n_rx)]
-        for k, rk in r_tx.items():
-            chirps = np.flatnonzero(tx_of == k)
-            for a in range(n_rx):
-                tau = (rk + r_rx[a]) / SPEED_OF_LIGHT
-                phi0 = _TWO_PI * tau * (f0 + slope * t_c) - math.pi * slope * tau * tau
-                x = _wrap(_TWO_PI * slope * tau / fs)
-                row = _nufft_rows(x, ws * np.exp(1j * phi0), n_samp, eps)
-                cube[a, chirps] += row
-
-    pm, vm, wm = p[moving], v[moving], w[moving]
-    if len(pm):
-        speed2 = np.einsum("ij,ij->i", vm, vm)
-        half = n_samp / 2 / fs  # s = u * half, u in [-1, 1)
-        chirp_centre = c.chirp_times() + t_c
-        for m in range(n_chirps):
-            pos = pm + vm * chirp_centre[m]
-            tx = _element_taylor(pos - arr.tx_positions[tx_of[m]], vm, speed2)
-            for a in range(n_rx):
-                rx = _element_taylor(pos - arr.rx_positions[a], vm, speed2)
-                t0, t1, t2, t3 = ((et + er) / SPEED_OF_LIGHT for et, er in zip(tx, rx))
-                # phi(s) = 2 pi f0 tau + 2 pi S tau (t_c + s) - pi S tau^2, tau = t0 + t1 s + ...
-                fc = f0 + slope * t_c
-                phi0 = _TWO_PI * fc * t0 - math.pi * slope * t0 * t0
-                phi1 = _TWO_PI * (fc * t1 + slope * t0) - _TWO_PI * slope * t0 * t1
-                phi2 = (_TWO_PI * (fc * t2 + slope * t1)
-                        - math.pi * slope * (t1 * t1 + 2 * t0 * t2))
-                phi3 = (_TWO_PI * (fc * t3 + slope * t2)
-                        - _TWO_PI * slope * (t0 * t3 + t1 * t2))
-                x = _wrap(phi1 / fs)
-                strength = wm * np.exp(1j * phi0)
-                a2, a3 = phi2 * half**2, phi3 * half**3
-                pmax = float(np.max(np.abs(a2) + np.abs(a3)))
-                order = _taylor_order(pmax, eps * 0.1)
-                if order == 0:
-                    cube[a, m] += _nufft_rows(x, strength, n_samp, eps)
-                    continue
-                coeffs = _exp_poly(np.stack([np.zeros_like(a2), np.zeros_like(a2), a2, a3],
-                                            axis=1), order)
-                used = np.flatnonzero(np.any(coeffs != 0, axis=0))
-                rows = _nufft_rows(x, (coeffs[:, used] * strength[:, None]).T, n_samp, eps)
-                u = (np.arange(n_samp) - n_samp // 2) / (n_samp / 2)
-                cube[a, m] += np.sum(rows * u[None, :] ** used[:, None], axis=0)
+        rows = _static_rows(p[static], pr[static], w[static], arr, tx_of, n_rx, f0, slope, fs,
+                            t_c, n_samp, eps)
+        for (k, a), row in rows.items():
+            cube[a, tx_of == k] += row
+    if moving.any():
+        _moving_rows(p[moving], v[moving], pr[moving], vr[moving], w[moving], arr, tx_of, n_rx,
+                     f0, slope, fs, t_c, n_samp, c.chirp_times() + t_c, eps, cube)
     return _output(cube, config)
