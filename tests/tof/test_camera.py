@@ -301,6 +301,10 @@ def test_fast_caster_agrees_with_shared_renderer(look_x):
     scene = _saturation_scene()
     scene.add_object("mover", Box((0.3, 0.3, 0.3)), "wood",
                      motion=ConstantVelocity(Pose(position=(1.2, 0.4, 0.1)), (0, -1.0, 0)))
+    # A spinning, elongated object: the rays go into its rotating frame and are culled
+    # against its bounding sphere and box there.
+    scene.add_object("spinner", Box((0.1, 0.6, 0.05)), "plastic",
+                     motion=ConstantVelocity(Pose(position=(1.0, -0.3, -0.1)), (0, 0, 0), (0.3, 2.0, 5.0)))
     cam = ToFCamera.preset("generic", mount=look_x, width=40, height=30)
     rays = cam.pinhole.rays(look_x, 2)
     ref = cast(scene, rays, 0.1, kind="tof")

@@ -17,7 +17,7 @@ from twinsense.tof.multipath import indirect_phasors
 from twinsense.tof.parallel import ParallelCaster, parallel_caster_for
 from twinsense.tof.pipeline import ChainNoise, draw_noise, finish_geometry, run_chain
 from twinsense.tof.presets import tof_preset
-from twinsense.tof.raycast import ToFRayCaster, caster_for
+from twinsense.tof.raycast import ToFRayCaster, caster_for, rotate_rows
 from twinsense.tof.signal import (
     PixelPhasors,
     Radiometry,
@@ -135,7 +135,8 @@ class ToFCamera:
         out = run_chain(phasors, cfg, noise=noise[0] if noise else None)
         distance, depth, invalid, confidence, points = finish_geometry(out, self._pixel_dirs, cfg)
         pose = self.mount.pose_at(scene, t)
-        world = pose.apply(points.reshape(-1, 3)).reshape(points.shape).astype(np.float32)
+        world = rotate_rows(points.reshape(-1, 3), pose.rotation.T).reshape(points.shape)
+        world += pose.position.astype(np.float32)
         world[invalid != 0] = np.nan
         return ToFFrame(
             t=float(t), raw=out.raw, raw_times=cfg.raw_frame_times(t), gray=out.gray,
@@ -156,7 +157,7 @@ class ToFCamera:
     def _world_directions(self, pose: Pose) -> np.ndarray:
         key = pose.rotation.tobytes()
         if self._rays_cache is None or self._rays_cache[0] != key:
-            d = self._sub_dirs.reshape(-1, 3) @ pose.rotation.T.astype(np.float32)
+            d = rotate_rows(self._sub_dirs.reshape(-1, 3), pose.rotation.T)
             self._rays_cache = (key, np.ascontiguousarray(d))
         return self._rays_cache[1]
 
@@ -182,7 +183,7 @@ class ToFCamera:
         samples = SurfaceSamples(dist, cos_i, rf, albedo)
         normals_sensor = None
         if normals:
-            normals_sensor = (hits.normal @ pose.rotation.astype(np.float32)).reshape(*shape, 3)
+            normals_sensor = rotate_rows(hits.normal, pose.rotation).reshape(*shape, 3)
         return samples, (pose, normals_sensor)
 
     def _render_phasors(self, scene: Scene, caster: ToFRayCaster | ParallelCaster, t: float,
@@ -196,7 +197,7 @@ class ToFCamera:
                 rot = pose.rotation
 
                 def occluded(o, d, dmax):
-                    return caster.occluded(pose.apply(o), d @ rot.T, dmax, t)
+                    return caster.occluded(pose.apply(o), rotate_rows(d, rot.T), dmax, t)
 
             phasors = phasors + indirect_phasors(samples.distance, normals, samples.albedo,
                                                  self.radiometry, occluded)
