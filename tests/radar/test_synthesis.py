@@ -18,7 +18,7 @@ from twinsense.radar import (
     synthesize_exact,
     ula_positions,
 )
-from twinsense.radar.synthesis import _exp_poly, _taylor_order
+from twinsense.radar.synthesis import _exp_poly, _exp_quad_cubic, _taylor_order
 
 
 def _config(complex_if=False, num_samples=128, num_chirps=8, tx=None, seq=None, rx=None):
@@ -81,6 +81,19 @@ def test_taylor_helpers():
     # Truncation of exp at 1e-13 plus rounding in ~20 terms of size <= e^1.5.
     np.testing.assert_allclose(series, np.exp(1j * (a[:, 2:3] * u**2 + a[:, 3:4] * u**3)),
                                atol=1e-12)
+    # The specialised quadratic + cubic form used by the fast path agrees term by term.
+    degrees, special = _exp_quad_cubic(a[:, 2], a[:, 3], 4)
+    general = _exp_poly(a, 4)
+    np.testing.assert_allclose(special, general[:, degrees].T, atol=1e-15)
+    assert 1 not in degrees
+    # Skipping small terms changes the series on |u| <= 1 by no more than the tolerance.
+    small = a * np.array([1.0, 1.0, 1e-2, 1e-5])
+    degrees, pruned = _exp_quad_cubic(small[:, 2], small[:, 3], 4, tol=1e-9)
+    full = _exp_poly(small, 4)
+    assert len(degrees) < full.shape[1] - 1
+    err = pruned.T @ u[None, :] ** degrees[:, None] - full @ u[None, :] ** np.arange(
+        full.shape[1])[:, None]
+    assert np.max(np.abs(err)) <= 1e-9
 
 
 def test_static_target_beat_frequency_gives_its_range():
