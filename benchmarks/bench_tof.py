@@ -63,7 +63,7 @@ def main() -> None:
 
     caster = caster_for(scene)
     pose = sensor_pose()
-    dirs = cam._world_directions(pose)
+    dirs = cam._renderer.world_directions(pose.rotation, (0, cfg.height))
     o32 = np.zeros((n_rays, 3), np.float32) + pose.position.astype(np.float32)
     bare = caster._static_scene[0]
     b_best, b_med = timed(lambda: bare.run(o32, dirs, output=1), 30)

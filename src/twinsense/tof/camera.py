@@ -8,23 +8,17 @@ import numpy as np
 
 from twinsense import validation as V
 from twinsense.errors import ConfigError
-from twinsense.render.rays import PinholeCamera
 from twinsense.scene.pose import Pose
 from twinsense.scene.scene import Mount, Scene
 from twinsense.tof.config import ToFConfig
 from twinsense.tof.frame import ToFFrame
 from twinsense.tof.multipath import indirect_phasors
-from twinsense.tof.parallel import ParallelCaster, parallel_caster_for
+from twinsense.tof.parallel import parallel_renderer_for
 from twinsense.tof.pipeline import ChainNoise, draw_noise, finish_geometry, run_chain
 from twinsense.tof.presets import tof_preset
-from twinsense.tof.raycast import ToFRayCaster, caster_for, rotate_rows
-from twinsense.tof.signal import (
-    PixelPhasors,
-    Radiometry,
-    SurfaceSamples,
-    pixel_phasors,
-    radiance_factor,
-)
+from twinsense.tof.raycast import caster_for, rotate_rows
+from twinsense.tof.rendering import BandRenderer
+from twinsense.tof.signal import PixelPhasors, SurfaceSamples, pixel_phasors
 
 
 class ToFCamera:
@@ -70,12 +64,10 @@ class ToFCamera:
         self.mount = mount
         self.name = name
         self.render_workers = V.integer(f"{name}.render_workers", render_workers, lo=0, hi=64)
-        fx, fy, cx, cy = config.camera_intrinsics
-        self.pinhole = PinholeCamera(config.width, config.height, fx, fy, cx, cy, config.distortion)
-        self._sub_dirs = self.pinhole.directions(config.supersample).astype(np.float32)
-        self._pixel_dirs = self.pinhole.directions(1).astype(np.float32)
-        self.radiometry = Radiometry(config, self._sub_dirs)
-        self._rays_cache: tuple[bytes, np.ndarray] | None = None
+        self._renderer = BandRenderer(config)
+        self.pinhole = self._renderer.pinhole
+        self.radiometry = self._renderer.radiometry
+        self._pixel_dirs = self._renderer.pixel_dirs
 
     @classmethod
     def preset(cls, preset_name: str, mount: Mount | Pose | None = None, name: str = "tof",
@@ -118,7 +110,6 @@ class ToFCamera:
         cfg = self.config
         if rng is None:
             rng = np.random.default_rng()
-        caster = self._caster(scene)
         noise: list[ChainNoise] = []
 
         def draw():  # scene-independent: may run while the rays are being traced
@@ -129,9 +120,9 @@ class ToFCamera:
             times = cfg.raw_frame_times(t) + 0.5 * cfg.exposure_time
             draw()
             phasors: PixelPhasors | list[PixelPhasors] = [
-                self._render_phasors(scene, caster, float(ti)) for ti in times]
+                self._render_phasors(scene, float(ti)) for ti in times]
         else:
-            phasors = self._render_phasors(scene, caster, t, during=draw)
+            phasors = self._render_phasors(scene, t, during=draw)
         out = run_chain(phasors, cfg, noise=noise[0] if noise else None)
         distance, depth, invalid, confidence, points = finish_geometry(out, self._pixel_dirs, cfg)
         pose = self.mount.pose_at(scene, t)
@@ -146,71 +137,36 @@ class ToFCamera:
 
     def render(self, scene: Scene, t: float = 0.0) -> SurfaceSamples:
         """Sub-pixel surface samples (H*N, W*N) seen at time ``t`` (see :class:`SurfaceSamples`)."""
-        samples, _ = self._render(scene, self._caster(scene), t, normals=False)
+        pose = self.mount.pose_at(scene, t)
+        samples, _ = self._renderer.samples(scene, caster_for(scene, self.kind), pose.rotation,
+                                            pose.position, t)
         return samples
 
-    def _caster(self, scene: Scene) -> ToFRayCaster | ParallelCaster:
-        if self.render_workers > 0:
-            return parallel_caster_for(scene, self.kind, self.render_workers)
-        return caster_for(scene, self.kind)
-
-    def _world_directions(self, pose: Pose) -> np.ndarray:
-        key = pose.rotation.tobytes()
-        if self._rays_cache is None or self._rays_cache[0] != key:
-            d = rotate_rows(self._sub_dirs.reshape(-1, 3), pose.rotation.T)
-            self._rays_cache = (key, np.ascontiguousarray(d))
-        return self._rays_cache[1]
-
-    def _render(self, scene: Scene, caster: ToFRayCaster | ParallelCaster, t: float, normals: bool,
-                during: Callable[[], object] | None = None):
+    def _render_phasors(self, scene: Scene, t: float,
+                        during: Callable[[], object] | None = None) -> PixelPhasors:
+        """Expected pixel phasors at time ``t``; ``during()`` runs while rays are traced."""
         cfg = self.config
         pose = self.mount.pose_at(scene, t)
-        dirs = self._world_directions(pose)
-        if isinstance(caster, ParallelCaster):
-            hits = caster.cast(pose.position, dirs, t, normals=normals, during=during)
-        else:
-            if during is not None:
-                during()
-            hits = caster.cast(pose.position, dirs, t, normals=normals)
-        shape = self._sub_dirs.shape[:2]
-        albedo_o, spec_o, retro_o = _material_table(scene)
-        obj = hits.object_id  # -1 on a miss picks the zero entry at the end of each table
-        albedo = albedo_o[obj].reshape(shape)
-        cos_i = hits.cos_incidence.reshape(shape)
-        rf = radiance_factor(albedo, spec_o[obj].reshape(shape), retro_o[obj].reshape(shape),
-                             cos_i, cfg.specular_exponent, cfg.retroreflector_gain)
-        dist = np.where(hits.hit, hits.distance, np.float32(0.0)).reshape(shape)
-        samples = SurfaceSamples(dist, cos_i, rf, albedo)
-        normals_sensor = None
-        if normals:
-            normals_sensor = rotate_rows(hits.normal, pose.rotation).reshape(*shape, 3)
-        return samples, (pose, normals_sensor)
-
-    def _render_phasors(self, scene: Scene, caster: ToFRayCaster | ParallelCaster, t: float,
-                        during: Callable[[], object] | None = None) -> PixelPhasors:
-        cfg = self.config
-        samples, (pose, normals) = self._render(scene, caster, t, normals=cfg.multipath, during=during)
+        if self.render_workers > 0 and not cfg.multipath:
+            par = parallel_renderer_for(scene, self.kind, self.render_workers)
+            return par.phasors(self._renderer, scene, pose.rotation, pose.position, t, during)
+        if during is not None:
+            during()
+        caster = caster_for(scene, self.kind)
+        if not cfg.multipath:
+            return self._renderer.phasors(scene, caster, pose.rotation, pose.position, t)
+        samples, normals = self._renderer.samples(scene, caster, pose.rotation, pose.position, t,
+                                                  normals=True)
         phasors = pixel_phasors(samples, self.radiometry)
-        if cfg.multipath:
-            occluded = None
-            if cfg.multipath_visibility:
-                rot = pose.rotation
+        occluded = None
+        if cfg.multipath_visibility:
+            rot = pose.rotation
 
-                def occluded(o, d, dmax):
-                    return caster.occluded(pose.apply(o), rotate_rows(d, rot.T), dmax, t)
+            def occluded(o, d, dmax):
+                return caster.occluded(pose.apply(o), rotate_rows(d, rot.T), dmax, t)
 
-            phasors = phasors + indirect_phasors(samples.distance, normals, samples.albedo,
-                                                 self.radiometry, occluded)
-        return phasors
-
-
-def _material_table(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per-object (albedo, specular share, retro-reflective) with a trailing zero entry for misses."""
-    mats = [o.material for o in scene.objects]
-    albedo = np.array([m.nir_reflectance for m in mats] + [0.0], dtype=np.float32)
-    spec = np.array([m.nir_specular for m in mats] + [0.0], dtype=np.float32)
-    retro = np.array([m.nir_retroreflective for m in mats] + [False], dtype=bool)
-    return albedo, spec, retro
+        return phasors + indirect_phasors(samples.distance, normals, samples.albedo, self.radiometry,
+                                          occluded)
 
 
 def capture_sequence(camera: ToFCamera, scene: Scene, times: Sequence[float],

@@ -215,14 +215,21 @@ def rotate_rows(v: np.ndarray, m: np.ndarray) -> np.ndarray:
 
 def _rays_hit_box(o: np.ndarray, d: np.ndarray, lo: np.ndarray, hi: np.ndarray,
                   dist: np.ndarray) -> np.ndarray:
-    """(n,) bool: rays from the point ``o`` along ``d`` (n, 3) enter the box [lo, hi] before ``dist``."""
+    """(n,) bool: rays from the point ``o`` along ``d`` (n, 3) enter the box [lo, hi] before ``dist``.
+
+    Slab test, one axis at a time (reductions over a length-3 axis are slow
+    in NumPy). fmin/fmax ignore the NaN of 0 * inf (a ray in a slab's plane).
+    """
+    near = np.zeros(len(d), np.float32)
+    far = dist.astype(np.float32, copy=True)
     with np.errstate(divide="ignore", invalid="ignore"):
-        inv = np.float32(1.0) / d
-        t1 = (lo - o) * inv
-        t2 = (hi - o) * inv
-    near = np.fmax(np.fmin(t1, t2), np.float32(-np.inf)).max(axis=1)  # fmax/fmin drop NaNs (d = 0)
-    far = np.fmin(np.fmax(t1, t2), np.float32(np.inf)).min(axis=1)
-    return (far >= np.maximum(near, 0.0)) & (near < dist)
+        for a in range(3):
+            inv = np.float32(1.0) / d[:, a]
+            t1 = (lo[a] - o[a]) * inv
+            t2 = (hi[a] - o[a]) * inv
+            near = np.fmax(near, np.fmin(t1, t2))
+            far = np.fmin(far, np.fmax(t1, t2))
+    return near <= far
 
 
 def _rays_near_sphere(o: np.ndarray, d: np.ndarray, centre: np.ndarray, radius: float,
