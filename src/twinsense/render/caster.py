@@ -16,6 +16,7 @@ import numpy as np
 from twinsense.errors import ConfigError
 from twinsense.render.backends import make_intersector
 from twinsense.render.hits import Hits
+from twinsense.linalg import rotate_rows
 from twinsense.render.rays import Rays
 from twinsense.scene.scene import SENSOR_KINDS, Scene
 
@@ -82,13 +83,13 @@ class SceneCaster:
             if len(sel) == 0:
                 continue
             os_ = o[sel] if o.strides[0] else o[:len(sel)]
-            t_m, _, p, n_local = self._moving_bvh[k].intersect((os_ - pos) @ rot, d[sel] @ rot)
+            t_m, _, p, n_local = self._moving_bvh[k].intersect(rotate_rows(os_ - pos, rot), rotate_rows(d[sel], rot))
             win = t_m < dist[sel]  # inf < inf is False: misses never win
             sel, t_m, p, n_local = sel[win], t_m[win], p[win], n_local[win]
             dist[sel] = t_m
             obj[sel] = i
             tri[sel] = p
-            normal[sel] = n_local @ rot.T
+            normal[sel] = rotate_rows(n_local, rot.T)
         hit = obj >= 0
         point = o + d * np.where(hit, dist, np.nan)[:, None]
         # Turn normals towards the incoming ray; |cos| is the incidence cosine.
@@ -107,10 +108,14 @@ class SceneCaster:
 def _rays_near_sphere(o: np.ndarray, d: np.ndarray, centre: np.ndarray, radius: float,
                       t_max: np.ndarray) -> np.ndarray:
     """Indices of rays (unit d) that enter the sphere before distance ``t_max``."""
-    w = centre - o if o.strides[0] else centre - o[0]
-    tca = w @ d.T if w.ndim == 1 else np.einsum("ij,ij->i", w, d)
-    w2 = w @ w if w.ndim == 1 else np.einsum("ij,ij->i", w, w)
-    d2 = w2 - tca * tca
+    if o.strides[0] == 0:  # one shared origin (a camera): scalar offsets
+        w = centre - o[0]
+        tca = d[:, 0] * w[0] + d[:, 1] * w[1] + d[:, 2] * w[2]
+        d2 = (w @ w) - tca * tca
+    else:
+        w = centre - o
+        tca = d[:, 0] * w[:, 0] + d[:, 1] * w[:, 1] + d[:, 2] * w[:, 2]
+        d2 = w[:, 0] ** 2 + w[:, 1] ** 2 + w[:, 2] ** 2 - tca * tca
     return np.nonzero((d2 <= radius * radius) & (tca + radius > 0) & (tca - radius < t_max))[0]
 
 

@@ -16,6 +16,7 @@ import numpy as np
 
 from twinsense import validation as V
 from twinsense.errors import ConfigError
+from twinsense.linalg import rotate_rows
 from twinsense.scene.pose import Pose
 
 
@@ -174,7 +175,7 @@ class PinholeCamera:
     def rays(self, pose: Pose, supersample: int = 1) -> Rays:
         """World-frame rays (H*N*W*N rows, row-major image order) from a sensor pose."""
         d = self.directions(supersample).reshape(-1, 3)
-        return Rays(np.broadcast_to(pose.position, d.shape), d @ pose.rotation.T)
+        return Rays(np.broadcast_to(pose.position, d.shape), rotate_rows(d, pose.rotation.T))
 
     def project(self, points_sensor) -> np.ndarray:
         """Project sensor-frame points (n, 3) to distorted pixel coordinates (n, 2) [px]."""

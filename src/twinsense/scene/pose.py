@@ -15,6 +15,7 @@ from scipy.spatial.transform import Rotation
 
 from twinsense import validation as V
 from twinsense.errors import ConfigError
+from twinsense.linalg import rotate_rows
 
 
 def _as_rotation_matrix(field_name: str, value: Any) -> np.ndarray:
@@ -121,11 +122,18 @@ class Pose:
     def apply(self, points) -> np.ndarray:
         """Transform points (n, 3) or (3,) from the child into the parent frame."""
         p = np.asarray(points, dtype=float)
+        if p.ndim == 2 and len(p) > 64:
+            out = rotate_rows(p, self.rotation.T)
+            out += self.position
+            return out
         return p @ self.rotation.T + self.position
 
     def apply_vectors(self, vectors) -> np.ndarray:
         """Rotate direction vectors (n, 3) or (3,) (no translation)."""
-        return np.asarray(vectors, dtype=float) @ self.rotation.T
+        v = np.asarray(vectors, dtype=float)
+        if v.ndim == 2 and len(v) > 64:
+            return rotate_rows(v, self.rotation.T)
+        return v @ self.rotation.T
 
     # ------------------------------------------------------------ views
     @property
