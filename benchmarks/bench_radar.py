@@ -56,12 +56,14 @@ def _report(t, scene, radar, renderer, frames, exact_subset):
     t_weights, w = _median_time(5, weights)
     t_synth, cube = _median_time(5, synthesize, scat.points, scat.velocities, w, cfg,
                                  eps=radar.eps)
+    t_synth2, _ = _median_time(5, synthesize, scat.points, scat.velocities, w, cfg,
+                               eps=radar.eps, workers=2)
     t_proc, _ = _median_time(5, radar.process_cube, cube)
     t_full, _ = _median_time(frames, radar.capture, scene, t, np.random.default_rng(1))
     print(f"\nt = {t:.1f} s: {len(scat)} scatterers ({n_moving} moving)")
     print(f"  render + scatterers   {1e3 * t_render:7.1f} ms")
     print(f"  amplitudes + filters  {1e3 * t_weights:7.1f} ms")
-    print(f"  IF synthesis (fast)   {1e3 * t_synth:7.1f} ms")
+    print(f"  IF synthesis (fast)   {1e3 * t_synth:7.1f} ms  (2 threads: {1e3 * t_synth2:.1f} ms)")
     print(f"  processing            {1e3 * t_proc:7.1f} ms  (range/Doppler FFT, CFAR, AoA)")
     print(f"  full capture          {1e3 * t_full:7.1f} ms  -> {1 / t_full:5.1f} frames/s")
 

@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from twinsense import validation as V
 from twinsense.errors import ConfigError
 from twinsense.radar import effects
 from twinsense.radar.config import RadarConfig
@@ -88,13 +89,15 @@ class FMCWRadar:
         Ray-cast backend for the scene render.
     eps : float
         Requested relative accuracy of the fast IF synthesis.
+    workers : int
+        Threads for the IF synthesis (see :func:`twinsense.radar.synthesize`).
     """
 
     kind = "radar"
 
     def __init__(self, config: RadarConfig, *, name: str = "radar", mount: Mount | None = None,
                  processing: ProcessingSettings | None = None, process: bool = True,
-                 backend: str = "embree", eps: float = 1e-7):
+                 backend: str = "embree", eps: float = 1e-7, workers: int = 1):
         if not isinstance(config, RadarConfig):
             raise ConfigError("FMCWRadar.config", config, "a RadarConfig")
         if not isinstance(name, str) or not name:
@@ -107,7 +110,8 @@ class FMCWRadar:
         self.processing = processing or ProcessingSettings(min_range=0.05)
         self.process = bool(process)
         self.backend = backend
-        self.eps = eps
+        self.eps = V.number("FMCWRadar.eps", eps, lo=1e-14, hi=1e-5)
+        self.workers = V.integer("FMCWRadar.workers", workers, lo=1, hi=64)
         self._renderer: ScatterRenderer | None = None
 
     # ---- sensor protocol ---------------------------------------------------
@@ -157,7 +161,7 @@ class FMCWRadar:
             arrays = tuple(None if a is None else a[keep] for a in arrays)
             w = w[keep]
         sig = synthesize(arrays[0], arrays[1], w, cfg, points_rx=arrays[2],
-                         velocities_rx=arrays[3], eps=self.eps)
+                         velocities_rx=arrays[3], eps=self.eps, workers=self.workers)
         sig = (sig + effects.leakage(cfg)) * cfg.if_chain.voltage_gain
         noise = effects.shape_noise(effects.thermal_noise(cfg, rng), cfg)
         # The DC offset sits on every real channel (on I and on Q alike).

@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import math
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import nullcontext
 
 import finufft
 import numpy as np
@@ -247,8 +248,8 @@ def _distance(points: np.ndarray, element: np.ndarray) -> np.ndarray:
     return np.sqrt(np.einsum("ij,ij->i", d, d))
 
 
-def _static_rows(ps, prs, ws, arr, tx_of, n_rx, f0, slope, fs, t_c, n_samp, eps):
-    """{(tx, rx): row} for static scatterers: one NUFFT per pair (run on two threads)."""
+def _static_rows(ps, prs, ws, arr, tx_of, n_rx, f0, slope, fs, t_c, n_samp, eps, executor=None):
+    """{(tx, rx): row} for static scatterers: one NUFFT per pair (on ``executor`` if given)."""
     txs = sorted(set(tx_of.tolist()))
     r_tx = {k: _distance(ps, arr.tx_positions[k]) for k in txs}
     r_rx = [_distance(prs, arr.rx_positions[a]) for a in range(n_rx)]
@@ -262,10 +263,8 @@ def _static_rows(ps, prs, ws, arr, tx_of, n_rx, f0, slope, fs, t_c, n_samp, eps)
         return _Plans(n_samp, eps).rows(x, ws * np.exp(1j * phi0))
 
     keys = [(k, a) for k in txs for a in range(n_rx)]
-    if len(keys) > 1 and len(ps) > 20_000:
-        # finufft and large numpy operations release the GIL: the pairs run in parallel.
-        with ThreadPoolExecutor(max_workers=2) as pool:
-            return dict(zip(keys, pool.map(job, keys)))
+    if executor is not None:
+        return dict(zip(keys, executor.map(job, keys)))
     return {key: job(key) for key in keys}
 
 
@@ -313,12 +312,17 @@ def _moving_rows(pm, vm, prm, vrm, wm, arr, tx_of, n_rx, f0, slope, fs, t_c, n_s
 
 def synthesize(points: np.ndarray, velocities: np.ndarray | None, weights: np.ndarray,
                config: RadarConfig, *, points_rx: np.ndarray | None = None,
-               velocities_rx: np.ndarray | None = None, eps: float = 1e-8) -> np.ndarray:
+               velocities_rx: np.ndarray | None = None, eps: float = 1e-8,
+               workers: int = 1) -> np.ndarray:
     """Fast IF cube; agrees with :func:`synthesize_exact` to about ``eps`` relative.
 
     Same parameters and result as :func:`synthesize_exact`. ``eps`` is the
     requested relative accuracy of the non-uniform FFTs and of the Taylor
-    series for motion within a chirp.
+    series for motion within a chirp. ``workers`` > 1 runs the static
+    (tx, rx) pairs and the moving scatterers on that many threads (finufft
+    and large numpy operations release the GIL); it pays on idle cores and
+    costs on busy ones (measured on 2 shared cores: 44 ms with one worker
+    against 60 ms with two for 342k static scatterers).
     """
     p, v, w, pr, vr = _check_inputs(points, velocities, weights, points_rx, velocities_rx)
     c = config.chirp
@@ -337,13 +341,22 @@ def synthesize(points: np.ndarray, velocities: np.ndarray | None, weights: np.nd
         static = None
     else:
         static = slice(None) if not moving.any() else ~moving
-    if static is not None:
-        # Static: one NUFFT per (tx, rx) pair, copied to that transmitter's chirps.
-        rows = _static_rows(p[static], pr[static], w[static], arr, tx_of, n_rx, f0, slope, fs,
-                            t_c, n_samp, eps)
-        for (k, a), row in rows.items():
-            cube[a, tx_of == k] += row
-    if moving.any():
-        _moving_rows(p[moving], v[moving], pr[moving], vr[moving], w[moving], arr, tx_of, n_rx,
-                     f0, slope, fs, t_c, n_samp, c.chirp_times() + t_c, eps, cube)
+    parallel = workers > 1 and len(p) > 20_000
+    with ThreadPoolExecutor(max_workers=workers) if parallel else nullcontext() as pool:
+        moving_cube = None
+        if moving.any():
+            moving_cube = np.zeros_like(cube)
+            args = (p[moving], v[moving], pr[moving], vr[moving], w[moving], arr, tx_of, n_rx,
+                    f0, slope, fs, t_c, n_samp, c.chirp_times() + t_c, eps, moving_cube)
+            done = pool.submit(_moving_rows, *args) if pool else _moving_rows(*args)
+        if static is not None:
+            # Static: one NUFFT per (tx, rx) pair, copied to that transmitter's chirps.
+            rows = _static_rows(p[static], pr[static], w[static], arr, tx_of, n_rx, f0, slope,
+                                fs, t_c, n_samp, eps, executor=pool)
+            for (k, a), row in rows.items():
+                cube[a, tx_of == k] += row
+        if moving_cube is not None:
+            if pool:
+                done.result()
+            cube += moving_cube
     return _output(cube, config)
