@@ -101,3 +101,20 @@ def test_capture_is_reproducible_and_streams_are_recordable():
     assert set(s) == {"adc", "range_doppler_power"}
     assert s["adc"].shape == (3, 8, 64)
     np.testing.assert_allclose(a.cube, (a.adc.astype(float) - 2048) / 4096)
+
+
+def test_l_shaped_bgt60tr13c_gives_azimuth_and_elevation():
+    radar = FMCWRadar.preset("infineon_bgt60tr13c", num_chirps=32, frame_repetition_time=0.1)
+    az, el, r0, v_r = math.radians(20.0), math.radians(-10.0), 0.5, 0.3
+    d = np.array([math.cos(el) * math.sin(az), -math.sin(el), math.cos(el) * math.cos(az)])
+    frame = radar.capture_scatterers(Scatterers.point_targets([r0 * d], 0.01, [v_r * d]), 0.0,
+                                     np.random.default_rng(0))
+    rng, vel, a, e, snr = _strongest(frame.detections)
+    cfg = radar.config
+    assert snr > 20.0
+    # One range bin (2.7 cm), one Doppler bin, 2 deg from each monopulse pair
+    # (RX1/RX3 azimuth, RX2/RX3 elevation), with the IF filters and ADC in the chain.
+    assert abs(rng - r0) <= cfg.chirp.range_resolution
+    assert abs(vel - v_r) <= cfg.velocity_resolution
+    assert abs(math.degrees(a) - 20.0) <= 2.0
+    assert abs(math.degrees(e) + 10.0) <= 2.0
