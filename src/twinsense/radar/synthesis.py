@@ -23,7 +23,8 @@ Two implementations:
 
 - :func:`synthesize_exact` evaluates the formula sample by sample — the
   reference, O(n_scatterers x cube size).
-- :func:`synthesize` is fast and agrees with the reference to ~1e-7. Static
+- :func:`synthesize` is fast and agrees with the reference to about its
+  ``eps`` (4e-8 measured at eps = 1e-7 on a 342k-scatterer office frame). Static
   scatterers (v = 0) have a constant tau per (tx, rx) pair: their phase is
   exactly linear in the sample index, so each (tx, rx) row is one type-1
   non-uniform FFT (finufft) over the scatterers, shared by every chirp of
@@ -270,7 +271,10 @@ def _static_rows(ps, prs, ws, arr, tx_of, n_rx, f0, slope, fs, t_c, n_samp, eps,
 
 def _moving_rows(pm, vm, prm, vrm, wm, arr, tx_of, n_rx, f0, slope, fs, t_c, n_samp,
                  chirp_centre, eps, cube, chunk=32768):
-    """Add moving scatterers to ``cube`` (rx, chirp, sample): one NUFFT per (rx, chirp)."""
+    """Add moving scatterers to ``cube`` (rx, chirp, sample): one NUFFT per (rx, chirp).
+
+    ``prm``/``vrm`` None: monostatic (the receive legs end at ``pm``).
+    """
     n_chirps = len(chirp_centre)
     fc = f0 + slope * t_c
     half = n_samp / 2 / fs  # s = u * half, u in [-1, 1)
@@ -279,11 +283,14 @@ def _moving_rows(pm, vm, prm, vrm, wm, arr, tx_of, n_rx, f0, slope, fs, t_c, n_s
     tx_pos = arr.tx_positions[tx_of]  # (M, 3)
     for lo in range(0, len(pm), chunk):
         p, v, w = pm[lo:lo + chunk], vm[lo:lo + chunk], wm[lo:lo + chunk]
-        pr, vr = prm[lo:lo + chunk], vrm[lo:lo + chunk]
         speed2 = np.einsum("ij,ij->i", v, v)
-        speed2_rx = np.einsum("ij,ij->i", vr, vr)
         pos = p[None, :, :] + v[None, :, :] * chirp_centre[:, None, None]  # (M, n, 3)
-        pos_rx = pr[None, :, :] + vr[None, :, :] * chirp_centre[:, None, None]
+        if prm is None:  # monostatic: both legs end at the same point
+            vr, speed2_rx, pos_rx = v, speed2, pos
+        else:
+            pr, vr = prm[lo:lo + chunk], vrm[lo:lo + chunk]
+            speed2_rx = np.einsum("ij,ij->i", vr, vr)
+            pos_rx = pr[None, :, :] + vr[None, :, :] * chirp_centre[:, None, None]
         tx = _element_taylor(pos - tx_pos[:, None, :], v, speed2)
         for a in range(n_rx):
             rx = _element_taylor(pos_rx - arr.rx_positions[a], vr, speed2_rx)
@@ -346,7 +353,9 @@ def synthesize(points: np.ndarray, velocities: np.ndarray | None, weights: np.nd
         moving_cube = None
         if moving.any():
             moving_cube = np.zeros_like(cube)
-            args = (p[moving], v[moving], pr[moving], vr[moving], w[moving], arr, tx_of, n_rx,
+            bistatic = pr is not p
+            args = (p[moving], v[moving], pr[moving] if bistatic else None,
+                    vr[moving] if bistatic else None, w[moving], arr, tx_of, n_rx,
                     f0, slope, fs, t_c, n_samp, c.chirp_times() + t_c, eps, moving_cube)
             done = pool.submit(_moving_rows, *args) if pool else _moving_rows(*args)
         if static is not None:
