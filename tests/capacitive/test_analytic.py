@@ -29,8 +29,7 @@ A_RADIUS = 0.01  # [m]
 
 
 def _maxwell(mesh, terminals, outer, center=None, floating=(), grounded=None):
-    system = ElectrostaticSystem(mesh, terminals, outer_boundary=outer, center=center,
-                                 grounded=grounded)
+    system = ElectrostaticSystem(mesh, terminals, outer_boundary=outer, center=center, grounded=grounded)
     if floating:
         system.set_conductors(None, floating)
     return MaxwellSolver(system, TIGHT).solve().matrix
@@ -75,8 +74,7 @@ def test_floating_shell_between_spheres_is_two_capacitors_in_series():
     for level in (0, 1):
         mesh, rad = _shell(level, c, extra=[b1, b2])
         floating = np.flatnonzero((rad >= b1 * (1 - 1e-9)) & (rad <= b2 * (1 + 1e-9)))
-        C = _maxwell(mesh, [np.flatnonzero(np.isclose(rad, a))], "grounded",
-                     floating=[floating])
+        C = _maxwell(mesh, [np.flatnonzero(np.isclose(rad, a))], "grounded", floating=[floating])
         errors.append(abs(C[0, 0] / exact - 1))
     assert errors[0] / errors[1] > 3.0  # O(h^2) as for the single sphere
     assert errors[1] < 0.03  # same mesh sizes as the sphere test
@@ -92,8 +90,7 @@ def _disk_mesh(level: int, z_planes, R=4.0):
     z = graded_axis(-R * a, R * a, z_planes, h_min, h_max, growth)
     mesh = extruded_mesh(p2, tri, z)
     rr = np.hypot(mesh.points[:, 0], mesh.points[:, 1])
-    terms = [np.flatnonzero((np.abs(mesh.points[:, 2] - zp) < 1e-12) & (rr <= a * (1 + 1e-9)))
-             for zp in z_planes]
+    terms = [np.flatnonzero((np.abs(mesh.points[:, 2] - zp) < 1e-12) & (rr <= a * (1 + 1e-9))) for zp in z_planes]
     return mesh, terms
 
 
@@ -167,8 +164,7 @@ def test_layered_plate_is_exact_with_neumann_walls():
     bottom = np.flatnonzero(pz == 0.0)
     top = np.flatnonzero(np.isclose(pz, sum(d)))
     cell_eps = np.where(mesh.centroids[:, 2] < d[0], eps[0], eps[1])
-    system = ElectrostaticSystem(mesh, [bottom], grounded=top, permittivity=cell_eps,
-                                 outer_boundary="neumann")
+    system = ElectrostaticSystem(mesh, [bottom], grounded=top, permittivity=cell_eps, outer_boundary="neumann")
     solver = MaxwellSolver(system, TIGHT)
     exact = EPS0 * side**2 / (d[0] / eps[0] + d[1] / eps[1])
     # The exact potential is piecewise linear in z with kinks on grid planes:
@@ -187,10 +183,13 @@ def test_compressed_dielectric_layer():
     for gap in (d, d - delta):
         mesh = tensor_tet_mesh(x, x, np.linspace(0, gap, 5))
         pz = mesh.points[:, 2]
-        system = ElectrostaticSystem(mesh, [np.flatnonzero(pz == 0)],
-                                     grounded=np.flatnonzero(np.isclose(pz, gap)),
-                                     permittivity=np.full(mesh.n_cells, eps),
-                                     outer_boundary="neumann")
+        system = ElectrostaticSystem(
+            mesh,
+            [np.flatnonzero(pz == 0)],
+            grounded=np.flatnonzero(np.isclose(pz, gap)),
+            permittivity=np.full(mesh.n_cells, eps),
+            outer_boundary="neumann",
+        )
         values.append(MaxwellSolver(system, TIGHT).solve().matrix[0, 0])
     # C = eps0 eps_r A / (d - delta), exact in 1-D (see the layered plate).
     assert values[1] == pytest.approx(EPS0 * eps * side**2 / (d - delta), rel=1e-9)

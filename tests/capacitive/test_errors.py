@@ -25,8 +25,11 @@ def test_empty_layout():
 def test_overlapping_electrodes():
     a = L.rectangle("a", -0.01, -0.01, 0.002, 0.01)
     b = L.rectangle("b", 0.0, -0.01, 0.01, 0.01)
-    with pytest.raises(ConfigError, match=r"'b' is invalid: expected an electrode that neither "
-                                          r"overlaps nor touches 'a'"):
+    with pytest.raises(
+        ConfigError,
+        match=r"'b' is invalid: expected an electrode that neither "
+        r"overlaps nor touches 'a'",
+    ):
         mesh_layout(L.Layout((a, b)), MeshSettings(h_min=2e-3, h_max=5e-3, use_cache=False))
 
 
@@ -34,8 +37,11 @@ def test_electrode_outside_the_mesh():
     far = L.rectangle("far", 0.5, 0.5, 0.51, 0.51)
     near = L.rectangle("near", -0.01, -0.01, 0.01, 0.01)
     settings = MeshSettings(region=(-0.03, 0.03, -0.03, 0.03, -0.01, 0.03), use_cache=False)
-    with pytest.raises(ConfigError, match=r"electrodes\[1\] = 'far' is invalid: expected an "
-                                          r"electrode inside the mesh region"):
+    with pytest.raises(
+        ConfigError,
+        match=r"electrodes\[1\] = 'far' is invalid: expected an "
+        r"electrode inside the mesh region",
+    ):
         mesh_layout(L.Layout((near, far)), settings)
 
 
@@ -48,8 +54,11 @@ def test_zero_or_negative_permittivity(eps):
     mesh = tensor_tet_mesh(np.linspace(0, 1, 3), np.linspace(0, 1, 3), np.linspace(0, 1, 3))
     cells = np.ones(mesh.n_cells)
     cells[3] = eps
-    with pytest.raises(ConfigError, match=r"permittivity = .* expected a finite relative "
-                                          r"permittivity > 0 for every cell"):
+    with pytest.raises(
+        ConfigError,
+        match=r"permittivity = .* expected a finite relative "
+        r"permittivity > 0 for every cell",
+    ):
         ElectrostaticSystem(mesh, [np.array([0])], permittivity=cells)
 
 

@@ -21,10 +21,12 @@ def _sphere_scene(x, z=0.008, radius=0.004, material=GROUNDED):
 
 def test_maxwell_matrix_invariants_with_objects():
     sensor = CapacitiveSensor(two_pad_config())
-    scene = Scene([
-        SceneObject("ball", Sphere(0.004), GROUNDED, Pose(np.array([-0.008, 0.0, 0.008]))),
-        SceneObject("cup", Cylinder(0.004, 0.006), FLOATING, Pose(np.array([0.008, 0.0, 0.007]))),
-    ])
+    scene = Scene(
+        [
+            SceneObject("ball", Sphere(0.004), GROUNDED, Pose(np.array([-0.008, 0.0, 0.008]))),
+            SceneObject("cup", Cylinder(0.004, 0.006), FLOATING, Pose(np.array([0.008, 0.0, 0.007]))),
+        ]
+    )
     res = sensor.solve_at(scene, 0.0)
     C = res.matrix
     # Reciprocity: charges computed directly (Q_j = sum over electrode j of
@@ -77,11 +79,13 @@ def test_floating_conductor_is_the_infinite_permittivity_limit():
     # an independent check of the zero-net-charge elimination.
     sensor = CapacitiveSensor(two_pad_config(solver=SolverConfig(rtol=1e-10)))
     res = {}
-    for label, mat in [("eps4", Material("e4", permittivity=4.0)),
-                       ("eps1e5", Material("e1e5", permittivity=1e5)),
-                       ("floating", FLOATING), ("grounded", GROUNDED)]:
-        res[label] = sensor.solve_at(_sphere_scene(-0.008, radius=0.005, material=mat),
-                                          0.0).matrix
+    for label, mat in [
+        ("eps4", Material("e4", permittivity=4.0)),
+        ("eps1e5", Material("e1e5", permittivity=1e5)),
+        ("floating", FLOATING),
+        ("grounded", GROUNDED),
+    ]:
+        res[label] = sensor.solve_at(_sphere_scene(-0.008, radius=0.005, material=mat), 0.0).matrix
     # Same cells either way: the eps -> inf error is O(1/eps) = 1e-5 relative
     # to the object's share of the energy.
     assert res["eps1e5"] == pytest.approx(res["floating"], rel=1e-4, abs=1e-4 * 1e-12)
@@ -120,7 +124,6 @@ def test_hollow_object_leaves_its_cavity_empty():
     assert np.all(mm.permittivity[(r < 0.005) & (mesh.centroids[:, 2] > 0)] == 1.0)
     assert np.all(mm.permittivity[(r > 0.0055) & (r < 0.0075)] == 3.0)
     # Partly outside the mesh (z up to 0.02 + margin): mapped where it overlaps.
-    big = Inclusion("slab", lambda p: p[:, 2] > 0.015, np.array([[-1, -1, 0.015], [1, 1, 1.0]]),
-                    2.0, "none")
+    big = Inclusion("slab", lambda p: p[:, 2] > 0.015, np.array([[-1, -1, 0.015], [1, 1, 1.0]]), 2.0, "none")
     mm2 = map_inclusions(mesh, sensor.layout_mesh.permittivity, [big])
     assert np.all(mm2.permittivity[mesh.centroids[:, 2] > 0.015] == 2.0)

@@ -49,14 +49,10 @@ class Inclusion:
 
     def __post_init__(self) -> None:
         if self.conductor not in CONDUCTOR_KINDS:
-            raise ConfigError(
-                f"{self.name}.conductor", self.conductor, "one of: " + ", ".join(CONDUCTOR_KINDS)
-            )
+            raise ConfigError(f"{self.name}.conductor", self.conductor, "one of: " + ", ".join(CONDUCTOR_KINDS))
         eps = self.permittivity
         if not (isinstance(eps, (int, float, np.floating)) and np.isfinite(eps) and eps > 0):
-            raise ConfigError(
-                f"{self.name}.permittivity", eps, "a finite relative permittivity > 0"
-            )
+            raise ConfigError(f"{self.name}.permittivity", eps, "a finite relative permittivity > 0")
         b = np.asarray(self.bounds, float)
         if b.shape != (2, 3) or not np.all(b[1] >= b[0]):
             raise ConfigError(f"{self.name}.bounds", self.bounds, "(2, 3) min/max corners [m]")

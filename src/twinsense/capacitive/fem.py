@@ -122,9 +122,7 @@ class AssemblyPattern:
         vals = (weights[:, None, None] * local).ravel()
         return np.bincount(self.slots.ravel(), weights=vals, minlength=self.nnz)
 
-    def scatter_add(
-        self, data: np.ndarray, cells: np.ndarray, local: np.ndarray, delta: np.ndarray
-    ) -> None:
+    def scatter_add(self, data: np.ndarray, cells: np.ndarray, local: np.ndarray, delta: np.ndarray) -> None:
         """Add ``delta[i] * local[i]`` of elements ``cells`` to ``data`` in place."""
         if len(cells) == 0:
             return
@@ -359,9 +357,7 @@ class ElectrostaticSystem:
             self.eps_r[changed] = eps_r[changed]
         return changed
 
-    def set_conductors(
-        self, grounded: np.ndarray | None = None, floating: Sequence[np.ndarray] = ()
-    ) -> None:
+    def set_conductors(self, grounded: np.ndarray | None = None, floating: Sequence[np.ndarray] = ()) -> None:
         """Set the dynamic conductors (scene objects).
 
         Parameters
@@ -456,6 +452,4 @@ def _check_permittivity(eps: np.ndarray, m: int | None) -> None:
         raise ConfigError("permittivity", f"array of shape {eps.shape}", f"shape ({m},)")
     bad = ~(np.isfinite(eps) & (eps > 0))
     if np.any(bad):
-        raise ConfigError(
-            "permittivity", float(eps[bad][0]), "a finite relative permittivity > 0 for every cell"
-        )
+        raise ConfigError("permittivity", float(eps[bad][0]), "a finite relative permittivity > 0 for every cell")

@@ -64,9 +64,7 @@ class Electrode:
             raise ConfigError("Electrode.name", self.name, "a non-empty string")
         poly = v.array(f"{self.name}.polygon", self.polygon, (None, 2), "m")
         if len(poly) < 3:
-            raise ConfigError(
-                f"{self.name}.polygon", self.polygon, "at least 3 vertices (k, 2) [m]"
-            )
+            raise ConfigError(f"{self.name}.polygon", self.polygon, "at least 3 vertices (k, 2) [m]")
         if abs(_area(poly)) <= 0:
             raise ConfigError(f"{self.name}.polygon", self.polygon, "a polygon with non-zero area")
         poly.setflags(write=False)
@@ -143,9 +141,7 @@ class SolidElectrode:
         b = np.asarray(self.geometry.bounds, float)
         if self.pose is None:
             return b
-        corners = np.array(
-            [[b[i, 0], b[j, 1], b[k, 2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)]
-        )
+        corners = np.array([[b[i, 0], b[j, 1], b[k, 2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
         c = self.pose.apply(corners)
         return np.vstack([c.min(axis=0), c.max(axis=0)])
 
@@ -187,9 +183,7 @@ class Substrate:
         if self.extent is not None:
             e = v.vector("Substrate.extent", self.extent, 4, "m")
             if not (e[1] > e[0] and e[3] > e[2]):
-                raise ConfigError(
-                    "Substrate.extent", self.extent, "x_min < x_max and y_min < y_max"
-                )
+                raise ConfigError("Substrate.extent", self.extent, "x_min < x_max and y_min < y_max")
             object.__setattr__(self, "extent", tuple(float(x) for x in e))
 
 
@@ -277,9 +271,7 @@ def _area(poly: np.ndarray) -> float:
     return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
 
 
-def rectangle(
-    name: str, x0: float, y0: float, x1: float, y1: float, z: float = 0.0, role: str = "sense"
-) -> Electrode:
+def rectangle(name: str, x0: float, y0: float, x1: float, y1: float, z: float = 0.0, role: str = "sense") -> Electrode:
     """An axis-aligned rectangular electrode [x0, x1] x [y0, y1] [m]."""
     if not (x1 > x0 and y1 > y0):
         raise ConfigError(f"{name}.rectangle", (x0, y0, x1, y1), "x0 < x1 and y0 < y1 [m]")
@@ -313,19 +305,13 @@ def stripes(
     for i in range(n):
         c = (i - 0.5 * (n - 1)) * pitch
         if axis == "y":
-            out.append(
-                rectangle(f"{prefix}{i}", c - width / 2, -length / 2, c + width / 2, length / 2)
-            )
+            out.append(rectangle(f"{prefix}{i}", c - width / 2, -length / 2, c + width / 2, length / 2))
         else:
-            out.append(
-                rectangle(f"{prefix}{i}", -length / 2, c - width / 2, length / 2, c + width / 2)
-            )
+            out.append(rectangle(f"{prefix}{i}", -length / 2, c - width / 2, length / 2, c + width / 2))
     return tuple(out)
 
 
-def pad_grid(
-    nx: int, ny: int, size: float, pitch: float, *, prefix: str = "p"
-) -> tuple[Electrode, ...]:
+def pad_grid(nx: int, ny: int, size: float, pitch: float, *, prefix: str = "p") -> tuple[Electrode, ...]:
     """An ``nx`` by ``ny`` grid of square pads of side ``size`` at ``pitch`` [m], centred."""
     nx = v.integer("pad_grid.nx", nx, lo=1)
     ny = v.integer("pad_grid.ny", ny, lo=1)
@@ -336,11 +322,7 @@ def pad_grid(
         for i in range(nx):
             cx = (i - 0.5 * (nx - 1)) * pitch
             cy = (j - 0.5 * (ny - 1)) * pitch
-            out.append(
-                rectangle(
-                    f"{prefix}{j}_{i}", cx - size / 2, cy - size / 2, cx + size / 2, cy + size / 2
-                )
-            )
+            out.append(rectangle(f"{prefix}{j}_{i}", cx - size / 2, cy - size / 2, cx + size / 2, cy + size / 2))
     return tuple(out)
 
 
@@ -373,9 +355,7 @@ def interdigital(
     for k in range(2):
         fingers = n if k == 0 else n - 1
         if fingers == 0:
-            raise ConfigError(
-                "interdigital.n_fingers", n_fingers, "an integer >= 2 (both combs need fingers)"
-            )
+            raise ConfigError("interdigital.n_fingers", n_fingers, "an integer >= 2 (both combs need fingers)")
         xs = [x0 + (w + g) * k + pitch * i for i in range(fingers)]
         if k == 0:
             yb0, yb1 = y_lo - b, y_lo  # bus below

@@ -61,14 +61,10 @@ class SimplexMesh:
         points = np.ascontiguousarray(self.points, dtype=float)
         cells = np.ascontiguousarray(self.cells, dtype=np.int64)
         if points.ndim != 2 or points.shape[1] not in (2, 3):
-            raise ConfigError(
-                "SimplexMesh.points", f"array of shape {points.shape}", "(n, 2) or (n, 3)"
-            )
+            raise ConfigError("SimplexMesh.points", f"array of shape {points.shape}", "(n, 2) or (n, 3)")
         d = points.shape[1]
         if cells.ndim != 2 or cells.shape[1] != d + 1 or len(cells) == 0:
-            raise ConfigError(
-                "SimplexMesh.cells", f"array of shape {cells.shape}", f"(m, {d + 1}), m > 0"
-            )
+            raise ConfigError("SimplexMesh.cells", f"array of shape {cells.shape}", f"(m, {d + 1}), m > 0")
         points.setflags(write=False)
         cells.setflags(write=False)
         object.__setattr__(self, "points", points)
@@ -147,6 +143,7 @@ def graded_axis(
     h_max: float = 1e-2,
     growth: float = 1.3,
     fine_intervals=(),
+    zones=(),
 ) -> np.ndarray:
     """Grid coordinates on [lo, hi] that contain every feature and are graded away from them.
 
@@ -169,6 +166,8 @@ def graded_axis(
     fine_intervals : sequence of (a, b)
         Intervals meshed at ``h_min`` throughout (curved edges that are no
         grid lines, e.g. rings off the polar grid) [m].
+    zones : sequence of (a, b, h)
+        Intervals meshed at spacing ``h`` or finer, grading away at ``growth``.
 
     Returns
     -------
@@ -189,13 +188,18 @@ def graded_axis(
     breaks[-1] = hi
     anchors = feats if len(feats) else np.array([])
 
+    sources = [(a, b, h_min) for a, b in intervals]
+    sources += [(max(a, lo), min(b, hi), h) for a, b, h in zones if b > lo and a < hi]
+
     def spacing(x: np.ndarray) -> np.ndarray:
-        dist = np.full(x.shape, np.inf)
+        size = np.full(x.shape, float(h_max))
         if len(anchors):
             dist = np.min(np.abs(x[:, None] - anchors[None, :]), axis=1)
-        for a, b in intervals:
-            dist = np.where((x >= a) & (x <= b), 0.0, np.minimum(dist, np.maximum(a - x, x - b)))
-        return np.minimum(h_max, h_min + (growth - 1.0) * dist)
+            size = np.minimum(size, h_min + (growth - 1.0) * dist)
+        for a, b, h in sources:
+            dist = np.maximum(np.maximum(a - x, x - b), 0.0)
+            size = np.minimum(size, h + (growth - 1.0) * dist)
+        return size
 
     out = [np.array([breaks[0]])]
     for a, b in itertools.pairwise(breaks):
@@ -352,9 +356,7 @@ def spherical_shell_mesh(radii, subdivisions: int = 2) -> SimplexMesh:
 
     r = np.asarray(radii, float)
     if r.ndim != 1 or len(r) < 2 or r[0] <= 0 or np.any(np.diff(r) <= 0):
-        raise ConfigError(
-            "spherical_shell_mesh.radii", r, "at least 2 strictly increasing radii > 0"
-        )
+        raise ConfigError("spherical_shell_mesh.radii", r, "at least 2 strictly increasing radii > 0")
     ico = trimesh.creation.icosphere(subdivisions=subdivisions, radius=1.0)
     v = np.asarray(ico.vertices, float)
     v /= np.linalg.norm(v, axis=1, keepdims=True)
@@ -369,9 +371,7 @@ def spherical_shell_mesh(radii, subdivisions: int = 2) -> SimplexMesh:
 
 def cache_dir() -> Path:
     """Directory of the on-disk mesh cache (``$TWINSENSE_CACHE_DIR`` or ``~/.cache/twinsense``)."""
-    root = os.environ.get("TWINSENSE_CACHE_DIR") or os.path.join(
-        os.path.expanduser("~"), ".cache", "twinsense"
-    )
+    root = os.environ.get("TWINSENSE_CACHE_DIR") or os.path.join(os.path.expanduser("~"), ".cache", "twinsense")
     return Path(root) / "capacitive-mesh"
 
 
@@ -429,7 +429,7 @@ class MeshSettings:
         Boxes (x_min, x_max, y_min, y_max, z_min, z_max) [m] meshed at
         ``h_refine`` (where objects move, to resolve them).
     h_refine : float
-        Cell size inside the refine boxes [m] (default ``h_min``... set > 0).
+        Cell size inside the refine boxes [m].
     region : (6,) tuple or None
         Explicit mesh box (x_min, x_max, y_min, y_max, z_min, z_max) [m];
         overrides margin, height and depth.
@@ -462,17 +462,13 @@ class MeshSettings:
         for i, b in enumerate(self.refine):
             arr = v.vector(f"MeshSettings.refine[{i}]", b, 6, "m")
             if not (arr[1] > arr[0] and arr[3] > arr[2] and arr[5] > arr[4]):
-                raise ConfigError(
-                    f"MeshSettings.refine[{i}]", b, "a box with min < max on every axis"
-                )
+                raise ConfigError(f"MeshSettings.refine[{i}]", b, "a box with min < max on every axis")
             boxes.append(tuple(float(x) for x in arr))
         object.__setattr__(self, "refine", tuple(boxes))
         if self.region is not None:
             r = v.vector("MeshSettings.region", self.region, 6, "m")
             if not (r[1] > r[0] and r[3] > r[2] and r[5] > r[4]):
-                raise ConfigError(
-                    "MeshSettings.region", self.region, "a box with min < max on every axis"
-                )
+                raise ConfigError("MeshSettings.region", self.region, "a box with min < max on every axis")
             object.__setattr__(self, "region", tuple(float(x) for x in r))
 
 
@@ -543,23 +539,9 @@ def layout_axes(layout, settings: MeshSettings) -> tuple[np.ndarray, np.ndarray,
     axes = []
     for k in range(3):
         lo, hi = region[2 * k], region[2 * k + 1]
-        for r in s.refine:
-            fine[k].append((r[2 * k], r[2 * k + 1]))
-        ax = graded_axis(lo, hi, feats[k], s.h_min, s.h_max, s.growth, fine_intervals=fine[k])
-        if s.refine:
-            # Inside refine boxes the spacing must not exceed h_refine.
-            ax = _cap_spacing(ax, s.refine, k, s.h_refine)
-        axes.append(ax)
+        zones = [(r[2 * k], r[2 * k + 1], s.h_refine) for r in s.refine]
+        axes.append(graded_axis(lo, hi, feats[k], s.h_min, s.h_max, s.growth, fine_intervals=fine[k], zones=zones))
     return axes[0], axes[1], axes[2], tuple(float(x) for x in region)
-
-
-def _cap_spacing(ax: np.ndarray, boxes, k: int, h: float) -> np.ndarray:
-    out = [ax[0]]
-    for a, b in itertools.pairwise(ax):
-        inside = any(r[2 * k] < b and r[2 * k + 1] > a for r in boxes)
-        n = int(np.ceil((b - a) / h - 1e-9)) if inside else 1
-        out.extend(np.linspace(a, b, n + 1)[1:].tolist())
-    return np.asarray(out)
 
 
 def mesh_layout(layout, settings: MeshSettings | None = None) -> LayoutMesh:

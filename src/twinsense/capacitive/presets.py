@@ -29,8 +29,7 @@ def _printer_bed() -> CapacitiveConfig:
         L.Substrate(1.6e-3, 4.4, extent=(-0.11, 0.11, -0.11, 0.11)),
         name="printer-bed",
     )
-    mesh = MeshSettings(margin=0.02, height=0.06, depth=0.01, h_min=2.5e-3, h_max=0.012,
-                        growth=1.35)
+    mesh = MeshSettings(margin=0.02, height=0.06, depth=0.01, h_min=2.5e-3, h_max=0.012, growth=1.35)
     return CapacitiveConfig(layout, mesh)
 
 
@@ -47,8 +46,7 @@ def _pad_grid() -> CapacitiveConfig:
 
 def _interdigital() -> CapacitiveConfig:
     tx, rx = L.interdigital(5, 0.002, 0.030, 0.002)
-    layout = L.Layout((tx, rx), L.Substrate(1.6e-3, 4.4, extent=(-0.03, 0.03, -0.03, 0.03)),
-                      name="interdigital")
+    layout = L.Layout((tx, rx), L.Substrate(1.6e-3, 4.4, extent=(-0.03, 0.03, -0.03, 0.03)), name="interdigital")
     mesh = MeshSettings(margin=0.015, height=0.04, depth=0.01, h_min=1e-3, h_max=0.01)
     return CapacitiveConfig(layout, mesh, mode="mutual")
 
@@ -83,8 +81,7 @@ def _register() -> None:
     from twinsense.presets import register_preset
 
     for preset, (_, description) in PRESETS.items():
-        register_preset("capacitive", preset,
-                        lambda _p=preset, **kw: make_capacitive(_p, **kw), description)
+        register_preset("capacitive", preset, lambda _p=preset, **kw: make_capacitive(_p, **kw), description)
 
 
 _register()

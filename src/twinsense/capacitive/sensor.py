@@ -71,15 +71,11 @@ class CapacitiveConfig:
         pairs = tuple(tuple(p) for p in self.pairs)
         for i, p in enumerate(pairs):
             if len(p) != 2 or p[0] not in names or p[1] not in names or p[0] == p[1]:
-                raise ConfigError(
-                    f"CapacitiveConfig.pairs[{i}]", p, f"two different sense electrodes among {names}"
-                )
+                raise ConfigError(f"CapacitiveConfig.pairs[{i}]", p, f"two different sense electrodes among {names}")
         if self.mode == "mutual" and not pairs:
             if len(names) < 2:
                 raise ConfigError("CapacitiveConfig.mode", self.mode, "'self' with one sense electrode")
-            pairs = tuple(
-                (names[i], names[j]) for i in range(len(names)) for j in range(i + 1, len(names))
-            )
+            pairs = tuple((names[i], names[j]) for i in range(len(names)) for j in range(i + 1, len(names)))
         object.__setattr__(self, "pairs", pairs)
         if not isinstance(self.readout, ReadoutConfig):
             raise ConfigError("CapacitiveConfig.readout", self.readout, "a ReadoutConfig")
@@ -187,9 +183,7 @@ class CapacitiveSensor:
 
     kind = "capacitive"
 
-    def __init__(
-        self, config: CapacitiveConfig, *, name: str = "capacitive", mount: Mount | None = None
-    ) -> None:
+    def __init__(self, config: CapacitiveConfig, *, name: str = "capacitive", mount: Mount | None = None) -> None:
         if not isinstance(config, CapacitiveConfig):
             raise ConfigError("CapacitiveSensor.config", config, "a CapacitiveConfig")
         self.config = config
@@ -281,16 +275,12 @@ class CapacitiveSensor:
         incs = inclusions_from_scene(scene, t, self.kind)
         if self.mount.parent is not None:
             incs = [i for i in incs if i.name != self.mount.parent]
-        mm = map_inclusions(
-            self.layout_mesh.mesh, self.layout_mesh.permittivity, incs, mesh_to_world=pose
-        )
+        mm = map_inclusions(self.layout_mesh.mesh, self.layout_mesh.permittivity, incs, mesh_to_world=pose)
         system.set_permittivity(mm.permittivity)
         system.set_conductors(mm.grounded, mm.floating)
         return self._solver.solve()
 
-    def capture(
-        self, scene, t: float, rng: np.random.Generator | None = None
-    ) -> CapacitiveFrame:
+    def capture(self, scene, t: float, rng: np.random.Generator | None = None) -> CapacitiveFrame:
         """Simulate one sample at time ``t`` [s].
 
         Parameters

@@ -121,8 +121,7 @@ def block_pcg(
         P = Z + (rz_new / rz) * P
         rz = rz_new
     raise RuntimeError(
-        f"PCG did not reach rtol={rtol:g} in {maxiter} iterations "
-        f"(columns {active.tolist()} still active)"
+        f"PCG did not reach rtol={rtol:g} in {maxiter} iterations (columns {active.tolist()} still active)"
     )
 
 
@@ -145,9 +144,7 @@ class PCGSolver:
         """Rebuild the preconditioner at the next solve."""
         self._ml = None
 
-    def solve(
-        self, A: sp.csr_matrix, B: np.ndarray, X0: np.ndarray
-    ) -> tuple[np.ndarray, SolveInfo]:
+    def solve(self, A: sp.csr_matrix, B: np.ndarray, X0: np.ndarray) -> tuple[np.ndarray, SolveInfo]:
         """Solve ``A X = B`` column by column from ``X0``.
 
         Parameters
@@ -214,9 +211,7 @@ class BlockAMG:
         self.steps = steps
         self.theta = theta
         self.scaled_dinv = [self._jacobi(a) for a in self.A[:-1]]
-        self._omega0 = (
-            self.scaled_dinv[0][:, 0] * self.A[0].diagonal() if self.scaled_dinv else None
-        )
+        self._omega0 = self.scaled_dinv[0][:, 0] * self.A[0].diagonal() if self.scaled_dinv else None
         coarse = self.A[-1].toarray()
         # The coarsest operator is SPD up to round-off; a tiny shift keeps Cholesky happy.
         coarse += 1e-14 * np.trace(coarse) / len(coarse) * np.eye(len(coarse))
