@@ -24,7 +24,7 @@ from twinsense.capacitive.mesh import (
 )
 from twinsense.capacitive.solver import MaxwellSolver, SolverConfig
 
-TIGHT = SolverConfig(rtol=1e-10)
+TIGHT = SolverConfig(rtol=1e-10, energy_tol=0.0)
 A_RADIUS = 0.01  # [m]
 
 

@@ -33,10 +33,12 @@ class SolverConfig:
     ----------
     preconditioner : {"amg", "jacobi"}
     rtol : float
-        Relative residual per column. Capacitances are energies, quadratic in
-        the solution error, so their relative error is about
-        ``rtol**2 * cond(A)``; 1e-6 keeps it below 1e-6 on graded meshes
-        with condition numbers up to ~1e6.
+        Relative residual per column (a column also stops by the energy rule).
+    energy_tol : float
+        Relative capacitance error per terminal at which a column stops
+        (estimated from CG's exact energy decrements, see :func:`block_pcg`);
+        off-diagonal entries then err by at most ``energy_tol * sqrt(C_ii C_jj)``.
+        0 disables the rule.
     maxiter : int
         Iteration limit per solve; not converging raises RuntimeError.
     rebuild_factor : float
@@ -45,15 +47,17 @@ class SolverConfig:
     """
 
     preconditioner: str = "amg"
-    rtol: float = 1e-6
+    rtol: float = 1e-9
+    energy_tol: float = 1e-7
     maxiter: int = 2000
     rebuild_factor: float = 2.0
-    amg_strength_theta: float = 0.1
+    amg_strength_theta: float = 0.0
     smoothing_steps: int = 1
 
     def __post_init__(self) -> None:
         v.choice("SolverConfig.preconditioner", self.preconditioner, PRECONDITIONERS)
         v.number("SolverConfig.rtol", self.rtol, lo=0.0, hi=1.0, lo_open=True, hi_open=True)
+        v.number("SolverConfig.energy_tol", self.energy_tol, lo=0.0, hi=1.0, hi_open=True)
         v.integer("SolverConfig.maxiter", self.maxiter, lo=1)
         v.number("SolverConfig.rebuild_factor", self.rebuild_factor, lo=1.0)
         v.number("SolverConfig.amg_strength_theta", self.amg_strength_theta, lo=0.0, hi=1.0)
@@ -75,9 +79,26 @@ class SolveInfo:
 
 
 def block_pcg(
-    A: sp.csr_matrix, B: np.ndarray, X0: np.ndarray, precond, rtol: float, maxiter: int
+    A: sp.csr_matrix,
+    B: np.ndarray,
+    X0: np.ndarray,
+    precond,
+    rtol: float,
+    maxiter: int,
+    energy: np.ndarray | None = None,
+    energy_tol: float = 0.0,
+    free: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Independent PCG on every column of ``A X = B``, products done together.
+
+    Two stopping rules, whichever comes first per column: the residual
+    ``|r| <= rtol |b|``, or the energy rule. CG minimises the energy
+    ``f(x) = x^T A x / 2 - b^T x`` and each step lowers ``2 f`` by exactly
+    ``alpha_k r_k^T z_k``; for a unit-potential problem ``2 f + const`` is
+    the terminal's capacitance ``x^T K x`` and its error is the sum of the
+    decrements still to come. The energy rule stops when that tail,
+    estimated from the last decrement and the ratio of the last two as a
+    geometric series, is below ``energy_tol`` times the current energy.
 
     Parameters
     ----------
@@ -85,8 +106,16 @@ def block_pcg(
     B : (n, t) float right-hand sides.
     X0 : (n, t) float initial guesses.
     precond : callable ((n, c) float) -> (n, c) float, SPD preconditioner.
-    rtol : float, stop a column when ``|r| <= rtol |b|``.
+    rtol : float, residual rule.
     maxiter : int
+    energy : (t,) float, optional
+        ``x0^T K x0`` of every column (the energy rule needs it).
+    energy_tol : float, relative energy (capacitance) error; 0 disables the rule.
+    free : (n,) bool, optional
+        Unknowns that may change. The preconditioner's output is zeroed
+        elsewhere (an AMG coarse correction would otherwise leak into
+        Dirichlet rows), so prescribed values stay exact and the energy
+        identity above holds step by step.
 
     Returns
     -------
@@ -101,7 +130,16 @@ def block_pcg(
     active = np.flatnonzero(np.linalg.norm(R, axis=0) > rtol * bnorm)
     if len(active) == 0:
         return X, iters
-    Z = precond(R[:, active])
+    use_energy = energy is not None and energy_tol > 0
+    E = np.array(energy, float) if use_energy else np.zeros(t)
+    last = np.full(t, np.inf)
+    mask = None if free is None else free.astype(float)[:, None]
+
+    def apply(Rm):
+        Zm = precond(Rm)
+        return Zm if mask is None else Zm * mask
+
+    Z = apply(R[:, active])
     P = Z.copy()
     rz = np.einsum("ij,ij->j", R[:, active], Z)
     for _ in range(maxiter):
@@ -113,16 +151,24 @@ def block_pcg(
         R[:, active] = Ra
         iters[active] += 1
         still = np.linalg.norm(Ra, axis=0) > rtol * bnorm[active]
+        if use_energy:
+            drop = alpha * rz
+            E[active] -= drop
+            # Tail of a geometric series with the observed ratio (capped, so
+            # a stall never reads as convergence).
+            prev = last[active]
+            ratio = np.where(np.isfinite(prev), np.minimum(drop / prev, 0.9), 0.9)
+            tail = drop * ratio / (1.0 - ratio)
+            last[active] = drop
+            still &= tail > energy_tol * np.abs(E[active])
         if not np.any(still):
             return X, iters
         active, Ra, P, rz = active[still], Ra[:, still], P[:, still], rz[still]
-        Z = precond(Ra)
+        Z = apply(Ra)
         rz_new = np.einsum("ij,ij->j", Ra, Z)
         P = Z + (rz_new / rz) * P
         rz = rz_new
-    raise RuntimeError(
-        f"PCG did not reach rtol={rtol:g} in {maxiter} iterations (columns {active.tolist()} still active)"
-    )
+    raise RuntimeError(f"PCG did not converge in {maxiter} iterations (columns {active.tolist()} still active)")
 
 
 class PCGSolver:
@@ -144,12 +190,21 @@ class PCGSolver:
         """Rebuild the preconditioner at the next solve."""
         self._ml = None
 
-    def solve(self, A: sp.csr_matrix, B: np.ndarray, X0: np.ndarray) -> tuple[np.ndarray, SolveInfo]:
+    def solve(
+        self,
+        A: sp.csr_matrix,
+        B: np.ndarray,
+        X0: np.ndarray,
+        energy: np.ndarray | None = None,
+        free: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, SolveInfo]:
         """Solve ``A X = B`` column by column from ``X0``.
 
         Parameters
         ----------
         A : (n, n) csr_matrix (SPD); B, X0 : (n, t) float.
+        energy : (t,) float, optional, ``x0^T K x0`` per column (energy rule).
+        free : (n,) bool, optional, unknowns that may change (see :func:`block_pcg`).
         """
         cfg = self.config
         if cfg.preconditioner == "jacobi":
@@ -158,7 +213,7 @@ class PCGSolver:
             def precond(R):
                 return inv_d[:, None] * R
 
-            X, it = block_pcg(A, B, X0, precond, cfg.rtol, cfg.maxiter)
+            X, it = block_pcg(A, B, X0, precond, cfg.rtol, cfg.maxiter, energy, cfg.energy_tol, free)
             return X, SolveInfo(it, False)
         rebuilt = False
         if self._ml is None or self._n != A.shape[0] or self._force_rebuild:
@@ -167,7 +222,7 @@ class PCGSolver:
             rebuilt = True
         else:
             self._ml.set_fine(A)
-        X, it = block_pcg(A, B, X0, self._ml, cfg.rtol, cfg.maxiter)
+        X, it = block_pcg(A, B, X0, self._ml, cfg.rtol, cfg.maxiter, energy, cfg.energy_tol, free)
         worst = int(it.max()) if len(it) else 0
         if rebuilt:
             self._reference_iters = max(worst, 4)
@@ -195,7 +250,7 @@ class BlockAMG:
     steps : int, Jacobi steps before and after the coarse correction.
     """
 
-    def __init__(self, A: sp.csr_matrix, theta: float = 0.1, steps: int = 1) -> None:
+    def __init__(self, A: sp.csr_matrix, theta: float = 0.0, steps: int = 1) -> None:
         import pyamg
         import scipy.linalg as sla
 
@@ -326,7 +381,9 @@ class MaxwellSolver:
             k = min(t, self._X.shape[1])
             X0[:, :k] = self._X[:, :k]
             X0[fixed] = X_fixed[fixed]
-        X, info = self.pcg.solve(A, B, X0)
+        K = sysm.stiffness()
+        energy = np.einsum("ij,ij->j", X0, K @ X0)
+        X, info = self.pcg.solve(A, B, X0, energy, ~fixed)
         self._X = X
         full = sysm.maxwell(X)
         from twinsense.capacitive.fem import reduce_floating
