@@ -268,6 +268,8 @@ class BlockAMG:
         self.scaled_dinv = [self._jacobi(a) for a in self.A[:-1]]
         self._omega0 = self.scaled_dinv[0][:, 0] * self.A[0].diagonal() if self.scaled_dinv else None
         coarse = self.A[-1].toarray()
+        empty = np.diag(coarse) <= 0
+        coarse[empty, empty] = 1.0  # decoupled empty rows: identity, they only carry zeros
         # The coarsest operator is SPD up to round-off; a tiny shift keeps Cholesky happy.
         coarse += 1e-14 * np.trace(coarse) / len(coarse) * np.eye(len(coarse))
         self._chol = sla.cho_factor(coarse)
@@ -276,7 +278,10 @@ class BlockAMG:
     @staticmethod
     def _jacobi(A: sp.csr_matrix) -> np.ndarray:
         """(n, 1) damping / diagonal with damping 4 / (3 rho(D^-1 A)) (rho by power iteration)."""
-        d = 1.0 / A.diagonal()
+        diag = A.diagonal()
+        # An aggregate of decoupled (Dirichlet) nodes can leave an empty coarse
+        # row; it gets no smoothing instead of a division by zero.
+        d = np.divide(1.0, diag, out=np.zeros_like(diag), where=diag > 0)
         x = np.random.default_rng(0).standard_normal(A.shape[0])
         lam = 1.0
         for _ in range(20):
