@@ -156,7 +156,7 @@ def _plot(runs: dict[str, PrinterRun], sensor, path: Path) -> None:
         ax.set_xlabel("time [s]")
         ax.set_ylabel("ΔC [fF]")
         ax.grid(alpha=0.3)
-        ax.legend(ncol=6, fontsize=8, loc="upper right")
+        ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.0, 0.5))
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
