@@ -4,9 +4,9 @@ A 6-stripe printer-bed sensor (full 6x6 Maxwell matrix per update) and a
 grounded cylinder moving along the zig-zag path T2, at several mesh sizes.
 For each mesh it prints the incremental update time (scene mapping, changed
 cells, warm-started AMG-PCG, capacitances), the time of a full re-solve
-(fresh assembly, AMG set-up and cold solve) measured in the same process, their
-ratio, and the largest deviation of the incremental result from the full
-re-solve relative to the largest matrix entry.
+(fresh assembly, AMG set-up and cold solve, default tolerance) measured in the
+same process, their ratio, and the largest deviation of the incremental result
+from a tight full re-solve relative to the largest matrix entry.
 
 Run: .venv/bin/python benchmarks/bench_capacitive.py [--frames N]
 """
@@ -75,11 +75,16 @@ def run_case(label: str, mesh: MeshSettings, frames: int, full_every: int) -> No
     full_times, errors = [], []
     tight = SolverConfig(rtol=1e-11, energy_tol=0.0)
     for k in range(0, len(results), full_every):
+        # Timing: a full re-solve at the default tolerance (assembly, AMG set-up,
+        # cold start) on the same mesh. Accuracy: against a tight full re-solve.
         t0 = time.perf_counter()
-        fresh = sensor_with(mesh, tight)
-        fresh._mesh = sensor.layout_mesh  # same mesh; assembly, AMG and solve from scratch
-        ref = fresh.solve_at(scene, times[k + 1]).matrix
+        fresh = sensor_with(mesh)
+        fresh._mesh = sensor.layout_mesh
+        fresh.solve_at(scene, times[k + 1])
         full_times.append(time.perf_counter() - t0)
+        ref_sensor = sensor_with(mesh, tight)
+        ref_sensor._mesh = sensor.layout_mesh
+        ref = ref_sensor.solve_at(scene, times[k + 1]).matrix
         errors.append(np.abs(results[k] - ref).max() / np.abs(ref).max())
     inc = np.median(inc_times)
     full = np.median(full_times)
@@ -91,10 +96,10 @@ def run_case(label: str, mesh: MeshSettings, frames: int, full_every: int) -> No
         f"mean CG iterations per terminal {np.mean(iters):.1f})"
     )
     print(
-        f"  full re-solve (assembly + AMG + cold solve, rtol 1e-11), median: "
-        f"{full * 1e3:8.1f} ms  -> speed-up x{full / inc:.1f}"
+        f"  full re-solve (assembly + AMG set-up + cold solve), median: "
+        f"{full * 1e3:8.1f} ms  -> incremental is x{full / inc:.1f} faster"
     )
-    print(f"  max |C_incremental - C_full| / max|C|: {max(errors):.2e}")
+    print(f"  max |C_incremental - C_full(rtol 1e-11)| / max|C|: {max(errors):.2e}")
 
 
 def main() -> None:

@@ -36,6 +36,7 @@ __all__ = [
     "EPS0",
     "OUTER_BOUNDARIES",
     "AssemblyPattern",
+    "ElectrostaticSystem",
     "element_stiffness",
     "reduce_floating",
     "robin_matrix",
@@ -332,7 +333,6 @@ class ElectrostaticSystem:
             np.add.at(self.k_data, slots, rob.data)
         self.dyn_ground = np.zeros(n, bool)
         self.floating: tuple[np.ndarray, ...] = ()
-        self._keys = self.pattern.rows * n + self.pattern.indices
 
     # -- state changes -------------------------------------------------------
     def pattern_slots(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
