@@ -5,7 +5,7 @@ from __future__ import annotations
 import h5py
 import numpy as np
 
-from twinsense.capacitive.demo import run_capacitive_printer_demo
+from twinsense.capacitive.demo import run_capacitive_printer_demo, simulate_printer
 from twinsense.capacitive.mesh import MeshSettings
 
 
@@ -22,11 +22,17 @@ def test_printer_demo_small(tmp_path):
     )
     # Straight across the stripes (centres at x = -75, -45, ..., 75 mm), 4 s at 40 mm/s.
     paths = {"T1": np.array([[-0.08, 0.0], [0.08, 0.0]])}
-    runs = run_capacitive_printer_demo(tmp_path, sample_rate=1.0, mesh=coarse, paths=paths)
+    files = run_capacitive_printer_demo(tmp_path, sample_rate=1.0, mesh=coarse, paths=paths)
+    assert files["plot"].stat().st_size > 10_000
+    with h5py.File(files["recording"]) as f:
+        delta = f["T1/delta"][:]
+        position = f["T1/position"][:]
+    _, runs = simulate_printer(sample_rate=1.0, mesh=coarse, paths=paths)
     run = runs["T1"]
-    assert (tmp_path / "capacitive_printer.png").stat().st_size > 10_000
-    with h5py.File(tmp_path / "capacitive_printer.h5") as f:
-        assert f["T1/delta"].shape == (len(run.t), 6)
+    # Threaded BLAS reductions may differ in the last bits between runs; the
+    # iterative solver's tolerance (energy_tol 1e-7) bounds the spread.
+    assert np.allclose(delta, run.delta, rtol=0, atol=1e-6 * np.abs(delta).max())
+    assert np.array_equal(position, run.position)
     assert np.allclose(run.position[[0, -1], 0], [-0.08, 0.08])
     # A grounded body raises the self-capacitance of every electrode (far
     # ones by round-off only: allow -1e-18 F)...

@@ -19,7 +19,13 @@ from twinsense.capacitive.presets import make_capacitive
 from twinsense.capacitive.readout import ReadoutConfig
 from twinsense.scene import Cylinder, Material, Scene, SceneObject, Waypoints
 
-__all__ = ["PATHS", "PrinterRun", "printer_scene", "run_capacitive_printer_demo"]
+__all__ = [
+    "PATHS",
+    "PrinterRun",
+    "printer_scene",
+    "run_capacitive_printer_demo",
+    "simulate_printer",
+]
 
 TOOL_RADIUS = 0.012  # [m] the carried cylinder
 TOOL_HEIGHT = 0.040  # [m]
@@ -85,28 +91,29 @@ def demo_mesh_settings() -> MeshSettings:
     )
 
 
-def run_capacitive_printer_demo(
-    out_dir, *, sample_rate: float = 10.0, mesh: MeshSettings | None = None, paths: dict | None = None
-) -> dict[str, PrinterRun]:
-    """Simulate both paths, plot them and write the recording.
+def simulate_printer(
+    *,
+    sample_rate: float = 10.0,
+    mesh: MeshSettings | None = None,
+    paths: dict | None = None,
+    progress: bool = False,
+):
+    """Simulate the paths; returns (sensor, dict name -> PrinterRun).
 
     Parameters
     ----------
-    out_dir : path, created if missing; receives ``capacitive_printer.png``
-        and ``capacitive_printer.h5``.
     sample_rate : float, captures per second [Hz].
     mesh : MeshSettings, optional (default :func:`demo_mesh_settings`).
     paths : dict name -> (k, 2) waypoints [m], optional (default PATHS).
-
-    Returns
-    -------
-    dict name -> PrinterRun
+    progress : bool, print one line per path.
     """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     sensor = make_capacitive("printer-bed", name="bed")
     sensor = type(sensor)(
-        replace(sensor.config, mesh=mesh or demo_mesh_settings(), readout=ReadoutConfig(sample_rate=sample_rate)),
+        replace(
+            sensor.config,
+            mesh=mesh or demo_mesh_settings(),
+            readout=ReadoutConfig(sample_rate=sample_rate),
+        ),
         name="bed",
     )
     runs = {}
@@ -124,9 +131,41 @@ def run_capacitive_printer_demo(
             np.array([f.self_capacitance for f in frames]),
             frames[0].channel_names,
         )
-    _plot(runs, sensor, out / "capacitive_printer.png")
-    _write(runs, out / "capacitive_printer.h5")
-    return runs
+        if progress:
+            peak = runs[name].delta.max() * 1e15
+            print(f"{name}: {len(times)} frames, peak change {peak:.0f} fF")
+    return sensor, runs
+
+
+def run_capacitive_printer_demo(
+    out_dir,
+    progress: bool = False,
+    *,
+    sample_rate: float = 10.0,
+    mesh: MeshSettings | None = None,
+    paths: dict | None = None,
+) -> dict[str, Path]:
+    """Simulate both paths, plot them and write the recording.
+
+    Parameters
+    ----------
+    out_dir : path, created if missing.
+    progress : bool, print one line per path.
+    sample_rate, mesh, paths : see :func:`simulate_printer`.
+
+    Returns
+    -------
+    dict with the written files: ``"plot"`` (capacitive_printer.png) and
+    ``"recording"`` (capacitive_printer.h5: per path timestamps [s], tool
+    position [m], delta and self_capacitance per electrode [F]).
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    sensor, runs = simulate_printer(sample_rate=sample_rate, mesh=mesh, paths=paths, progress=progress)
+    files = {"plot": out / "capacitive_printer.png", "recording": out / "capacitive_printer.h5"}
+    _plot(runs, sensor, files["plot"])
+    _write(runs, files["recording"])
+    return files
 
 
 def _plot(runs: dict[str, PrinterRun], sensor, path: Path) -> None:
