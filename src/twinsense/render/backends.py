@@ -30,7 +30,14 @@ class Intersector:
 
     def __init__(self, meshes: Sequence[MeshArrays]):
         self.meshes = [(np.asarray(v, dtype=float), np.asarray(f, dtype=np.int64)) for v, f in meshes]
-        self._planes, self._offsets = _triangle_planes(self.meshes)
+        self._planes, offsets = _triangle_planes(self.meshes)
+        # Per global triangle: its mesh (geometry id) and index within it;
+        # index -1 (a miss) maps to the extra last entry, -1.
+        counts = np.diff(np.append(offsets[1:], len(self._planes) - 1))
+        self._face_geom = np.append(np.repeat(np.arange(len(self.meshes), dtype=np.int32), counts), -1)
+        self._face_prim = np.append(np.arange(len(self._planes) - 1, dtype=np.int64)
+                                    - np.repeat(offsets[1:], counts), -1).astype(np.int32)
+        self._offsets = offsets
 
     def intersect(self, origins: np.ndarray, directions: np.ndarray):
         """Closest hits.
@@ -38,7 +45,8 @@ class Intersector:
         Parameters
         ----------
         origins, directions : (n, 3) float
-            Rays (``t`` is in units of the direction's length).
+            Rays (``t`` is in units of the direction's length). A broadcast
+            origin (one point for all rays, stride 0) is used as one point.
 
         Returns
         -------
@@ -50,16 +58,21 @@ class Intersector:
         """
         raise NotImplementedError
 
-    def _finish(self, origins, directions, geom, prim, t=None):
-        """Gather hit planes; with ``t`` None, compute t in float64 from the plane."""
-        plane = self._planes[self._offsets[geom + 1] + prim]
+    def _finish(self, origins, directions, face, t=None):
+        """From global triangle ids (-1 = miss): distances in float64 from the plane, ids, normals."""
+        # np.take is several times faster than fancy indexing for row gathers.
+        plane = np.take(self._planes, face, axis=0)
         normal = plane[:, :3]
+        geom = np.take(self._face_geom, face)
+        prim = np.take(self._face_prim, face)
         if t is None:
             den = np.einsum("ij,ij->i", directions, normal)
-            num = plane[:, 3] - np.einsum("ij,ij->i", origins, normal)
-            hit = geom >= 0
-            t = np.full(len(geom), np.inf)
-            np.divide(num, den, out=t, where=hit & (den != 0))
+            if origins.strides[0] == 0:  # one shared origin (a camera)
+                num = np.einsum("ij,j->i", plane, np.append(-origins[0], 1.0))
+            else:
+                num = plane[:, 3] - np.einsum("ij,ij->i", origins, normal)
+            t = np.full(len(face), np.inf)
+            np.divide(num, den, out=t, where=(face >= 0) & (den != 0))
         return t, geom, prim, normal
 
 
@@ -72,8 +85,30 @@ def _triangle_planes(meshes) -> tuple[np.ndarray, np.ndarray]:
         Unit normal n (3) and n . v0 of every triangle, meshes concatenated;
         the extra last row is zero so that index -1 (a miss) gathers zeros.
     offsets : (n_meshes + 1,) int64
-        ``offsets[g + 1]`` is the first row of mesh g; ``offsets[0] = 0`` so a
-        miss (geom -1, prim -1) maps to row -1.
+        ``offsets[g + 1]`` is the first row of mesh g; ``offsets[0] = 0``.
+    """
+    rows, offs = [], [0, 0]
+    for v, f in meshes:
+        tri = v[f]
+        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        norm = np.linalg.norm(n, axis=1, keepdims=True)
+        n = n / np.where(norm > 0, norm, 1.0)
+        rows.append(np.column_stack([n, np.einsum("ij,ij->i", n, tri[:, 0])]))
+        offs.append(offs[-1] + len(f))
+    rows.append(np.zeros((1, 4)))
+    return np.concatenate(rows), np.asarray(offs[:-1], dtype=np.int64)
+
+
+def _triangle_planes(meshes) -> tuple[np.ndarray, np.ndarray]:
+    """Planes of all triangles and per-mesh offsets.
+
+    Returns
+    -------
+    planes : (m + 1, 4) float64
+        Unit normal n (3) and n . v0 of every triangle, meshes concatenated;
+        the extra last row is zero so that index -1 (a miss) gathers zeros.
+    offsets : (n_meshes + 1,) int64
+        ``offsets[g + 1]`` is the first row of mesh g; ``offsets[0] = 0``.
     """
     rows, offs = [], [0, 0]
     for v, f in meshes:
@@ -88,7 +123,7 @@ def _triangle_planes(meshes) -> tuple[np.ndarray, np.ndarray]:
 
 
 class EmbreeIntersector(Intersector):
-    """Embree (embreex) BVH over all meshes; rays split across threads."""
+    """Embree (embreex) BVH over all meshes (one Embree geometry); rays split across threads."""
 
     def __init__(self, meshes: Sequence[MeshArrays], threads: int | None = None):
         super().__init__(meshes)
@@ -96,39 +131,42 @@ class EmbreeIntersector(Intersector):
         from embreex.mesh_construction import TriangleMesh
 
         self._scene = rtcore_scene.EmbreeScene()
-        self._keep = []
-        for v, f in self.meshes:
-            tri = np.ascontiguousarray(v[f], dtype=np.float32)
-            self._keep.append(tri)
-            TriangleMesh(self._scene, tri)
+        # All meshes in one geometry: Embree then returns the global triangle
+        # id, which is all we need (ids, planes and normals come from tables).
+        tris = [v[f] for v, f in self.meshes]
+        self._tri = np.ascontiguousarray(np.concatenate(tris) if tris else np.zeros((0, 3, 3)), dtype=np.float32)
         self.threads = threads or min(4, os.cpu_count() or 1)
-        # Build the BVH now (Embree commits lazily on the first query).
-        self._scene.run(np.zeros((1, 3), np.float32), np.array([[0, 0, 1]], np.float32))
+        if len(self._tri):
+            TriangleMesh(self._scene, self._tri)
+            # Build the BVH now (Embree commits lazily on the first query).
+            self._scene.run(np.zeros((1, 3), np.float32), np.array([[0, 0, 1]], np.float32))
 
     def _run(self, o32, d32):
-        return self._scene.run(o32, d32, output=1)
+        return self._scene.run(o32, d32)  # closest-hit triangle id, -1 on a miss
 
     def intersect(self, origins, directions):
         o = np.asarray(origins, dtype=float)
         d = np.asarray(directions, dtype=float)
-        o32 = np.ascontiguousarray(o, dtype=np.float32)
+        n = len(d)
+        if len(self._tri) == 0 or n == 0:
+            return self._finish(o, d, np.full(n, -1, np.int64), np.full(n, np.inf))
         d32 = np.ascontiguousarray(d, dtype=np.float32)
-        n = len(o32)
+        if o.strides[0] == 0:
+            o32 = np.empty((n, 3), np.float32)
+            o32[:] = o[0]
+        else:
+            o32 = np.ascontiguousarray(o, dtype=np.float32)
         if n >= 20000 and self.threads > 1:
             # embreex releases the GIL while tracing, so threads scale.
             bounds = np.linspace(0, n, self.threads + 1).astype(int)
             parts = list(_pool(self.threads).map(
                 lambda ab: self._run(o32[ab[0]:ab[1]], d32[ab[0]:ab[1]]), itertools.pairwise(bounds)))
-            geom = np.concatenate([p["geomID"] for p in parts])
-            prim = np.concatenate([p["primID"] for p in parts])
+            face = np.concatenate(parts)
         else:
-            r = self._run(o32, d32)
-            geom, prim = r["geomID"], r["primID"]
-        geom = geom.astype(np.int32, copy=False)
-        prim = np.where(geom >= 0, prim, -1).astype(np.int32)
+            face = self._run(o32, d32)
         # Embree traces in float32; the distance is recomputed in float64
         # against the hit triangle's plane (exact for the hit triangle).
-        return self._finish(o, d, geom, prim)
+        return self._finish(o, d, face.astype(np.int64, copy=False))
 
 
 _POOLS: dict[int, ThreadPoolExecutor] = {}
@@ -145,14 +183,8 @@ class NumpyIntersector(Intersector):
 
     def __init__(self, meshes: Sequence[MeshArrays], chunk: int = 2_000_000):
         super().__init__(meshes)
-        tris, gid, pid = [], [], []
-        for g, (v, f) in enumerate(self.meshes):
-            tris.append(v[f])
-            gid.append(np.full(len(f), g, dtype=np.int32))
-            pid.append(np.arange(len(f), dtype=np.int32))
+        tris = [v[f] for v, f in self.meshes]
         self._tri = np.concatenate(tris) if tris else np.zeros((0, 3, 3))
-        self._gid = np.concatenate(gid) if gid else np.zeros(0, np.int32)
-        self._pid = np.concatenate(pid) if pid else np.zeros(0, np.int32)
         self._chunk = chunk
 
     def intersect(self, origins, directions):
@@ -162,7 +194,7 @@ class NumpyIntersector(Intersector):
         t_best = np.full(n, np.inf)
         idx_best = np.full(n, -1, dtype=np.int64)
         if len(self._tri) == 0 or n == 0:
-            return self._finish(o, d, np.full(n, -1, np.int32), np.full(n, -1, np.int32), t_best)
+            return self._finish(o, d, np.full(n, -1, np.int64), t_best)
         v0 = self._tri[:, 0]
         e1 = self._tri[:, 1] - v0
         e2 = self._tri[:, 2] - v0
@@ -186,10 +218,7 @@ class NumpyIntersector(Intersector):
             tb = t[np.arange(len(j)), j]
             t_best[s:s + step] = tb
             idx_best[s:s + step] = np.where(np.isfinite(tb), j, -1)
-        hit = idx_best >= 0
-        geom = np.where(hit, self._gid[np.maximum(idx_best, 0)], -1).astype(np.int32)
-        prim = np.where(hit, self._pid[np.maximum(idx_best, 0)], -1).astype(np.int32)
-        return self._finish(o, d, geom, prim, t_best)
+        return self._finish(o, d, idx_best, t_best)
 
 
 BACKENDS: dict[str, Callable[..., Intersector]] = {

@@ -63,7 +63,7 @@ class SceneCaster:
         n = len(d)
         if self._static_bvh is not None:
             dist, g, tri, normal = self._static_bvh.intersect(o, d)
-            obj = self._static_lut[g + 1]
+            obj = np.take(self._static_lut, g + 1)
         else:
             dist = np.full(n, np.inf)
             obj = np.full(n, -1, dtype=np.int32)
@@ -91,7 +91,8 @@ class SceneCaster:
             tri[sel] = p
             normal[sel] = rotate_rows(n_local, rot.T)
         hit = obj >= 0
-        point = o + d * np.where(hit, dist, np.nan)[:, None]
+        point = d * np.where(hit, dist, np.nan)[:, None]
+        point += o[0] if o.strides[0] == 0 else o
         # Turn normals towards the incoming ray; |cos| is the incidence cosine.
         dn = np.einsum("ij,ij->i", normal, d)
         normal *= np.where(dn > 0, -1.0, 1.0)[:, None]
@@ -101,7 +102,7 @@ class SceneCaster:
             sel = np.nonzero(obj == i)[0]
             if len(sel):
                 velocity[sel] = st.point_velocity(point[sel])
-        mat = self._mat_lut[obj + 1]
+        mat = np.take(self._mat_lut, obj + 1)
         return Hits(dist, point, normal, cos_inc, obj, mat, tri, velocity)
 
 
