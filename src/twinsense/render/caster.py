@@ -14,9 +14,9 @@ import weakref
 import numpy as np
 
 from twinsense.errors import ConfigError
+from twinsense.linalg import rotate_rows
 from twinsense.render.backends import make_intersector
 from twinsense.render.hits import Hits
-from twinsense.linalg import rotate_rows
 from twinsense.render.rays import Rays
 from twinsense.scene.scene import SENSOR_KINDS, Scene
 
