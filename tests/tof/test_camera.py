@@ -323,11 +323,13 @@ def test_render_workers_give_the_same_frames(look_x):
     scene = _saturation_scene()
     scene.add_object("mover", Box((0.3, 0.3, 0.3)), "wood",
                      motion=ConstantVelocity(Pose(position=(1.2, 0.4, 0.1)), (0, -1.0, 0)))
-    kw = dict(mount=look_x, width=40, height=30)
-    serial = ToFCamera.preset("generic", **kw)
-    parallel = ToFCamera.preset("generic", render_workers=1, **kw)
-    for t in (0.0, 0.2):
-        a = serial.capture(scene, t, np.random.default_rng(3))
-        b = parallel.capture(scene, t, np.random.default_rng(3))
-        for name, arr in a.streams().items():
-            np.testing.assert_array_equal(arr, b.streams()[name], err_msg=name)
+    for extra in ({}, {"motion_artifacts": True}, {"crosstalk_sigma_px": 2.5, "quantization": False},
+                  {"noise": False, "modulation_frequencies": (20e6,)}):
+        kw = dict(mount=look_x, width=40, height=30, **extra)
+        serial = ToFCamera.preset("generic", **kw)
+        parallel = ToFCamera.preset("generic", render_workers=1, **kw)
+        for t in (0.0, 0.2):
+            a = serial.capture(scene, t, np.random.default_rng(3))
+            b = parallel.capture(scene, t, np.random.default_rng(3))
+            for name, arr in a.streams().items():
+                np.testing.assert_array_equal(arr, b.streams()[name], err_msg=name)

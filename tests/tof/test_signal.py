@@ -104,3 +104,12 @@ def test_crosstalk_is_a_normalised_gaussian():
 def test_photon_constants():
     # 850 nm photon energy: h c / lambda = 2.337e-19 J (1.4586 eV).
     assert H_PLANCK * C_LIGHT / 850e-9 == pytest.approx(2.3370e-19, rel=1e-4)
+
+
+def test_power_by_squaring_matches_powf():
+    from twinsense.tof.signal import _power
+
+    x = np.linspace(0, 1, 101, dtype=np.float32)
+    for e in (1.0, 2.0, 7.0, 30.0, 255.0, 12.5):
+        # float32 rounding of up to 2 log2(e) products: a few 1e-6 relative.
+        np.testing.assert_allclose(_power(x, e), x.astype(np.float64) ** e, rtol=2e-5, atol=1e-30)

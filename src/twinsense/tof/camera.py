@@ -35,9 +35,10 @@ class ToFCamera:
     name : str
         Name of the sensor in recordings.
     render_workers : int
-        Extra processes that trace part of the rays of every frame (0: all in
-        this process). On a machine with two or more cores, 1 roughly halves
-        the rendering time of the default (single-rendering) path.
+        Extra processes that render and process a band of image rows of every
+        frame (0: all in this process). Used by the default path (one
+        rendering per frame, no multipath); on two cores 1 worker gives
+        ~1.7x the frame rate. The output does not depend on it.
 
     Examples
     --------
@@ -116,17 +117,28 @@ class ToFCamera:
             if cfg.noise:
                 noise.append(draw_noise(cfg, rng))
 
-        if cfg.motion_artifacts:
-            times = cfg.raw_frame_times(t) + 0.5 * cfg.exposure_time
-            draw()
-            phasors: PixelPhasors | list[PixelPhasors] = [
-                self._render_phasors(scene, float(ti)) for ti in times]
+        if self.render_workers > 0 and not (cfg.motion_artifacts or cfg.multipath):
+            # Rendering and the per-pixel chain split by image rows across processes.
+            pose = self.mount.pose_at(scene, t)
+            par = parallel_renderer_for(scene, self.kind, self.render_workers)
+
+            def draw_or_none():
+                draw()
+                return noise[0] if noise else None
+
+            out = par.frame(self._renderer, scene, pose.rotation, pose.position, t, draw_or_none)
         else:
-            phasors = self._render_phasors(scene, t, during=draw)
-        out = run_chain(phasors, cfg, noise=noise[0] if noise else None)
+            if cfg.motion_artifacts:
+                times = cfg.raw_frame_times(t) + 0.5 * cfg.exposure_time
+                draw()
+                phasors: PixelPhasors | list[PixelPhasors] = [
+                    self._render_phasors(scene, float(ti)) for ti in times]
+            else:
+                phasors = self._render_phasors(scene, t, during=draw)
+            out = run_chain(phasors, cfg, noise=noise[0] if noise else None)
         distance, depth, invalid, confidence, points = finish_geometry(out, self._pixel_dirs, cfg)
         pose = self.mount.pose_at(scene, t)
-        world = rotate_rows(points.reshape(-1, 3), pose.rotation.T).reshape(points.shape)
+        world = distance[..., None] * self._renderer.pixel_world_directions(pose.rotation)
         world += pose.position.astype(np.float32)
         world[invalid != 0] = np.nan
         return ToFFrame(
@@ -147,9 +159,6 @@ class ToFCamera:
         """Expected pixel phasors at time ``t``; ``during()`` runs while rays are traced."""
         cfg = self.config
         pose = self.mount.pose_at(scene, t)
-        if self.render_workers > 0 and not cfg.multipath:
-            par = parallel_renderer_for(scene, self.kind, self.render_workers)
-            return par.phasors(self._renderer, scene, pose.rotation, pose.position, t, during)
         if during is not None:
             during()
         caster = caster_for(scene, self.kind)

@@ -18,6 +18,9 @@ from scipy import ndimage
 
 from twinsense.tof.config import ToFConfig
 
+#: The cross-talk kernel is cut at this many standard deviations.
+CROSSTALK_TRUNCATE = 3.0
+
 
 def crosstalk(images: np.ndarray, sigma_px: float) -> np.ndarray:
     """Isotropic Gaussian cross-talk over the last two (row, column) axes.
@@ -37,7 +40,7 @@ def crosstalk(images: np.ndarray, sigma_px: float) -> np.ndarray:
     if sigma_px <= 0:
         return images
     sigma = (0.0,) * (images.ndim - 2) + (sigma_px, sigma_px)
-    return ndimage.gaussian_filter(images, sigma, mode="nearest", truncate=3.0)
+    return ndimage.gaussian_filter(images, sigma, mode="nearest", truncate=CROSSTALK_TRUNCATE)
 
 
 @dataclass(frozen=True, eq=False)

@@ -3,11 +3,13 @@
 embreex traces rays in a Python-level loop that holds the GIL, so threads
 do not scale; worker processes do. Each worker keeps its own copy of the
 scene and its Embree structures (sent once, pickled) and renders a band of
-image rows up to the pixel phasors (rays, materials, radiometry, sub-pixel
-phasor sums), writing them into shared memory. The calling process renders
-the other band meanwhile, and can run other work (drawing the frame's noise)
-while the workers trace. Bands are per pixel row, so the result is
-bit-for-bit the single-process one.
+image rows through the whole per-pixel chain (rays, materials, radiometry,
+sub-pixel phasor sums, cross-talk, noise, ADC, demodulation, unwrapping),
+writing the products into shared memory. The calling process draws the
+frame's noise meanwhile (one generator, so the draws do not depend on the
+number of workers), hands the workers their rows of it and runs the other
+band. A band renders a halo of rows for the cross-talk blur, so the result
+is bit-for-bit the single-process one.
 """
 
 from __future__ import annotations
@@ -23,18 +25,56 @@ import numpy as np
 
 from twinsense.scene.scene import Scene
 from twinsense.tof.config import ToFConfig
+from twinsense.tof.pipeline import ChainNoise, ChainOutput, band_chain, crosstalk_halo
 from twinsense.tof.raycast import ToFRayCaster
 from twinsense.tof.rendering import BandRenderer
-from twinsense.tof.signal import PixelPhasors
 
 
-def _views(buf, f: int, h: int, w: int):
-    """(real (F,H,W), imag (F,H,W), tap_sum (H,W)) float32 views over one shared buffer."""
-    size = f * h * w
-    real = np.ndarray((f, h, w), np.float32, buffer=buf, offset=0)
-    imag = np.ndarray((f, h, w), np.float32, buffer=buf, offset=4 * size)
-    tap = np.ndarray((h, w), np.float32, buffer=buf, offset=8 * size)
-    return real, imag, tap
+def _layout(cfg: ToFConfig) -> tuple[dict[str, tuple[tuple[int, ...], np.dtype, int]], int]:
+    """Shared-memory layout of one frame: name -> (shape, dtype, byte offset), and the total size.
+
+    Inputs written by the caller: the noise draws. Outputs written per band:
+    the chain products (see :class:`twinsense.tof.pipeline.ChainOutput`).
+    """
+    f, h, w = cfg.n_frequencies, cfg.height, cfg.width
+    raw_dtype = np.uint16 if cfg.quantization else np.float32
+    fields = [("noise_raw", (f, 4, h, w), np.float32), ("noise_gray", (h, w), np.float32),
+              ("raw", (f, 4, h, w), raw_dtype), ("gray", (h, w), np.uint16),
+              ("phase", (f, h, w), np.float32), ("amplitude", (f, h, w), np.float32),
+              ("distance", (h, w), np.float32), ("noise", (h, w), np.float32),
+              ("invalid", (h, w), np.uint8)]
+    layout, offset = {}, 0
+    for name, shape, dtype in fields:
+        dtype = np.dtype(dtype)
+        layout[name] = (shape, dtype, offset)
+        offset += -(-int(np.prod(shape)) * dtype.itemsize // 8) * 8  # keep 8-byte alignment
+    return layout, offset
+
+
+def _views(buf, cfg: ToFConfig) -> dict[str, np.ndarray]:
+    layout, _ = _layout(cfg)
+    return {k: np.ndarray(shape, dtype, buffer=buf, offset=off) for k, (shape, dtype, off) in layout.items()}
+
+
+def _band_frame(renderer: BandRenderer, scene: Scene, caster: ToFRayCaster, rotation, position, t: float,
+                band: tuple[int, int], noise: ChainNoise | None) -> ChainOutput:
+    """Render a band plus its cross-talk halo and run the chain on the band."""
+    cfg = renderer.config
+    halo = crosstalk_halo(cfg)
+    ext = (max(band[0] - halo, 0), min(band[1] + halo, cfg.height))
+    phasors = renderer.phasors(scene, caster, rotation, position, t, ext)
+    return band_chain(phasors, ext, band, cfg, noise)
+
+
+def _store(views: dict[str, np.ndarray], out: ChainOutput, band: tuple[int, int]) -> None:
+    rows = slice(*band)
+    views["raw"][..., rows, :] = out.raw
+    views["gray"][rows] = out.gray
+    views["phase"][:, rows] = out.phase
+    views["amplitude"][:, rows] = out.amplitude
+    views["distance"][rows] = out.distance
+    views["noise"][rows] = out.noise
+    views["invalid"][rows] = out.invalid
 
 
 def _worker_main(conn) -> None:  # pragma: no cover - runs in the worker process
@@ -52,19 +92,27 @@ def _worker_main(conn) -> None:  # pragma: no cover - runs in the worker process
                 caster = ToFRayCaster(scene, msg[2])
             elif msg[0] == "camera":
                 renderers[msg[1]] = BandRenderer(msg[1])
-            elif msg[0] == "band":
+            elif msg[0] == "frame":
                 _, cfg, shm_name, r0, r1, rotation, position, t = msg
                 if shm_name != name:
                     if shm is not None:
                         shm.close()
                     shm = shared_memory.SharedMemory(name=shm_name)
                     name = shm_name
-                ph = renderers[cfg].phasors(scene, caster, rotation, position, t, (r0, r1))
-                real, imag, tap = _views(shm.buf, cfg.n_frequencies, cfg.height, cfg.width)
-                real[:, r0:r1] = ph.real
-                imag[:, r0:r1] = ph.imag
-                tap[r0:r1] = ph.tap_sum
-                del real, imag, tap
+                renderer = renderers[cfg]
+                halo = crosstalk_halo(cfg)
+                ext = (max(r0 - halo, 0), min(r1 + halo, cfg.height))
+                phasors = renderer.phasors(scene, caster, rotation, position, t, ext)
+                views = _views(shm.buf, cfg)
+                noise = None
+                if cfg.noise:
+                    # The caller draws the frame's noise while this band renders.
+                    ready = conn.recv()
+                    if ready[0] != "noise":
+                        raise RuntimeError(f"expected the noise, got {ready[0]!r}")
+                    noise = ChainNoise(views["noise_raw"][..., r0:r1, :], views["noise_gray"][r0:r1])
+                _store(views, band_chain(phasors, ext, (r0, r1), cfg, noise), (r0, r1))
+                del views, noise
             conn.send(("ok",))
         except Exception:
             conn.send(("error", traceback.format_exc()))
@@ -126,7 +174,16 @@ class ParallelRenderer:
         self._size = 0
 
     def _wait(self) -> None:
-        for c in self._conns:
+        for c, p in zip(self._conns, self._procs):
+            # Poll so that a worker that died (e.g. a spawned process that could not import
+            # the main script) raises instead of blocking forever.
+            while not c.poll(0.5):
+                if not p.is_alive():
+                    self.close()
+                    raise RuntimeError(
+                        f"a ToF rendering worker exited (code {p.exitcode}); worker processes are "
+                        "spawned, so scripts that use render_workers need an "
+                        "`if __name__ == '__main__':` guard and must be run from a file")
             reply = c.recv()
             if reply[0] != "ok":
                 raise RuntimeError("ToF rendering worker failed:\n" + reply[1])
@@ -136,37 +193,52 @@ class ParallelRenderer:
         self._finalizer()
 
     def _buffer(self, size: int):
-        if size != self._size:
+        if size > self._size:
             self._shms.append(shared_memory.SharedMemory(create=True, size=size))
             self._size = size
         return self._shms[-1]
 
-    def phasors(self, renderer: BandRenderer, scene: Scene, rotation: np.ndarray, position: np.ndarray,
-                t: float, during: Callable[[], object] | None = None) -> PixelPhasors:
-        """Pixel phasors of the whole image; ``during()`` runs while the workers render."""
+    def frame(self, renderer: BandRenderer, scene: Scene, rotation: np.ndarray, position: np.ndarray,
+              t: float, draw_noise: Callable[[], ChainNoise | None]) -> ChainOutput:
+        """The chain products of the whole image (see :func:`twinsense.tof.pipeline.run_chain`).
+
+        ``draw_noise()`` draws the frame's noise while the workers render; the
+        workers' bands then continue with their rows of it.
+        """
         cfg = renderer.config
         if cfg not in self._configs:
             for c in self._conns:
                 c.send(("camera", cfg))
             self._wait()
             self._configs.add(cfg)
-        f, h, w = cfg.n_frequencies, cfg.height, cfg.width
-        shm = self._buffer(4 * (2 * f + 1) * h * w)
-        h_work = round(h * self.worker_share)
+        h = cfg.height
+        shm = self._buffer(_layout(cfg)[1])
+        h_work = min(max(round(h * self.worker_share), 1), h - 1)
         bounds = np.linspace(0, h_work, self.workers + 1).astype(int)
         rotation = np.asarray(rotation, dtype=float)
         position = np.asarray(position, dtype=float)
         for c, r0, r1 in zip(self._conns, bounds[:-1], bounds[1:]):
-            c.send(("band", cfg, shm.name, int(r0), int(r1), rotation, position, float(t)))
-        if during is not None:
-            during()
-        mine = renderer.phasors(scene, self.local, rotation, position, t, (h_work, h))
+            c.send(("frame", cfg, shm.name, int(r0), int(r1), rotation, position, float(t)))
+        views = _views(shm.buf, cfg)
+        noise = draw_noise()
+        mine_noise = None
+        if noise is not None:
+            views["noise_raw"][:, :, :h_work] = noise.raw[:, :, :h_work]
+            views["noise_gray"][:h_work] = noise.gray[:h_work]
+            for c in self._conns:
+                c.send(("noise",))
+            mine_noise = ChainNoise(noise.raw[:, :, h_work:], noise.gray[h_work:])
+        mine = _band_frame(renderer, scene, self.local, rotation, position, t, (h_work, h), mine_noise)
         self._wait()
-        real, imag, tap = _views(shm.buf, f, h, w)
-        out = PixelPhasors(np.concatenate([real[:, :h_work], mine.real], axis=1),
-                           np.concatenate([imag[:, :h_work], mine.imag], axis=1),
-                           np.concatenate([tap[:h_work], mine.tap_sum], axis=0))
-        del real, imag, tap
+        out = ChainOutput(
+            np.concatenate([views["raw"][..., :h_work, :], mine.raw], axis=-2),
+            np.concatenate([views["gray"][:h_work], mine.gray]),
+            np.concatenate([views["phase"][:, :h_work], mine.phase], axis=1),
+            np.concatenate([views["amplitude"][:, :h_work], mine.amplitude], axis=1),
+            np.concatenate([views["distance"][:h_work], mine.distance]),
+            np.concatenate([views["noise"][:h_work], mine.noise]),
+            np.concatenate([views["invalid"][:h_work], mine.invalid]))
+        del views
         return out
 
 

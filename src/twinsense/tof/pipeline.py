@@ -14,7 +14,7 @@ import numpy as np
 
 from twinsense.tof.config import PHASE_STEPS, ToFConfig
 from twinsense.tof.demodulation import depth_noise, phase_amplitude, radial_distance
-from twinsense.tof.effects import crosstalk, digitize, gray_value
+from twinsense.tof.effects import CROSSTALK_TRUNCATE, crosstalk, digitize, gray_value
 from twinsense.tof.filters import flying_pixel_mask, noise_mask
 from twinsense.tof.frame import InvalidReason
 from twinsense.tof.signal import PixelPhasors, correlation_images
@@ -104,6 +104,14 @@ def run_chain(phasors: PixelPhasors | list[PixelPhasors], config: ToFConfig,
         if rng is None:
             raise ValueError("a numpy.random.Generator is needed when ToFConfig.noise is on")
         noise = draw_noise(cfg, rng)
+    corr, taps, gray_taps = blurred_raw(phasors, cfg)
+    return chain_from_raw(corr, taps, gray_taps, cfg, noise)
+
+
+def blurred_raw(phasors: PixelPhasors | list[PixelPhasors], config: ToFConfig
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Expected correlation, tap-sum and gray tap-sum images after cross-talk (see :func:`expected_raw`)."""
+    cfg = config
     sigma = cfg.crosstalk_sigma_px
     if isinstance(phasors, PixelPhasors):
         # Cross-talk spreads charge, so it acts on correlations and tap sums alike. The
@@ -113,23 +121,57 @@ def run_chain(phasors: PixelPhasors | list[PixelPhasors], config: ToFConfig,
             parts = crosstalk(np.concatenate([phasors.real, phasors.imag, phasors.tap_sum[None]]), sigma)
             f = cfg.n_frequencies
             phasors = PixelPhasors(parts[:f], parts[f:2 * f], parts[2 * f])
-        corr, taps, gray_taps = expected_raw(phasors, cfg)
-    else:
-        corr, taps, gray_taps = expected_raw(phasors, cfg)
-        corr = crosstalk(corr, sigma)
-        taps = crosstalk(taps, sigma)
-        gray_taps = crosstalk(gray_taps, sigma)
+        return expected_raw(phasors, cfg)
+    corr, taps, gray_taps = expected_raw(phasors, cfg)
+    return crosstalk(corr, sigma), crosstalk(taps, sigma), crosstalk(gray_taps, sigma)
+
+
+def chain_from_raw(corr: np.ndarray, taps: np.ndarray, gray_taps: np.ndarray, config: ToFConfig,
+                   noise: ChainNoise | None) -> ChainOutput:
+    """Noise, ADC, saturation, demodulation, unwrapping and validity of (a band of) the image.
+
+    Every step is per pixel, so a band of rows gives exactly the rows of the full image.
+    """
+    cfg = config
     dig = digitize(corr, taps, cfg, noise.raw if noise is not None else None)
     gray = gray_value(gray_taps, cfg, noise.gray if noise is not None else None)
     phase, amp = phase_amplitude(dig.difference_dn)
     distance = radial_distance(phase, cfg)
-    noise = depth_noise(amp, gray.astype(np.float32) * np.float32(2.0 * cfg.electrons_per_dn), cfg)
+    sigma_d = depth_noise(amp, gray.astype(np.float32) * np.float32(2.0 * cfg.electrons_per_dn), cfg)
     invalid = np.zeros(distance.shape, np.uint8)
     invalid[dig.saturated] |= np.uint8(InvalidReason.SATURATED)
     invalid[amp.min(axis=0) < cfg.min_amplitude_dn] |= np.uint8(InvalidReason.LOW_SIGNAL)
     if cfg.noise_filter:
-        invalid[noise_mask(noise, invalid == 0, cfg.max_noise)] |= np.uint8(InvalidReason.TOO_NOISY)
-    return ChainOutput(dig.raw, gray, phase, amp, distance, noise, invalid)
+        invalid[noise_mask(sigma_d, invalid == 0, cfg.max_noise)] |= np.uint8(InvalidReason.TOO_NOISY)
+    return ChainOutput(dig.raw, gray, phase, amp, distance, sigma_d, invalid)
+
+
+def band_chain(phasors: PixelPhasors, extended: tuple[int, int], band: tuple[int, int], config: ToFConfig,
+               noise: ChainNoise | None) -> ChainOutput:
+    """The chain for image rows ``band`` from the phasors of rows ``extended`` (band plus halo).
+
+    The halo (:func:`crosstalk_halo` rows, or the image border) lets the
+    cross-talk blur see the same neighbours as on the full image, so the band
+    equals those rows of :func:`run_chain` bit for bit.
+
+    Parameters
+    ----------
+    phasors : PixelPhasors
+        Rows ``extended`` = [e0, e1) of the image.
+    band : (r0, r1)
+        Rows to return, inside ``extended``.
+    noise : ChainNoise or None
+        The band's rows of the frame's noise draws.
+    """
+    corr, taps, gray_taps = blurred_raw(phasors, config)
+    rows = slice(band[0] - extended[0], band[1] - extended[0])
+    return chain_from_raw(corr[..., rows, :], taps[..., rows, :], gray_taps[rows], config, noise)
+
+
+def crosstalk_halo(config: ToFConfig) -> int:
+    """Rows of neighbours the cross-talk blur reads on each side (its kernel radius)."""
+    sigma = config.crosstalk_sigma_px
+    return int(CROSSTALK_TRUNCATE * sigma + 0.5) if sigma > 0 else 0
 
 
 def finish_geometry(out: ChainOutput, pixel_dirs: np.ndarray, config: ToFConfig

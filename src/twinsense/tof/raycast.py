@@ -167,11 +167,17 @@ class ToFRayCaster:
             ng[sel] = rotate_rows(r["Ng"][win], rot.T)
         # Embree's geometric normal is not normalised (and undefined on a miss).
         gx, gy, gz = ng[:, 0], ng[:, 1], ng[:, 2]
-        norm = np.sqrt(gx * gx + gy * gy + gz * gz)
-        dn = gx * d32[:, 0] + gy * d32[:, 1] + gz * d32[:, 2]
+        sq = gx * gx
+        sq += gy * gy
+        sq += gz * gz
+        dn = gx * d32[:, 0]
+        dn += gy * d32[:, 1]
+        dn += gz * d32[:, 2]
         hit = obj >= 0
-        norm[~hit] = 1.0
-        cos = np.abs(dn) / norm
+        sq[~hit] = 1.0
+        norm = np.sqrt(sq, out=sq)
+        cos = np.abs(dn)
+        cos /= norm
         cos[~hit] = 0.0
         out_normals = None
         if normals:

@@ -61,6 +61,15 @@ class BandRenderer:
             self._dirs_cache[key] = d
         return d
 
+    def pixel_world_directions(self, rotation: np.ndarray) -> np.ndarray:
+        """Unit world directions (H, W, 3) float32 of the pixel-centre rays (cached per rotation)."""
+        key = ("pixel", rotation.tobytes())
+        d = self._dirs_cache.get(key)
+        if d is None:
+            d = rotate_rows(self.pixel_dirs.reshape(-1, 3), rotation.T).reshape(self.pixel_dirs.shape)
+            self._dirs_cache[key] = d
+        return d
+
     def samples(self, scene: Scene, caster: ToFRayCaster, rotation: np.ndarray, position: np.ndarray,
                 t: float, rows: tuple[int, int] | None = None, normals: bool = False
                 ) -> tuple[SurfaceSamples, np.ndarray | None]:
