@@ -21,7 +21,7 @@ def test_box_and_sphere_culling_keep_every_ray_that_enters():
     o = np.array([-2.0, 0.1, 0.2], np.float32)
     lo, hi = np.array([-0.2, -0.3, -0.9], np.float32), np.array([0.2, 0.3, 0.9], np.float32)
     dist = np.full(len(d), np.inf, np.float32)
-    box = _rays_hit_box(o, d, lo, hi, dist)
+    box = _rays_hit_box(o, d, np.eye(3, dtype=np.float32), lo, hi, dist)
     # Sampling every 2 mm along each ray finds every ray that crosses the box by more than
     # 2 mm; the slab test may only add rays that graze it.
     sampled = _sampled_hits(o, d, lambda p: np.all((p >= lo) & (p <= hi), axis=2))
@@ -34,7 +34,12 @@ def test_box_and_sphere_culling_keep_every_ray_that_enters():
     # The bounding sphere contains the box: every box ray passes the sphere test too.
     assert np.all(near[box])
     # A closer hit already found hides the box.
-    assert not np.any(_rays_hit_box(o, d, lo, hi, np.full(len(d), 1.0, np.float32)))
+    assert not np.any(_rays_hit_box(o, d, np.eye(3, dtype=np.float32), lo, hi, np.full(len(d), 1.0, np.float32)))
+    # A rotated box: directions are turned into its frame column by column.
+    rot = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]], np.float32)  # 90 deg about z
+    turned = _rays_hit_box(o @ rot, d, rot, lo, hi, dist)
+    sampled_rot = _sampled_hits(o @ rot, d @ rot, lambda p: np.all((p >= lo) & (p <= hi), axis=2))
+    assert np.all(turned[sampled_rot]) and turned.sum() - sampled_rot.sum() <= 2
 
 
 def test_rotate_rows_is_a_matrix_product():

@@ -148,14 +148,15 @@ class ToFRayCaster:
                 continue
             rot = pose.rotation.astype(np.float32)
             # Rays into the object's frame: x_local = R^T (x - p); distances are unchanged.
-            dl = rotate_rows(d32[sel], rot)
             if origins is None:
                 o_local = rotate_rows((o32[:1] - pose.position.astype(np.float32)), rot)[0]
-                inside = _rays_hit_box(o_local, dl, *self._moving_boxes[k], dist[sel])
-                sel, dl = sel[inside], dl[inside]
+                inside = _rays_hit_box(o_local, d32[sel], rot, *self._moving_boxes[k], dist[sel])
+                sel = sel[inside]
+                dl = rotate_rows(d32[sel], rot)
                 ol = np.empty_like(dl)
                 ol[:] = o_local
             else:
+                dl = rotate_rows(d32[sel], rot)
                 ol = rotate_rows(o32[sel] - pose.position.astype(np.float32), rot)
             if len(sel) == 0:
                 continue
@@ -219,18 +220,29 @@ def rotate_rows(v: np.ndarray, m: np.ndarray) -> np.ndarray:
     return out
 
 
-def _rays_hit_box(o: np.ndarray, d: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+def _rays_hit_box(o: np.ndarray, d: np.ndarray, rot: np.ndarray, lo: np.ndarray, hi: np.ndarray,
                   dist: np.ndarray) -> np.ndarray:
-    """(n,) bool: rays from the point ``o`` along ``d`` (n, 3) enter the box [lo, hi] before ``dist``.
+    """(n,) bool: rays enter the box [lo, hi] of a rotated frame before ``dist``.
+
+    Parameters
+    ----------
+    o : (3,) float
+        Common ray origin in the box's frame.
+    d : (n, 3) float32
+        Directions in the world frame; ``d @ rot`` gives them in the box's frame.
 
     Slab test, one axis at a time (reductions over a length-3 axis are slow
-    in NumPy). fmin/fmax ignore the NaN of 0 * inf (a ray in a slab's plane).
+    in NumPy, and one column of ``d @ rot`` is all each slab needs). fmin and
+    fmax ignore the NaN of 0 * inf (a ray in a slab's plane).
     """
     near = np.zeros(len(d), np.float32)
     far = dist.astype(np.float32, copy=True)
     with np.errstate(divide="ignore", invalid="ignore"):
         for a in range(3):
-            inv = np.float32(1.0) / d[:, a]
+            da = d[:, 0] * rot[0, a]
+            da += d[:, 1] * rot[1, a]
+            da += d[:, 2] * rot[2, a]
+            inv = np.float32(1.0) / da
             t1 = (lo[a] - o[a]) * inv
             t2 = (hi[a] - o[a]) * inv
             near = np.fmax(near, np.fmin(t1, t2))
