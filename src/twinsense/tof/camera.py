@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -14,7 +14,7 @@ from twinsense.tof.config import ToFConfig
 from twinsense.tof.frame import ToFFrame
 from twinsense.tof.multipath import indirect_phasors
 from twinsense.tof.parallel import parallel_renderer_for
-from twinsense.tof.pipeline import ChainNoise, draw_noise, finish_geometry, run_chain
+from twinsense.tof.pipeline import finish_geometry, noise_rows, noise_seeds, run_chain
 from twinsense.tof.presets import tof_preset
 from twinsense.tof.raycast import caster_for, rotate_rows
 from twinsense.tof.rendering import BandRenderer
@@ -111,31 +111,21 @@ class ToFCamera:
         cfg = self.config
         if rng is None:
             rng = np.random.default_rng()
-        noise: list[ChainNoise] = []
-
-        def draw():  # scene-independent: may run while the rays are being traced
-            if cfg.noise:
-                noise.append(draw_noise(cfg, rng))
-
+        seeds = noise_seeds(cfg, rng) if cfg.noise else None
         if self.render_workers > 0 and not (cfg.motion_artifacts or cfg.multipath):
             # Rendering and the per-pixel chain split by image rows across processes.
             pose = self.mount.pose_at(scene, t)
             par = parallel_renderer_for(scene, self.kind, self.render_workers)
-
-            def draw_or_none():
-                draw()
-                return noise[0] if noise else None
-
-            out = par.frame(self._renderer, scene, pose.rotation, pose.position, t, draw_or_none)
+            out = par.frame(self._renderer, scene, pose.rotation, pose.position, t, seeds)
         else:
             if cfg.motion_artifacts:
                 times = cfg.raw_frame_times(t) + 0.5 * cfg.exposure_time
-                draw()
                 phasors: PixelPhasors | list[PixelPhasors] = [
                     self._render_phasors(scene, float(ti)) for ti in times]
             else:
-                phasors = self._render_phasors(scene, t, during=draw)
-            out = run_chain(phasors, cfg, noise=noise[0] if noise else None)
+                phasors = self._render_phasors(scene, t)
+            noise = noise_rows(cfg, seeds, 0, cfg.height) if seeds is not None else None
+            out = run_chain(phasors, cfg, noise=noise)
         distance, depth, invalid, confidence, points = finish_geometry(out, self._pixel_dirs, cfg)
         pose = self.mount.pose_at(scene, t)
         world = distance[..., None] * self._renderer.pixel_world_directions(pose.rotation)
@@ -154,13 +144,10 @@ class ToFCamera:
                                             pose.position, t)
         return samples
 
-    def _render_phasors(self, scene: Scene, t: float,
-                        during: Callable[[], object] | None = None) -> PixelPhasors:
-        """Expected pixel phasors at time ``t``; ``during()`` runs while rays are traced."""
+    def _render_phasors(self, scene: Scene, t: float) -> PixelPhasors:
+        """Expected pixel phasors at time ``t``."""
         cfg = self.config
         pose = self.mount.pose_at(scene, t)
-        if during is not None:
-            during()
         caster = caster_for(scene, self.kind)
         if not cfg.multipath:
             return self._renderer.phasors(scene, caster, pose.rotation, pose.position, t)

@@ -5,11 +5,10 @@ do not scale; worker processes do. Each worker keeps its own copy of the
 scene and its Embree structures (sent once, pickled) and renders a band of
 image rows through the whole per-pixel chain (rays, materials, radiometry,
 sub-pixel phasor sums, cross-talk, noise, ADC, demodulation, unwrapping),
-writing the products into shared memory. The calling process draws the
-frame's noise meanwhile (one generator, so the draws do not depend on the
-number of workers), hands the workers their rows of it and runs the other
-band. A band renders a halo of rows for the cross-talk blur, so the result
-is bit-for-bit the single-process one.
+writing the products into shared memory, while the calling process runs the
+other band. Noise comes from per-row-block streams seeded by the caller's
+generator, and a band renders a halo of rows for the cross-talk blur, so
+the result is bit-for-bit the single-process one.
 """
 
 from __future__ import annotations
@@ -18,14 +17,13 @@ import multiprocessing as mp
 import pickle
 import traceback
 import weakref
-from collections.abc import Callable
 from multiprocessing import shared_memory
 
 import numpy as np
 
 from twinsense.scene.scene import Scene
 from twinsense.tof.config import ToFConfig
-from twinsense.tof.pipeline import ChainNoise, ChainOutput, band_chain, crosstalk_halo
+from twinsense.tof.pipeline import ChainNoise, ChainOutput, band_chain, crosstalk_halo, noise_rows
 from twinsense.tof.raycast import ToFRayCaster
 from twinsense.tof.rendering import BandRenderer
 
@@ -33,13 +31,11 @@ from twinsense.tof.rendering import BandRenderer
 def _layout(cfg: ToFConfig) -> tuple[dict[str, tuple[tuple[int, ...], np.dtype, int]], int]:
     """Shared-memory layout of one frame: name -> (shape, dtype, byte offset), and the total size.
 
-    Inputs written by the caller: the noise draws. Outputs written per band:
-    the chain products (see :class:`twinsense.tof.pipeline.ChainOutput`).
+    Written per band: the chain products (see :class:`twinsense.tof.pipeline.ChainOutput`).
     """
     f, h, w = cfg.n_frequencies, cfg.height, cfg.width
     raw_dtype = np.uint16 if cfg.quantization else np.float32
-    fields = [("noise_raw", (f, 4, h, w), np.float32), ("noise_gray", (h, w), np.float32),
-              ("raw", (f, 4, h, w), raw_dtype), ("gray", (h, w), np.uint16),
+    fields = [("raw", (f, 4, h, w), raw_dtype), ("gray", (h, w), np.uint16),
               ("phase", (f, h, w), np.float32), ("amplitude", (f, h, w), np.float32),
               ("distance", (h, w), np.float32), ("noise", (h, w), np.float32),
               ("invalid", (h, w), np.uint8)]
@@ -93,26 +89,17 @@ def _worker_main(conn) -> None:  # pragma: no cover - runs in the worker process
             elif msg[0] == "camera":
                 renderers[msg[1]] = BandRenderer(msg[1])
             elif msg[0] == "frame":
-                _, cfg, shm_name, r0, r1, rotation, position, t = msg
+                _, cfg, shm_name, r0, r1, rotation, position, t, seeds = msg
                 if shm_name != name:
                     if shm is not None:
                         shm.close()
                     shm = shared_memory.SharedMemory(name=shm_name)
                     name = shm_name
-                renderer = renderers[cfg]
-                halo = crosstalk_halo(cfg)
-                ext = (max(r0 - halo, 0), min(r1 + halo, cfg.height))
-                phasors = renderer.phasors(scene, caster, rotation, position, t, ext)
+                noise = noise_rows(cfg, seeds, r0, r1) if seeds is not None else None
+                out = _band_frame(renderers[cfg], scene, caster, rotation, position, t, (r0, r1), noise)
                 views = _views(shm.buf, cfg)
-                noise = None
-                if cfg.noise:
-                    # The caller draws the frame's noise while this band renders.
-                    ready = conn.recv()
-                    if ready[0] != "noise":
-                        raise RuntimeError(f"expected the noise, got {ready[0]!r}")
-                    noise = ChainNoise(views["noise_raw"][..., r0:r1, :], views["noise_gray"][r0:r1])
-                _store(views, band_chain(phasors, ext, (r0, r1), cfg, noise), (r0, r1))
-                del views, noise
+                _store(views, out, (r0, r1))
+                del views
             conn.send(("ok",))
         except Exception:
             conn.send(("error", traceback.format_exc()))
@@ -199,11 +186,11 @@ class ParallelRenderer:
         return self._shms[-1]
 
     def frame(self, renderer: BandRenderer, scene: Scene, rotation: np.ndarray, position: np.ndarray,
-              t: float, draw_noise: Callable[[], ChainNoise | None]) -> ChainOutput:
+              t: float, seeds: np.ndarray | None) -> ChainOutput:
         """The chain products of the whole image (see :func:`twinsense.tof.pipeline.run_chain`).
 
-        ``draw_noise()`` draws the frame's noise while the workers render; the
-        workers' bands then continue with their rows of it.
+        ``seeds``: the frame's noise seeds (:func:`~twinsense.tof.pipeline.noise_seeds`),
+        None without noise; every process draws the noise of its own rows.
         """
         cfg = renderer.config
         if cfg not in self._configs:
@@ -218,18 +205,11 @@ class ParallelRenderer:
         rotation = np.asarray(rotation, dtype=float)
         position = np.asarray(position, dtype=float)
         for c, r0, r1 in zip(self._conns, bounds[:-1], bounds[1:]):
-            c.send(("frame", cfg, shm.name, int(r0), int(r1), rotation, position, float(t)))
-        views = _views(shm.buf, cfg)
-        noise = draw_noise()
-        mine_noise = None
-        if noise is not None:
-            views["noise_raw"][:, :, :h_work] = noise.raw[:, :, :h_work]
-            views["noise_gray"][:h_work] = noise.gray[:h_work]
-            for c in self._conns:
-                c.send(("noise",))
-            mine_noise = ChainNoise(noise.raw[:, :, h_work:], noise.gray[h_work:])
-        mine = _band_frame(renderer, scene, self.local, rotation, position, t, (h_work, h), mine_noise)
+            c.send(("frame", cfg, shm.name, int(r0), int(r1), rotation, position, float(t), seeds))
+        noise = noise_rows(cfg, seeds, h_work, h) if seeds is not None else None
+        mine = _band_frame(renderer, scene, self.local, rotation, position, t, (h_work, h), noise)
         self._wait()
+        views = _views(shm.buf, cfg)
         out = ChainOutput(
             np.concatenate([views["raw"][..., :h_work, :], mine.raw], axis=-2),
             np.concatenate([views["gray"][:h_work], mine.gray]),

@@ -80,16 +80,44 @@ class ChainNoise:
     gray: np.ndarray
 
 
-def draw_noise(config: ToFConfig, rng: np.random.Generator) -> ChainNoise:
-    """The frame's noise draws: the raw frames' first, then the gray frame's.
+#: Noise is drawn in blocks of this many image rows, each from its own seeded stream.
+NOISE_BLOCK_ROWS = 8
 
-    They do not depend on the scene, so a camera may draw them while the
-    scene is still being rendered; the same generator state gives the same frame.
+
+def noise_seeds(config: ToFConfig, rng: np.random.Generator) -> np.ndarray:
+    """One seed per block of :data:`NOISE_BLOCK_ROWS` image rows, drawn from ``rng``: (blocks,) int64."""
+    blocks = -(-config.height // NOISE_BLOCK_ROWS)
+    return rng.integers(0, 2 ** 63 - 1, size=blocks, dtype=np.int64)
+
+
+def noise_rows(config: ToFConfig, seeds: np.ndarray, r0: int, r1: int) -> ChainNoise:
+    """Standard normal draws of image rows [r0, r1) from the per-block streams ``seeds``.
+
+    Each block of rows has its own generator (PCG64 seeded through
+    SeedSequence, so the streams are independent), which lets separate
+    processes draw their own rows and still give the frame one process
+    would: the draws depend on the seeds only, not on how the image is split.
     """
     cfg = config
-    raw = rng.standard_normal((cfg.n_frequencies, PHASE_STEPS, cfg.height, cfg.width), dtype=np.float32)
-    gray = rng.standard_normal((cfg.height, cfg.width), dtype=np.float32)
-    return ChainNoise(raw, gray)
+    k = NOISE_BLOCK_ROWS
+    raws, grays = [], []
+    for b in range(r0 // k, -(-r1 // k)):
+        g = np.random.Generator(np.random.PCG64(int(seeds[b])))
+        rows = min(k, cfg.height - b * k)
+        raw = g.standard_normal((cfg.n_frequencies, PHASE_STEPS, rows, cfg.width), dtype=np.float32)
+        gray = g.standard_normal((rows, cfg.width), dtype=np.float32)
+        lo, hi = max(r0 - b * k, 0), min(r1 - b * k, rows)
+        raws.append(raw[:, :, lo:hi])
+        grays.append(gray[lo:hi])
+    return ChainNoise(np.concatenate(raws, axis=2), np.concatenate(grays, axis=0))
+
+
+def draw_noise(config: ToFConfig, rng: np.random.Generator) -> ChainNoise:
+    """The frame's noise draws (all rows), from seeds drawn from ``rng``.
+
+    They do not depend on the scene; the same generator state gives the same frame.
+    """
+    return noise_rows(config, noise_seeds(config, rng), 0, config.height)
 
 
 def run_chain(phasors: PixelPhasors | list[PixelPhasors], config: ToFConfig,
