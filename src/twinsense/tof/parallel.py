@@ -140,7 +140,7 @@ class ParallelRenderer:
         0.5 leaves the caller time for the work it runs while waiting.
     """
 
-    def __init__(self, scene: Scene, kind: str = "tof", workers: int = 1, worker_share: float = 0.57):
+    def __init__(self, scene: Scene, kind: str = "tof", workers: int = 1, worker_share: float = 0.5):
         self.local = ToFRayCaster(scene, kind)
         self.version = scene.version
         self.workers = int(workers)
