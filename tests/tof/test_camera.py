@@ -333,3 +333,23 @@ def test_render_workers_give_the_same_frames(look_x):
             b = parallel.capture(scene, t, np.random.default_rng(3))
             for name, arr in a.streams().items():
                 np.testing.assert_array_equal(arr, b.streams()[name], err_msg=name)
+
+
+def test_vignetting_and_beam_fall_off_across_a_wall(wall_scene, look_x):
+    """Amplitude over a fronto-parallel wall vs p(u) cos^7(a) (pico flexx lens, distortion included).
+
+    A pixel whose ray makes the angle a with the axis sees the wall at d = D / cos a with
+    incidence cosine cos a and vignetting cos^4 a: signal = P p(u) cos a cos^4 a cos^2 a / D^2.
+    """
+    cam = ToFCamera.preset("pmd_pico_flexx", mount=look_x, supersample=1, noise=False,
+                           quantization=False, crosstalk_sigma_px=0.0)
+    frame = cam.capture(wall_scene(1.0, Material("white_lambertian", 0.8, 0.0)), 0.0)
+    d = cam.pinhole.directions(1)
+    expected = beam_profile(d, cam.config.illumination_fwhm_deg) * d[..., 2] ** 7
+    ratio = frame.amplitude / expected
+    valid = frame.valid
+    assert valid.mean() > 0.95
+    # Exact up to float32: 1e-5 relative over the whole image.
+    np.testing.assert_allclose(ratio[valid], np.median(ratio[valid]), rtol=1e-5)
+    # The corners get far less light than the centre: cos^7 and the beam's fall-off.
+    assert frame.amplitude[0, 0] < 0.4 * frame.amplitude[85, 106]
