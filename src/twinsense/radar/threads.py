@@ -1,0 +1,34 @@
+"""A shared thread pool for the radar's data-parallel stages.
+
+The heavy radar stages (the ray-cast finish, the IF synthesis) work on
+chunks of scatterers whose NumPy and finufft calls release the GIL, so a few
+threads run them in parallel. Results are always combined in chunk order,
+so the output does not depend on the number of threads.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from concurrent.futures import ThreadPoolExecutor
+from typing import TypeVar
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+_POOLS: dict[int, ThreadPoolExecutor] = {}
+
+
+def pool(workers: int) -> ThreadPoolExecutor:
+    """A process-wide pool of ``workers`` threads (created on first use and kept)."""
+    p = _POOLS.get(workers)
+    if p is None:
+        p = _POOLS[workers] = ThreadPoolExecutor(workers, thread_name_prefix="twinsense-radar")
+    return p
+
+
+def map_ordered(fn: Callable[[T], R], items: Iterable[T], workers: int = 1) -> list[R]:
+    """``[fn(x) for x in items]``, on ``workers`` threads when more than one."""
+    items = list(items)
+    if workers <= 1 or len(items) <= 1:
+        return [fn(x) for x in items]
+    return list(pool(workers).map(fn, items))
