@@ -31,6 +31,7 @@ __all__ = [
     "interdigital",
     "pad_grid",
     "polygon",
+    "polygon_loops",
     "rectangle",
     "ring",
     "stripes",
@@ -85,13 +86,34 @@ class Electrode:
         hi = np.append(self.polygon.max(axis=0), self.z)
         return np.vstack([lo, hi])
 
+    @property
+    def parts(self) -> tuple[tuple[np.ndarray, tuple[np.ndarray, ...]], ...]:
+        """The outline as simple loops: ((outer (k, 2), (hole (k_i, 2), ...)), ...) [m].
+
+        An outline that returns to an earlier vertex (the keyhole of
+        :func:`ring`: out round the outer circle, across a zero-width slit,
+        back round the inner one) is split there into loops; a loop inside
+        a larger one is its hole, any other loop a separate part.
+        """
+        loops = polygon_loops(self.polygon)
+        parts: list[tuple[np.ndarray, list[np.ndarray]]] = []
+        for lp in loops:  # largest first
+            owner = next((o for o in parts if _MplPath(o[0]).contains_point(tuple(lp.mean(axis=0)))), None)
+            if owner is None:
+                parts.append((lp, []))
+            else:
+                owner[1].append(lp)
+        return tuple((outer, tuple(holes)) for outer, holes in parts)
+
     def contains_xy(self, xy: np.ndarray, tol: float) -> np.ndarray:
         """Points (n, 2) inside or within ``tol`` of the outline -> bool (n,)."""
-        path = _MplPath(np.vstack([self.polygon, self.polygon[:1]]), closed=True)
-        # matplotlib's radius sign depends on orientation: test both and OR.
-        a = path.contains_points(xy, radius=tol)
-        b = path.contains_points(xy, radius=-tol)
-        return a | b
+        inside = np.zeros(len(xy), bool)
+        for outer, holes in self.parts:
+            part = _within(outer, xy, tol)
+            for hole in holes:
+                part &= ~_within(hole, xy, -tol)
+            inside |= part
+        return inside
 
     def nodes(self, points: np.ndarray, tol: float) -> np.ndarray:
         """Indices of mesh nodes (points (n, 3), layout frame) on this electrode."""
@@ -264,6 +286,45 @@ class Layout:
         if s is not None:
             parts.append(f"sub:{s.thickness!r}:{s.permittivity!r}:{s.extent!r}")
         return "|".join(parts)
+
+
+def _within(loop: np.ndarray, xy: np.ndarray, tol: float) -> np.ndarray:
+    """Points inside the simple ``loop`` grown by ``tol`` (shrunk for tol < 0) -> bool (n,)."""
+    path = _MplPath(np.vstack([loop, loop[:1]]), closed=True)
+    # matplotlib's radius sign depends on the loop's orientation: test both
+    # signs; their union grows the loop, their intersection shrinks it.
+    a = path.contains_points(xy, radius=abs(tol))
+    b = path.contains_points(xy, radius=-abs(tol))
+    return (a | b) if tol >= 0 else (a & b)
+
+
+def polygon_loops(polygon: np.ndarray, tol: float = 1e-12) -> list[np.ndarray]:
+    """Split an outline at repeated vertices into simple loops, largest area first.
+
+    Parameters
+    ----------
+    polygon : (k, 2) float [m]
+    tol : float, distance under which two vertices are the same [m].
+
+    Returns
+    -------
+    list of (k_i, 2) float loops, each without a repeated end vertex.
+    """
+    loops: list[np.ndarray] = []
+    chain: list[np.ndarray] = []
+    for p in np.asarray(polygon, float):
+        hit = next((j for j, q in enumerate(chain) if np.max(np.abs(p - q)) <= tol), None)
+        if hit is None:
+            chain.append(p)
+            continue
+        loop = chain[hit:]
+        if len(loop) >= 3:
+            loops.append(np.array(loop))
+        chain = chain[: hit + 1]
+    if len(chain) >= 3:
+        loops.append(np.array(chain))
+    loops.sort(key=lambda lp: -abs(_area(lp)))
+    return loops
 
 
 def _area(poly: np.ndarray) -> float:

@@ -29,11 +29,15 @@ import numpy as np
 from twinsense.errors import ConfigError
 
 __all__ = [
+    "MESHERS",
+    "MeshSettings",
     "SimplexMesh",
     "cache_dir",
     "cached_mesh",
     "extruded_mesh",
     "graded_axis",
+    "layout_region",
+    "mesh_layout",
     "polar_grid_2d",
     "prisms_to_tets",
     "rect_grid_2d",
@@ -407,9 +411,17 @@ def cached_mesh(key: str, build, *, use_cache: bool = True) -> SimplexMesh:
     return mesh
 
 
+MESHERS = ("grid", "gmsh")
+"""Layout meshers: the graded tensor grid (default, permissive) or gmsh (optional, GPL)."""
+
+
 @dataclass(frozen=True)
 class MeshSettings:
-    """Size settings of the default layout mesher.
+    """Mesher choice and size settings of the layout mesh.
+
+    Both meshers read the same sizes: ``h_min`` at electrode edges, growing
+    at ``growth`` away from them up to ``h_max``, at most ``h_refine`` in the
+    refine boxes.
 
     Attributes
     ----------
@@ -435,6 +447,11 @@ class MeshSettings:
         overrides margin, height and depth.
     use_cache : bool
         Read and write the on-disk cache.
+    mesher : {"grid", "gmsh"}
+        ``"grid"``: graded tensor grid split into tetrahedra (rectilinear
+        outlines exact, curved ones staircased). ``"gmsh"``: unstructured
+        tetrahedra with every electrode polygon embedded exactly (needs the
+        optional gmsh package, see :mod:`twinsense.capacitive.gmsh_mesher`).
     """
 
     margin: float = 0.02
@@ -447,9 +464,12 @@ class MeshSettings:
     h_refine: float = 4e-3
     region: tuple | None = None
     use_cache: bool = True
+    mesher: str = "grid"
 
     def __post_init__(self) -> None:
         from twinsense import validation as v
+
+        v.choice("MeshSettings.mesher", self.mesher, MESHERS)
 
         v.non_negative("MeshSettings.margin", self.margin, "m")
         v.positive("MeshSettings.height", self.height, "m")
@@ -497,23 +517,29 @@ class LayoutMesh:
     region: tuple
 
 
+def layout_region(layout, settings: MeshSettings) -> tuple:
+    """The meshed box (x_min, x_max, y_min, y_max, z_min, z_max) [m] of ``layout``."""
+    s = settings
+    if s.region is not None:
+        return tuple(float(x) for x in s.region)
+    lb = layout.bounds
+    region = (
+        lb[0, 0] - s.margin,
+        lb[1, 0] + s.margin,
+        lb[0, 1] - s.margin,
+        lb[1, 1] + s.margin,
+        lb[0, 2] - s.depth,
+        lb[1, 2] + s.height,
+    )
+    return tuple(float(x) for x in region)
+
+
 def layout_axes(layout, settings: MeshSettings) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple]:
     """The graded grid lines (x, y, z) [m] and the region that mesh ``layout``."""
     from twinsense.capacitive.layouts import Electrode
 
-    lb = layout.bounds
     s = settings
-    if s.region is not None:
-        region = s.region
-    else:
-        region = (
-            lb[0, 0] - s.margin,
-            lb[1, 0] + s.margin,
-            lb[0, 1] - s.margin,
-            lb[1, 1] + s.margin,
-            lb[0, 2] - s.depth,
-            lb[1, 2] + s.height,
-        )
+    region = layout_region(layout, s)
     feats: list[list[float]] = [[], [], []]
     fine: list[list[tuple[float, float]]] = [[], [], []]
     for e in layout.electrodes:
@@ -545,16 +571,17 @@ def layout_axes(layout, settings: MeshSettings) -> tuple[np.ndarray, np.ndarray,
 
 
 def mesh_layout(layout, settings: MeshSettings | None = None) -> LayoutMesh:
-    """Mesh the sensing volume of ``layout`` (default mesher, cached on disk).
+    """Mesh the sensing volume of ``layout`` with ``settings.mesher`` (cached on disk).
 
     Raises ConfigError for an electrode outside the meshed region or one that
-    covers no mesh node, and for overlapping or touching electrodes.
+    covers no mesh node, and for overlapping or touching electrodes;
+    ImportError for ``mesher="gmsh"`` without gmsh installed.
     """
     from twinsense.capacitive.fem import check_disjoint
     from twinsense.capacitive.layouts import Electrode
 
     s = settings or MeshSettings()
-    x, y, z, region = layout_axes(layout, s)
+    region = layout_region(layout, s)
     lo = np.array(region[0::2])
     hi = np.array(region[1::2])
     for i, e in enumerate(layout.electrodes):
@@ -565,9 +592,17 @@ def mesh_layout(layout, settings: MeshSettings | None = None) -> LayoutMesh:
                 e.name,
                 f"an electrode inside the mesh region {tuple(np.round(region, 6))} [m]",
             )
-    key = "tensor-v1|" + "|".join(np.asarray(a).tobytes().hex() for a in (x, y, z))
-    mesh = cached_mesh(key, lambda: tensor_tet_mesh(x, y, z), use_cache=s.use_cache)
-    tol = 1e-6 * min(np.diff(x).min(), np.diff(y).min(), np.diff(z).min())
+    if s.mesher == "gmsh":
+        from twinsense.capacitive.gmsh_mesher import gmsh_layout_mesh
+
+        mesh = gmsh_layout_mesh(layout, s, region)
+        # Nodes on an electrode lie on its plane and outline to round-off.
+        tol = 1e-9 * max(hi - lo)
+    else:
+        x, y, z, _ = layout_axes(layout, s)
+        key = "tensor-v1|" + "|".join(np.asarray(a).tobytes().hex() for a in (x, y, z))
+        mesh = cached_mesh(key, lambda: tensor_tet_mesh(x, y, z), use_cache=s.use_cache)
+        tol = 1e-6 * min(np.diff(x).min(), np.diff(y).min(), np.diff(z).min())
     node_sets = []
     for e in layout.electrodes:
         if isinstance(e, Electrode):
