@@ -132,24 +132,6 @@ def synthesize_exact(points: np.ndarray, velocities: np.ndarray | None, weights:
     return _output(cube, config)
 
 
-def _wrap(x: np.ndarray) -> np.ndarray:
-    """Angles into [-pi, pi) (sampling aliases any frequency into the Nyquist band)."""
-    return x - _TWO_PI * np.floor((x + math.pi) / _TWO_PI)
-
-
-def _element_taylor(d: np.ndarray, v: np.ndarray, speed2: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Distance |d + v s| = r0 + r1 s + r2 s^2 + r3 s^3 + O(s^4) (closed-form coefficients).
-
-    From r(s)^2 = r0^2 + 2 (d.v) s + |v|^2 s^2: r1 = d.v / r0,
-    r2 = (|v|^2 - r1^2) / (2 r0), r3 = -r1 r2 / r0.
-    """
-    r0 = np.sqrt(np.einsum("...j,...j->...", d, d))
-    r1 = np.einsum("...j,...j->...", d, v) / r0
-    r2 = (speed2 - r1 * r1) / (2.0 * r0)
-    r3 = -r1 * r2 / r0
-    return r0, r1, r2, r3
-
-
 def _taylor_order(pmax: float, tol: float) -> int:
     """Smallest K with pmax^(K+1) / (K+1)! <= tol (remainder of the exp series)."""
     k, term = 0, pmax
@@ -208,14 +190,23 @@ def _exp_quad_cubic(a2: np.ndarray, a3: np.ndarray, order: int,
     index = {d: j for j, d in enumerate(degrees)}
     out = np.zeros((len(degrees), *a2.shape), dtype=complex)
     out[0] = 1.0
-    p2 = [np.ones_like(a2)]
-    p3 = [np.ones_like(a3)]
-    for _ in range(order):
-        p2.append(p2[-1] * a2)
-        p3.append(p3[-1] * a3)
+    # Real arithmetic: j^k only picks the real or imaginary part and a sign.
+    parts = out.view(float).reshape(*out.shape, 2)
+    powers: dict[tuple[int, int], np.ndarray] = {}
+
+    def power(a, tag, k):
+        if k == 0:
+            return None
+        if (tag, k) not in powers:
+            prev = power(a, tag, k - 1)
+            powers[(tag, k)] = a if prev is None else prev * a
+        return powers[(tag, k)]
+
     for k, i in keep:
-        scale = 1j**k / math.factorial(k) * math.comb(k, i)
-        out[index[2 * k + i]] += scale * (p2[k - i] * p3[i])
+        f2, f3 = power(a2, 2, k - i), power(a3, 3, i)
+        term = f2 if f3 is None else (f3 if f2 is None else f2 * f3)
+        scale = math.comb(k, i) / math.factorial(k) * (1.0 if k % 4 < 2 else -1.0)
+        parts[index[2 * k + i], ..., k % 2] += scale * term
     return np.asarray(degrees), out
 
 
@@ -270,6 +261,8 @@ class _Geometry:
         self.kx = _TWO_PI * slope / (fs * SPEED_OF_LIGHT)
         self.kf = _TWO_PI * fc / SPEED_OF_LIGHT
         self.ks = math.pi * slope / SPEED_OF_LIGHT**2
+        self.fc, self.slope, self.fs = fc, slope, fs
+        self.tx_per_chirp = arr.tx_positions[self.tx_of]  # (M, 3)
 
 
 def _ranges(p: np.ndarray, elements: list[np.ndarray]) -> list[np.ndarray]:
@@ -361,52 +354,103 @@ def _static_rows(p, pr, w, geo: _Geometry, eps: float, workers: int) -> np.ndarr
     return total
 
 
-def _moving_rows(pm, vm, prm, vrm, wm, arr, tx_of, n_rx, f0, slope, fs, t_c, n_samp,
-                 chirp_centre, eps, cube, chunk=32768):
-    """Add moving scatterers to ``cube`` (rx, chirp, sample): one NUFFT per (rx, chirp).
+def _leg_taylor(pos: list[np.ndarray], vel: list[np.ndarray], speed2: np.ndarray,
+                element: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Distance |d + v s| = r0 + r1 s + r2 s^2 + r3 s^3 + O(s^4) from one antenna element.
 
-    ``prm``/``vrm`` None: monostatic (the receive legs end at ``pm``).
+    ``pos``: the 3 coordinates (M, m) of the scatterers at each chirp centre,
+    ``vel``: their velocity components (m,), ``element``: (M, 3) or (3,)
+    element position per chirp. From r(s)^2 = r0^2 + 2 (d.v) s + |v|^2 s^2:
+    r1 = d.v / r0, r2 = (|v|^2 - r1^2) / (2 r0), r3 = -r1 r2 / r0.
+    """
+    e = np.asarray(element, float).reshape(-1, 3)
+    dd = dv = None
+    for j in range(3):
+        d = pos[j] - e[:, j:j + 1]
+        dd = d * d if dd is None else dd + d * d
+        d *= vel[j]
+        dv = d if dv is None else dv + d
+    r0 = np.sqrt(dd)
+    inv = 1.0 / r0
+    r1 = dv * inv
+    r2 = (speed2 - r1 * r1) * (0.5 * inv)
+    r3 = -r1 * r2 * inv
+    return r0, r1, r2, r3
+
+
+def _moving_chunk(p, v, pr, vr, w, rx: int, geo: _Geometry, chirp_centre: np.ndarray,
+                  eps: float) -> np.ndarray:
+    """(M, N) rows of receiver ``rx`` for moving scatterers (one NUFFT per chirp).
+
+    ``pr``/``vr`` None: monostatic (the receive legs end at ``p``).
     """
     n_chirps = len(chirp_centre)
-    fc = f0 + slope * t_c
+    n_samp = geo.n_samp
+    fc, slope, fs = geo.fc, geo.slope, geo.fs
     half = n_samp / 2 / fs  # s = u * half, u in [-1, 1)
     u = (np.arange(n_samp) - n_samp // 2) / (n_samp / 2)
-    plans = _Plans(n_samp, eps)
-    tx_pos = arr.tx_positions[tx_of]  # (M, 3)
-    for lo in range(0, len(pm), chunk):
-        p, v, w = pm[lo:lo + chunk], vm[lo:lo + chunk], wm[lo:lo + chunk]
-        speed2 = np.einsum("ij,ij->i", v, v)
-        pos = p[None, :, :] + v[None, :, :] * chirp_centre[:, None, None]  # (M, n, 3)
-        if prm is None:  # monostatic: both legs end at the same point
-            vr, speed2_rx, pos_rx = v, speed2, pos
-        else:
-            pr, vr = prm[lo:lo + chunk], vrm[lo:lo + chunk]
-            speed2_rx = np.einsum("ij,ij->i", vr, vr)
-            pos_rx = pr[None, :, :] + vr[None, :, :] * chirp_centre[:, None, None]
-        tx = _element_taylor(pos - tx_pos[:, None, :], v, speed2)
-        for a in range(n_rx):
-            rx = _element_taylor(pos_rx - arr.rx_positions[a], vr, speed2_rx)
-            t0, t1, t2, t3 = ((et + er) * (1.0 / SPEED_OF_LIGHT) for et, er in zip(tx, rx))
-            # phi(s) = 2 pi f0 tau + 2 pi S tau (t_c + s) - pi S tau^2, tau = t0 + t1 s + ...
-            phi0 = _TWO_PI * fc * t0 - math.pi * slope * t0 * t0
-            phi1 = _TWO_PI * (fc * t1 + slope * t0) - _TWO_PI * slope * t0 * t1
-            phi2 = (_TWO_PI * (fc * t2 + slope * t1)
-                    - math.pi * slope * (t1 * t1 + 2 * t0 * t2))
-            phi3 = _TWO_PI * (fc * t3 + slope * t2) - _TWO_PI * slope * (t0 * t3 + t1 * t2)
-            x = _wrap(phi1 / fs)
-            strength = w * np.exp(1j * phi0)  # (M, n)
-            a2, a3 = phi2 * half**2, phi3 * half**3
-            order = _taylor_order(float(np.max(np.abs(a2) + np.abs(a3))), eps * 0.1)
-            if order == 0:
-                for m in range(n_chirps):
-                    cube[a, m] += plans.rows(x[m], strength[m])
-                continue
-            # Series truncation and skipped terms each within eps / 10.
-            degrees, coeffs = _exp_quad_cubic(a2, a3, order, eps * 0.1)  # (D, M, n)
-            upow = u[None, :] ** degrees[:, None]  # (D, N)
-            for m in range(n_chirps):
-                rows = plans.rows(x[m], coeffs[:, m, :] * strength[m])
-                cube[a, m] += np.einsum("dn,dn->n", rows, upow)
+    plans = _thread_plans(n_samp, eps)
+    tc = chirp_centre[:, None]
+
+    def legs(p_, v_):
+        vel = [v_[:, j] for j in range(3)]
+        pos = [p_[:, j] + vel[j] * tc for j in range(3)]  # (M, m) at each chirp centre
+        return pos, vel, vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2]
+
+    pos, vel, speed2 = legs(p, v)
+    tx = _leg_taylor(pos, vel, speed2, geo.tx_per_chirp)
+    if pr is not None:
+        pos, vel, speed2 = legs(pr, vr)
+    rxl = _leg_taylor(pos, vel, speed2, geo.rx[rx])
+    t0, t1, t2, t3 = ((et + er) * (1.0 / SPEED_OF_LIGHT) for et, er in zip(tx, rxl))
+    # phi(s) = 2 pi f0 tau + 2 pi S tau (t_c + s) - pi S tau^2, tau = t0 + t1 s + ...
+    phi0 = t0 * (_TWO_PI * fc - math.pi * slope * t0)
+    phi1 = _TWO_PI * (fc * t1 + slope * t0) - _TWO_PI * slope * t0 * t1
+    phi2 = (_TWO_PI * (fc * t2 + slope * t1)
+            - math.pi * slope * (t1 * t1 + 2 * t0 * t2))
+    phi3 = _TWO_PI * (fc * t3 + slope * t2) - _TWO_PI * slope * (t0 * t3 + t1 * t2)
+    x = _reduce(phi1 * (1.0 / fs))
+    # w exp(j phi0): phase reduced in float64, cos/sin in float32 (as for static ones).
+    ph32 = _reduce(phi0).astype(np.float32)
+    strength = np.empty(phi0.shape, dtype=complex)
+    strength.real = np.cos(ph32)
+    strength.imag = np.sin(ph32)
+    strength *= w
+    a2, a3 = phi2 * half**2, phi3 * half**3
+    rows = np.empty((n_chirps, n_samp), dtype=complex)
+    # Series truncation and skipped terms each within eps / 4 of a scatterer's amplitude.
+    tol = 0.25 * eps
+    order = _taylor_order(float(np.max(np.abs(a2) + np.abs(a3))), tol)
+    if order == 0:
+        for m in range(n_chirps):
+            rows[m] = plans.rows(x[m], strength[m])
+        return rows
+    degrees, coeffs = _exp_quad_cubic(a2, a3, order, tol)  # (D, M, m)
+    coeffs[0] = strength
+    coeffs[1:] *= strength
+    upow = u[None, :] ** degrees[:, None]  # (D, N)
+    for m in range(n_chirps):
+        rows[m] = np.einsum("dn,dn->n", plans.rows(x[m], coeffs[:, m, :]), upow)
+    return rows
+
+
+def _moving_rows(p, v, pr, vr, w, geo: _Geometry, chirp_centre: np.ndarray, eps: float,
+                 workers: int) -> np.ndarray:
+    """(n_rx, M, N) cube of moving scatterers: tasks per (chunk, receiver), summed in order."""
+    n = len(p)
+    tasks = [(lo, min(lo + _CHUNK, n), a) for lo in range(0, n, _CHUNK)
+             for a in range(len(geo.rx))]
+
+    def run(task):
+        lo, hi, a = task
+        return _moving_chunk(p[lo:hi], v[lo:hi], None if pr is None else pr[lo:hi],
+                             None if vr is None else vr[lo:hi], w[lo:hi], a, geo,
+                             chirp_centre, eps)
+
+    out = np.zeros((len(geo.rx), len(chirp_centre), geo.n_samp), dtype=complex)
+    for (_, _, a), rows in zip(tasks, map_ordered(run, tasks, workers)):
+        out[a] += rows
+    return out
 
 
 def synthesize(points: np.ndarray, velocities: np.ndarray | None, weights: np.ndarray,
@@ -424,10 +468,7 @@ def synthesize(points: np.ndarray, velocities: np.ndarray | None, weights: np.nd
     """
     p, v, w, pr, vr = _check_inputs(points, velocities, weights, points_rx, velocities_rx)
     c = config.chirp
-    arr = config.antennas
     n_rx, n_chirps, n_samp = config.cube_shape
-    f0, slope, fs = c.start_frequency, c.slope, c.sample_rate
-    t_c = c.adc_start_time + (n_samp // 2) / fs
     geo = _Geometry(config, n_chirps)
     cube = np.zeros((n_rx, n_chirps, n_samp), dtype=complex)
 
@@ -436,9 +477,10 @@ def synthesize(points: np.ndarray, velocities: np.ndarray | None, weights: np.nd
         moving |= np.any(vr != 0.0, axis=1)
     if moving.any():
         bistatic = pr is not p
-        _moving_rows(p[moving], v[moving], pr[moving] if bistatic else None,
-                     vr[moving] if bistatic else None, w[moving], arr, geo.tx_of, n_rx,
-                     f0, slope, fs, t_c, n_samp, c.chirp_times() + t_c, eps, cube)
+        t_c = c.adc_start_time + (n_samp // 2) / c.sample_rate
+        cube += _moving_rows(p[moving], v[moving], pr[moving] if bistatic else None,
+                             vr[moving] if bistatic else None, w[moving], geo,
+                             c.chirp_times() + t_c, eps, workers)
     if not moving.all():
         # Static: one NUFFT per (tx, rx) pair, copied to that transmitter's
         # chirps. Moving scatterers ride along with zero weight, which costs
