@@ -4,6 +4,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -53,3 +54,24 @@ def test_depth_demo(tmp_path, demo):
     r = run("demo", demo, "-o", str(tmp_path), "--no-progress")
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "depth.png").stat().st_size > 10_000
+
+
+def test_office_demo_writes_every_output(tmp_path):
+    # The `make demo` entry point: ToF + radar + depth camera on one clock.
+    r = run("demo", "office", "-o", str(tmp_path), "--no-progress")
+    assert r.returncode == 0, r.stderr
+    for name in ("office_recording.h5", "tof_depth.png", "tof_amplitude.png", "tof_confidence.png",
+                 "tof_pointcloud.png", "radar_range_spectrum.png", "radar_range_angle.png",
+                 "radar_doppler_tracking.png", "ground_truth_depth.png"):
+        assert (tmp_path / name).stat().st_size > 1000, name
+    from twinsense import open_recording
+
+    with open_recording(tmp_path / "office_recording.h5") as rec:
+        assert set(rec.sensors) == {"tof", "radar", "depth"}
+        # One clock: every sensor's timestamps are multiples of its own period from t = 0.
+        for s in rec.sensors.values():
+            np.testing.assert_allclose(s.timestamps, np.arange(len(s)) / s.frame_rate, atol=1e-12)
+        tof = rec["tof"]
+        # The IR reflector saturates: flagged pixels with depth exactly 0.
+        inv, depth = tof["invalid"][-1], tof["depth"][-1]
+        assert np.any(inv & 1) and np.all(depth[(inv & 1) > 0] == 0)

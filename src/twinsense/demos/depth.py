@@ -8,6 +8,7 @@ import numpy as np
 
 from twinsense.demos.office import build_office_scene, sensor_pose
 from twinsense.depthcam import DepthCamera, DepthCameraConfig
+from twinsense.plotting import pyplot, save_figure
 from twinsense.render import PinholeCamera
 from twinsense.scene import Mount
 from twinsense.simulate import simulate
@@ -15,11 +16,7 @@ from twinsense.simulate import simulate
 
 def run_depth_demo(out_dir, duration: float = 1.0, progress: bool = False) -> dict[str, Path]:
     """Render the office's depth over ``duration`` [s] at 10 fps; write a PNG and a recording."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     scene = build_office_scene()
@@ -33,14 +30,5 @@ def run_depth_demo(out_dir, duration: float = 1.0, progress: bool = False) -> di
     ax.set_title(f"office, ideal depth camera, t = {frame.t:.2f} s")
     ax.set_xlabel("column [px]")
     ax.set_ylabel("row [px]")
-    png = out / "depth.png"
-    _save(fig, png)
-    plt.close(fig)
+    png = save_figure(fig, out / "depth.png")
     return {"depth_png": png, "recording": res.path}
-
-
-def _save(fig, path: Path) -> None:
-    """Save a figure atomically (temporary name, then rename)."""
-    tmp = path.with_name("." + path.name + ".tmp.png")
-    fig.savefig(tmp, dpi=110, bbox_inches="tight")
-    tmp.replace(path)

@@ -56,8 +56,11 @@ def build_office_scene(detail: int = 0, person: bool = True) -> Scene:
     s.add_object("chair_seat", Box((0.45, 0.45, 0.06)), "fabric", pose=Pose((2.9, -0.9, 0.47)))
     s.add_object("chair_back", Box((0.06, 0.45, 0.5)), "fabric", pose=Pose((2.68, -0.9, 0.77)))
     s.add_object("chair_column", Cylinder(0.03, 0.44, sections=24), "metal", pose=Pose((2.9, -0.9, 0.22)))
-    # The strong infrared retro-reflector on the back wall (saturates ToF pixels).
-    s.add_object("ir_reflector", Box((0.01, 0.3, 0.3)), "ir_reflector", pose=Pose((L - 0.006, 0.2, 1.3)))
+    # The strong infrared retro-reflector on a stand about a metre in front of
+    # the back wall: it saturates ToF pixels, and cross-talk spreads its light
+    # onto the wall pixels around it, which then get wrong depths.
+    s.add_object("ir_reflector", Box((0.01, 0.3, 0.3)), "ir_reflector", pose=Pose((3.9, 0.25, 1.35)))
+    s.add_object("reflector_stand", Cylinder(0.015, 1.2, sections=16), "metal", pose=Pose((3.91, 0.25, 0.6)))
     # A radar corner reflector on the floor, a clear point target for the radar.
     s.add_object("corner_reflector", Box((0.08, 0.08, 0.08)), "corner_reflector", pose=Pose((2.0, 0.3, 0.04)))
     if person:

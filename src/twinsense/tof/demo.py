@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from twinsense.plotting import pyplot, save_figure
 from twinsense.tof.camera import ToFCamera
 from twinsense.tof.frame import InvalidReason, ToFFrame
 
@@ -48,9 +49,6 @@ def run_tof_office_demo(out_dir, duration: float = 0.5, preset: str = "paper_pic
     dict of written files: depth_png, amplitude_png, confidence_png, pointcloud_png
     (and recording).
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
     from twinsense.demos.office import build_office_scene
     from twinsense.simulate import simulate
 
@@ -61,25 +59,35 @@ def run_tof_office_demo(out_dir, duration: float = 0.5, preset: str = "paper_pic
     path = out / "tof_office.h5" if recording else None
     res = simulate(scene, [cam], duration, out=path, progress=progress, keep_frames=True, seed=0)
     frame: ToFFrame = res.frames[cam.name][-1]
-    files = {
-        "depth_png": _image(frame, np.where(frame.valid, frame.depth, np.nan), "z-depth [m]", "viridis",
-                            out / "tof_depth.png", "depth (invalid pixels blank)"),
-        "amplitude_png": _image(frame, frame.amplitude, "amplitude [DN]", "gray", out / "tof_amplitude.png",
-                                "amplitude", log=True),
-        "confidence_png": _image(frame, frame.confidence.astype(float), "confidence 0..255", "magma",
-                                 out / "tof_confidence.png", "depth confidence"),
-        "pointcloud_png": _point_cloud(frame, out / "tof_pointcloud.png"),
-    }
+    files = write_tof_figures(frame, out, label="ToF office")
     if path is not None:
         files["recording"] = Path(res.path)
     return files
 
 
+def write_tof_figures(frame: ToFFrame, out_dir, label: str = "ToF", prefix: str = "tof") -> dict[str, Path]:
+    """Depth, amplitude and confidence images and a 3-D point-cloud picture of one frame.
+
+    Returns {depth_png, amplitude_png, confidence_png, pointcloud_png}; files are
+    ``<prefix>_depth.png`` etc. under ``out_dir``.
+    """
+    out = Path(out_dir)
+    return {
+        "depth_png": _image(frame, np.where(frame.valid, frame.depth, np.nan), "z-depth [m]", "viridis",
+                            out / f"{prefix}_depth.png", f"{label}, depth (invalid pixels blank)"),
+        "amplitude_png": _image(frame, frame.amplitude, "amplitude [DN]", "gray", out / f"{prefix}_amplitude.png",
+                                f"{label}, amplitude", log=True),
+        "confidence_png": _image(frame, frame.confidence.astype(float), "confidence 0..255", "magma",
+                                 out / f"{prefix}_confidence.png", f"{label}, depth confidence"),
+        "pointcloud_png": _point_cloud(frame, out / f"{prefix}_pointcloud.png", f"{label}, point cloud (world frame)"),
+    }
+
+
 def _image(frame: ToFFrame, img: np.ndarray, label: str, cmap: str, path: Path, title: str,
            log: bool = False) -> Path:
-    import matplotlib.pyplot as plt
     from matplotlib.colors import LogNorm
 
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 5.0))
     norm = LogNorm(vmin=max(np.nanmin(img[img > 0]), 1e-3), vmax=np.nanmax(img)) if log else None
     im = ax.imshow(img, cmap=cmap, norm=norm)
@@ -89,17 +97,14 @@ def _image(frame: ToFFrame, img: np.ndarray, label: str, cmap: str, path: Path, 
         ys, xs = np.nonzero(sat)
         ax.scatter(xs, ys, s=2, c="red", marker="s", label="saturated (depth 0)")
         ax.legend(loc="lower right", fontsize=8)
-    ax.set_title(f"ToF office, {title}, t = {frame.t:.2f} s")
+    ax.set_title(f"{title}, t = {frame.t:.2f} s")
     ax.set_xlabel("column [px]")
     ax.set_ylabel("row [px]")
-    _save(fig, path)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
-def _point_cloud(frame: ToFFrame, path: Path) -> Path:
-    import matplotlib.pyplot as plt
-
+def _point_cloud(frame: ToFFrame, path: Path, title: str) -> Path:
+    plt = pyplot()
     pts = frame.point_cloud("world")
     step = max(1, len(pts) // 20_000)
     pts = pts[::step]
@@ -110,14 +115,5 @@ def _point_cloud(frame: ToFFrame, path: Path) -> Path:
     ax.set_ylabel("y [m]")
     ax.set_zlabel("z [m]")
     ax.view_init(elev=20, azim=-150)
-    ax.set_title("ToF office, point cloud (world frame)")
-    _save(fig, path)
-    plt.close(fig)
-    return path
-
-
-def _save(fig, path: Path) -> None:
-    """Save a figure atomically (temporary name, then rename)."""
-    tmp = path.with_name("." + path.name + ".tmp.png")
-    fig.savefig(tmp, dpi=110, bbox_inches="tight")
-    tmp.replace(path)
+    ax.set_title(title)
+    return save_figure(fig, path)
