@@ -49,7 +49,7 @@ import numpy as np
 
 from twinsense.radar.antennas import SPEED_OF_LIGHT
 from twinsense.radar.config import RadarConfig
-from twinsense.radar.threads import map_ordered
+from twinsense.render.parallel import map_ordered
 
 _TWO_PI = 2.0 * math.pi
 

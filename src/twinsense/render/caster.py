@@ -10,6 +10,7 @@ Structures are cached per (scene, sensor kind, backend).
 from __future__ import annotations
 
 import weakref
+from collections.abc import Iterable
 
 import numpy as np
 
@@ -17,6 +18,7 @@ from twinsense.errors import ConfigError
 from twinsense.linalg import rotate_rows
 from twinsense.render.backends import make_intersector
 from twinsense.render.hits import Hits
+from twinsense.render.parallel import default_workers, map_ordered
 from twinsense.render.rays import Rays
 from twinsense.scene.scene import SENSOR_KINDS, Scene
 
@@ -55,11 +57,31 @@ class SceneCaster:
             self._moving_centre.append(c)
             self._moving_radius.append(float(np.linalg.norm(m.vertices - c, axis=1).max()) * (1 + 1e-9) + 1e-9)
 
-    def cast(self, rays: Rays, t: float = 0.0) -> Hits:
-        """Closest hits of ``rays`` (world frame) against the scene posed at time ``t`` [s]."""
+    def cast(self, rays: Rays, t: float = 0.0, fields: Iterable[str] | None = None,
+             workers: int | None = None) -> Hits:
+        """Closest hits of ``rays`` (world frame) against the scene posed at time ``t`` [s].
+
+        ``fields``: the :class:`Hits` fields to compute (default all); the
+        others are None. ``workers``: threads for large bundles (default:
+        the cores, at most 4). Rays are cast in chunks, each on one thread;
+        every ray's result is the same whatever the chunking.
+        """
         if self.scene.version != self._version:
             raise ConfigError("scene", "changed after the caster was built", "a new SceneCaster (use cast())")
+        want = _check_fields(fields)
         o, d = rays.origins, rays.directions
+        n = len(d)
+        states = {i: self.scene.objects[i].state_at(t) for i in self._moving}
+        out = {f: _allocate(f, n) for f in _ALWAYS | want}
+        bounds = [(lo, min(lo + _CHUNK, n)) for lo in range(0, n, _CHUNK)] or [(0, 0)]
+        workers = default_workers() if workers is None else workers
+        map_ordered(lambda b: self._cast_chunk(o[b[0]:b[1]], d[b[0]:b[1]], states,
+                                               {f: a[b[0]:b[1]] for f, a in out.items()}),
+                    bounds, workers if n >= _PARALLEL_MIN_RAYS else 1)
+        return Hits(**{f: out.get(f) for f in HIT_FIELDS})
+
+    def _cast_chunk(self, o, d, states, out) -> None:
+        """Cast one chunk of rays, writing every requested field into ``out`` (views)."""
         n = len(d)
         if self._static_bvh is not None:
             dist, g, tri, normal = self._static_bvh.intersect(o, d)
@@ -69,10 +91,9 @@ class SceneCaster:
             obj = np.full(n, -1, dtype=np.int32)
             tri = np.full(n, -1, dtype=np.int32)
             normal = np.zeros((n, 3))
-        states = {}
+        moved = []
         for k, i in enumerate(self._moving):
-            st = self.scene.objects[i].state_at(t)
-            states[i] = st
+            st = states[i]
             rot, pos = st.pose.rotation, st.pose.position
             # Rays into the object's frame: x_local = R^T (x - p). A rigid
             # motion preserves lengths, so the local distance is the world one.
@@ -90,20 +111,58 @@ class SceneCaster:
             obj[sel] = i
             tri[sel] = p
             normal[sel] = rotate_rows(n_local, rot.T)
-        hit = obj >= 0
-        point = d * np.where(hit, dist, np.nan)[:, None]
-        point += o[0] if o.strides[0] == 0 else o
-        # Turn normals towards the incoming ray; |cos| is the incidence cosine.
-        dn = np.einsum("ij,ij->i", normal, d)
-        normal *= np.where(dn > 0, -1.0, 1.0)[:, None]
-        cos_inc = np.abs(dn)
-        velocity = np.zeros((n, 3))
-        for i, st in states.items():
-            sel = np.nonzero(obj == i)[0]
-            if len(sel):
-                velocity[sel] = st.point_velocity(point[sel])
-        mat = np.take(self._mat_lut, obj + 1)
-        return Hits(dist, point, normal, cos_inc, obj, mat, tri, velocity)
+            moved.append(i)
+        out["distance"][:] = dist
+        out["object_id"][:] = obj
+        if "triangle_id" in out:
+            out["triangle_id"][:] = tri
+        if "material_id" in out:
+            np.take(self._mat_lut, obj + 1, out=out["material_id"])
+        # |n . d| is the incidence cosine; the normal is turned towards the ray.
+        dn = normal[:, 0] * d[:, 0]
+        dn += normal[:, 1] * d[:, 1]
+        dn += normal[:, 2] * d[:, 2]
+        if "cos_incidence" in out:
+            np.abs(dn, out=out["cos_incidence"])
+        if "normal" in out:
+            np.multiply(normal, np.where(dn > 0, -1.0, 1.0)[:, None], out=out["normal"])
+        if "point" in out or ("velocity" in out and moved):
+            hit = obj >= 0
+            point = d * np.where(hit, dist, np.nan)[:, None]
+            point += o[0] if o.strides[0] == 0 else o
+            if "point" in out:
+                out["point"][:] = point
+        if "velocity" in out:
+            vel = out["velocity"]
+            vel[:] = 0.0
+            for i in moved:
+                sel = np.nonzero(obj == i)[0]
+                if len(sel):
+                    vel[sel] = states[i].point_velocity(point[sel])
+
+
+_CHUNK = 16384  # rays per task: a chunk's per-ray arrays stay in a core's L2 cache
+_PARALLEL_MIN_RAYS = 2 * _CHUNK
+HIT_FIELDS = ("distance", "point", "normal", "cos_incidence", "object_id", "material_id",
+              "triangle_id", "velocity")
+_ALWAYS = frozenset({"distance", "object_id"})  # needed to tell hits from misses
+_DTYPES = {"object_id": np.int32, "material_id": np.int32, "triangle_id": np.int32}
+_SHAPES = {"point": 3, "normal": 3, "velocity": 3}
+
+
+def _check_fields(fields) -> frozenset:
+    if fields is None:
+        return frozenset(HIT_FIELDS)
+    want = frozenset(fields)
+    bad = sorted(want - set(HIT_FIELDS))
+    if bad:
+        raise ConfigError("fields", bad, "names among: " + ", ".join(HIT_FIELDS))
+    return want
+
+
+def _allocate(field: str, n: int) -> np.ndarray:
+    k = _SHAPES.get(field)
+    return np.empty((n, k) if k else n, dtype=_DTYPES.get(field, np.float64))
 
 
 def _rays_near_sphere(o: np.ndarray, d: np.ndarray, centre: np.ndarray, radius: float,
@@ -134,9 +193,12 @@ def caster_for(scene: Scene, kind: str = "tof", backend: str = "embree") -> Scen
     return c
 
 
-def cast(scene: Scene, rays: Rays, t: float = 0.0, kind: str = "tof", backend: str = "embree") -> Hits:
+def cast(scene: Scene, rays: Rays, t: float = 0.0, kind: str = "tof", backend: str = "embree",
+         fields: Iterable[str] | None = None, workers: int | None = None) -> Hits:
     """Cast world-frame ``rays`` against ``scene`` at time ``t`` for a sensor of ``kind``.
 
-    Objects whose layers exclude ``kind`` are invisible. See :class:`Hits`.
+    Objects whose layers exclude ``kind`` are invisible. See :class:`Hits`;
+    ``fields`` limits the computed fields (the others are None) and
+    ``workers`` the threads (see :meth:`SceneCaster.cast`).
     """
-    return caster_for(scene, kind, backend).cast(rays, t)
+    return caster_for(scene, kind, backend).cast(rays, t, fields, workers)

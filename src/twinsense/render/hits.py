@@ -11,6 +11,9 @@ import numpy as np
 class Hits:
     """Closest hit of every ray (n rays, in the order they were given).
 
+    A cast asked for only some fields (``cast(..., fields=...)``) leaves the
+    others None; ``distance`` and ``object_id`` are always there.
+
     Attributes
     ----------
     distance : (n,) float64
@@ -52,5 +55,5 @@ class Hits:
     def reshape(self, shape: tuple[int, ...]) -> Hits:
         """The same hits with the ray axis reshaped to ``shape`` (e.g. an image (H, W))."""
         def r(a):
-            return a.reshape(*shape, *a.shape[1:])
+            return None if a is None else a.reshape(*shape, *a.shape[1:])
         return Hits(*(r(getattr(self, f)) for f in self.__dataclass_fields__))

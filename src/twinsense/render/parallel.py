@@ -1,13 +1,14 @@
-"""A shared thread pool for the radar's data-parallel stages.
+"""Shared worker threads for data-parallel stages (ray casting, radar IF synthesis).
 
-The heavy radar stages (the ray-cast finish, the IF synthesis) work on
-chunks of scatterers whose NumPy and finufft calls release the GIL, so a few
-threads run them in parallel. Results are always combined in chunk order,
-so the output does not depend on the number of threads.
+These stages work on chunks of rays or scatterers whose Embree, NumPy and
+finufft calls release the GIL, so a few threads run them in parallel.
+Results are always combined in chunk order, so the output does not depend
+on the number of threads.
 """
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
 from typing import TypeVar
@@ -22,8 +23,13 @@ def pool(workers: int) -> ThreadPoolExecutor:
     """A process-wide pool of ``workers`` threads (created on first use and kept)."""
     p = _POOLS.get(workers)
     if p is None:
-        p = _POOLS[workers] = ThreadPoolExecutor(workers, thread_name_prefix="twinsense-radar")
+        p = _POOLS[workers] = ThreadPoolExecutor(workers, thread_name_prefix="twinsense-worker")
     return p
+
+
+def default_workers() -> int:
+    """Threads used when none are given: the machine's cores, at most 4."""
+    return max(1, min(4, os.cpu_count() or 1))
 
 
 def map_ordered(fn: Callable[[T], R], items: Iterable[T], workers: int = 1) -> list[R]:
