@@ -62,20 +62,22 @@ class ElementPattern:
         """
         d = np.asarray(directions, dtype=float)
         x, y, z = d[:, 0], d[:, 1], d[:, 2]
-        horiz = np.hypot(x, z)
-        norm = np.sqrt(horiz * horiz + y * y)
-        # cos(az) = z / hypot(x, z); cos(el) = hypot(x, z) / |d|.
+        # cos(az) = z / hypot(x, z) and cos(el)^2 = (x^2 + z^2) / |d|^2, with
+        # squares instead of hypot (several times faster, same to ~1e-16).
+        h2 = x * x
+        h2 += z * z
+        g = np.full(len(d), 10.0 ** (self.gain_dbi / 10.0))
+        front = z > 0  # cos(az) > 0
         with np.errstate(invalid="ignore", divide="ignore"):
-            cos_az = np.where(horiz > 0, z / horiz, 0.0)
-            cos_el = np.where(norm > 0, horiz / norm, 0.0)
-        front = cos_az > 0
-        g = 10.0 ** (self.gain_dbi / 10.0) * np.ones(len(d))
-        if self.cos_exponent_azimuth:
-            g = g * np.where(front, np.abs(cos_az), 0.0) ** self.cos_exponent_azimuth
-        else:
-            g = g * front
-        if self.cos_exponent_elevation:
-            g = g * np.abs(cos_el) ** self.cos_exponent_elevation
+            if self.cos_exponent_azimuth:
+                cos_az = np.where(front, z / np.sqrt(h2), 0.0)
+                g *= cos_az if self.cos_exponent_azimuth == 1 else cos_az ** self.cos_exponent_azimuth
+            else:
+                g *= front
+            if self.cos_exponent_elevation:
+                r2 = h2 + y * y
+                cos_el2 = np.divide(h2, r2, out=np.zeros_like(h2), where=r2 > 0)
+                g *= cos_el2 ** (0.5 * self.cos_exponent_elevation)
         return g
 
 

@@ -140,17 +140,30 @@ def received_amplitude(scatterers: Scatterers, config: RadarConfig) -> np.ndarra
     """
     p = scatterers.points
     pr_ = scatterers.points_rx if scatterers.is_bistatic else p
-    r2_t = np.einsum("ij,ij->i", p, p)
-    r2_r = r2_t if pr_ is p else np.einsum("ij,ij->i", pr_, pr_)
+    r2_t = _norm2(p)
+    r2_r = r2_t if pr_ is p else _norm2(pr_)
     lam = config.chirp.wavelength
     ant = config.antennas
     if ant.tx_pattern == ant.rx_pattern and pr_ is p:
-        g = ant.tx_pattern.gain(p) ** 2
+        g = ant.tx_pattern.gain(p)
+        g *= g
     else:
         g = ant.tx_pattern.gain(p) * ant.rx_pattern.gain(pr_)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        power = config.tx_power * g * lam**2 * scatterers.rcs / ((4 * math.pi) ** 3 * r2_t * r2_r)
-    return np.sqrt(2.0 * np.where((r2_t > 0) & (r2_r > 0), power, 0.0))
+    den = r2_t * r2_r if pr_ is not p else r2_t * r2_t
+    power = g
+    power *= (2.0 * config.tx_power * lam**2 / (4 * math.pi) ** 3) * scatterers.rcs
+    # A = sqrt(2 P_r); no return from a point at an element's origin.
+    np.divide(power, den, out=power, where=den > 0)
+    power[den <= 0] = 0.0
+    return np.sqrt(power, out=power)
+
+
+def _norm2(p: np.ndarray) -> np.ndarray:
+    """|p|^2 of the rows of p (n, 3), column by column (faster than einsum on (n, 3))."""
+    out = p[:, 0] * p[:, 0]
+    out += p[:, 1] * p[:, 1]
+    out += p[:, 2] * p[:, 2]
+    return out
 
 
 def backscatter_rcs(distance: np.ndarray, cos_incidence: np.ndarray, solid_angle: np.ndarray,
@@ -168,11 +181,26 @@ def backscatter_rcs(distance: np.ndarray, cos_incidence: np.ndarray, solid_angle
     lobe_rad : float, 1/e half-width of the specular lobe [rad]
     """
     c = np.clip(cos_incidence, 1e-6, 1.0)
-    theta = np.arccos(c)
-    lobe = 2.0 / (3.0 * lobe_rad**2) * np.exp(-((theta / lobe_rad) ** 2))
+    spec = np.asarray(specular, dtype=float)
     # sigma = A sigma0 with A = Omega R^2 / cos: the diffuse cos^2 keeps one cos.
-    per_sr = reflectivity * ((1.0 - specular) * c + specular * lobe / c)
-    return solid_angle * distance**2 * per_sr
+    per_sr = (1.0 - spec) * c
+    if np.any(spec):  # the specular lobe only where a material has one
+        theta = np.arccos(c)
+        theta *= 1.0 / lobe_rad
+        np.square(theta, out=theta)
+        lobe = np.exp(np.negative(theta, out=theta), out=theta)
+        lobe *= 2.0 / (3.0 * lobe_rad**2)
+        lobe *= spec
+        lobe /= c
+        per_sr += lobe
+    per_sr *= reflectivity
+    per_sr *= solid_angle
+    per_sr *= distance
+    per_sr *= distance
+    return per_sr
+
+
+_DIRECT_FIELDS = ("distance", "cos_incidence", "object_id", "material_id", "velocity")
 
 
 def _times(rows: np.ndarray, matrix: np.ndarray) -> np.ndarray:
@@ -191,15 +219,35 @@ class ScatterRenderer:
     The camera (directions and pixel solid angles) is built once.
     """
 
-    def __init__(self, config: RadarConfig, backend: str = "embree"):
+    def __init__(self, config: RadarConfig, backend: str = "embree", workers: int | None = None):
         self.config = config
         self.backend = backend
+        self.workers = workers
         self.camera = PinholeCamera.from_fov(config.render_width, config.render_height,
                                              config.hfov_deg, config.vfov_deg)
         d = self.camera.directions().reshape(-1, 3)
         self._dirs = d
+        # The same directions as three contiguous columns (x, y, z), for fast per-axis work.
+        self._dirs_cols = np.ascontiguousarray(d.T)
         # Pixel solid angle of a pinhole: (1 / (fx fy)) cos^3(angle off axis).
         self._solid_angle = d[:, 2] ** 3 / (self.camera.fx * self.camera.fy)
+        self._rays_key: bytes | None = None
+        self._rays: Rays | None = None
+
+    def _world_rays(self, pose) -> Rays:
+        """World rays of the render from ``pose`` (kept while the pose does not change)."""
+        key = np.concatenate([pose.position, pose.rotation.ravel()]).tobytes()
+        if key != self._rays_key:
+            world = np.empty_like(self._dirs)
+            rot = pose.rotation
+            for k in range(3):  # world = R d, column by column from the (3, n) copy
+                col = world[:, k]
+                np.multiply(self._dirs_cols[0], rot[k, 0], out=col)
+                col += rot[k, 1] * self._dirs_cols[1]
+                col += rot[k, 2] * self._dirs_cols[2]
+            self._rays = Rays(pose.position, world)
+            self._rays_key = key
+        return self._rays
 
     def render(self, scene, sensor_state, t: float) -> Scatterers:
         """Scatterers of ``scene`` at time ``t`` [s] seen from ``sensor_state``.
@@ -207,28 +255,53 @@ class ScatterRenderer:
         ``sensor_state`` is a :class:`twinsense.scene.MotionState` (sensor -> world
         pose, linear and angular velocity of the sensor, world frame).
         """
-        pose = sensor_state.pose
-        rot = pose.rotation
-        rays_dir = _times(self._dirs, rot.T)
-        hits = cast(scene, Rays(pose.position, rays_dir), t, kind="radar", backend=self.backend)
-        hit = hits.hit
-        # In a closed room every ray hits: a slice avoids copying every array.
-        sel = slice(None) if hit.all() else np.flatnonzero(hit)
-        dist = hits.distance[sel]
-        points = self._dirs[sel] * dist[:, None]
-        velocities = self._relative_velocity(hits.velocity[sel], hits.point[sel], sensor_state)
+        rays = self._world_rays(sensor_state.pose)
+        fields = _DIRECT_FIELDS + (("point", "normal") if self.config.multipath else ())
+        hits = cast(scene, rays, t, kind="radar", backend=self.backend, fields=fields,
+                    workers=self.workers)
+        obj = hits.object_id
+        hit = obj >= 0
+        # In a closed room every ray hits: then nothing is gathered.
+        idx = None if hit.all() else np.flatnonzero(hit)
+
+        def take(a):
+            return a if idx is None else np.take(a, idx, axis=0)
+
+        dist = take(hits.distance)
+        obj_hit = take(obj)
+        points = np.empty((len(dist), 3))
+        for k in range(3):
+            np.multiply(take(self._dirs_cols[k]), dist, out=points[:, k])
+        velocities = self._hit_velocities(scene, sensor_state, hits, idx, obj_hit, points)
         mats = scene.materials
         refl = np.array([m.radar_reflectivity for m in mats], dtype=float)
         spec = np.array([m.radar_specular for m in mats], dtype=float)
-        mid = hits.material_id[sel]
-        rcs = backscatter_rcs(dist, hits.cos_incidence[sel], self._solid_angle[sel], refl[mid],
-                              spec[mid], math.radians(self.config.specular_lobe_deg))
-        direct = Scatterers(points, velocities, rcs, hits.object_id[sel])
+        mid = take(hits.material_id)
+        rcs = backscatter_rcs(dist, take(hits.cos_incidence), take(self._solid_angle),
+                              np.take(refl, mid), np.take(spec, mid),
+                              math.radians(self.config.specular_lobe_deg))
+        direct = Scatterers(points, velocities, rcs, obj_hit)
         if not self.config.multipath:
             return direct
-        idx = np.arange(len(hit))[sel]
-        second = self._second_bounce(scene, sensor_state, t, hits, idx, rays_dir[idx], refl, spec)
+        idx = np.arange(len(hit)) if idx is None else idx
+        second = self._second_bounce(scene, sensor_state, t, hits, idx,
+                                     np.take(rays.directions, idx, axis=0), refl, spec)
         return Scatterers.concatenate([direct, second]) if len(second) else direct
+
+    def _hit_velocities(self, scene, sensor_state, hits, idx, obj_hit, points) -> np.ndarray:
+        """(m, 3) velocities of the hit points relative to the sensor, sensor frame."""
+        v_world = hits.velocity if idx is None else np.take(hits.velocity, idx, axis=0)
+        if np.any(sensor_state.linear_velocity) or np.any(sensor_state.angular_velocity):
+            pose = sensor_state.pose
+            p_world = _times(points, pose.rotation.T) + pose.position
+            return self._relative_velocity(v_world, p_world, sensor_state)
+        # A sensor at rest: only points on moving objects move, R^T v row by row.
+        moving = np.array([not o.is_static for o in scene.objects] + [False])
+        rows = np.flatnonzero(np.take(moving, obj_hit))  # id -1 (none) -> last entry
+        out = np.zeros_like(points)
+        if len(rows):
+            out[rows] = _times(np.take(v_world, rows, axis=0), sensor_state.pose.rotation)
+        return out
 
     @staticmethod
     def _relative_velocity(v_world: np.ndarray, p_world: np.ndarray, sensor_state) -> np.ndarray:

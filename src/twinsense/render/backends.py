@@ -60,43 +60,30 @@ class Intersector:
 
     def _finish(self, origins, directions, face, t=None):
         """From global triangle ids (-1 = miss): distances in float64 from the plane, ids, normals."""
-        # np.take is several times faster than fancy indexing for row gathers.
+        # np.take is several times faster than fancy indexing for row gathers;
+        # the dot products are written per component (einsum is slow on (n, 3)).
         plane = np.take(self._planes, face, axis=0)
         normal = plane[:, :3]
         geom = np.take(self._face_geom, face)
         prim = np.take(self._face_prim, face)
         if t is None:
-            den = np.einsum("ij,ij->i", directions, normal)
+            den = _dot3(directions, normal)
             if origins.strides[0] == 0:  # one shared origin (a camera)
-                num = np.einsum("ij,j->i", plane, np.append(-origins[0], 1.0))
+                o = origins[0]
+                num = plane[:, 3] - (plane[:, 0] * o[0] + plane[:, 1] * o[1] + plane[:, 2] * o[2])
             else:
-                num = plane[:, 3] - np.einsum("ij,ij->i", origins, normal)
+                num = plane[:, 3] - _dot3(origins, normal)
             t = np.full(len(face), np.inf)
             np.divide(num, den, out=t, where=(face >= 0) & (den != 0))
         return t, geom, prim, normal
 
 
-def _triangle_planes(meshes) -> tuple[np.ndarray, np.ndarray]:
-    """Planes of all triangles and per-mesh offsets.
-
-    Returns
-    -------
-    planes : (m + 1, 4) float64
-        Unit normal n (3) and n . v0 of every triangle, meshes concatenated;
-        the extra last row is zero so that index -1 (a miss) gathers zeros.
-    offsets : (n_meshes + 1,) int64
-        ``offsets[g + 1]`` is the first row of mesh g; ``offsets[0] = 0``.
-    """
-    rows, offs = [], [0, 0]
-    for v, f in meshes:
-        tri = v[f]
-        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        norm = np.linalg.norm(n, axis=1, keepdims=True)
-        n = n / np.where(norm > 0, norm, 1.0)
-        rows.append(np.column_stack([n, np.einsum("ij,ij->i", n, tri[:, 0])]))
-        offs.append(offs[-1] + len(f))
-    rows.append(np.zeros((1, 4)))
-    return np.concatenate(rows), np.asarray(offs[:-1], dtype=np.int64)
+def _dot3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise dot products of two (n, 3) arrays."""
+    out = a[:, 0] * b[:, 0]
+    out += a[:, 1] * b[:, 1]
+    out += a[:, 2] * b[:, 2]
+    return out
 
 
 def _triangle_planes(meshes) -> tuple[np.ndarray, np.ndarray]:

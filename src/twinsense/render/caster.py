@@ -15,7 +15,6 @@ from collections.abc import Iterable
 import numpy as np
 
 from twinsense.errors import ConfigError
-from twinsense.linalg import rotate_rows
 from twinsense.render.backends import make_intersector
 from twinsense.render.hits import Hits
 from twinsense.render.parallel import default_workers, map_ordered
@@ -103,14 +102,19 @@ class SceneCaster:
             sel = _rays_near_sphere(o, d, centre, self._moving_radius[k], dist)
             if len(sel) == 0:
                 continue
-            os_ = o[sel] if o.strides[0] else o[:len(sel)]
-            t_m, _, p, n_local = self._moving_bvh[k].intersect(rotate_rows(os_ - pos, rot), rotate_rows(d[sel], rot))
-            win = t_m < dist[sel]  # inf < inf is False: misses never win
-            sel, t_m, p, n_local = sel[win], t_m[win], p[win], n_local[win]
-            dist[sel] = t_m
+            if o.strides[0] == 0:  # one shared origin: move it once
+                o_local = _rotate((o[0] - pos)[None], rot)
+                o_local = np.broadcast_to(o_local[0], (len(sel), 3))
+            else:
+                o_local = _rotate(np.take(o, sel, axis=0) - pos, rot)
+            t_m, _, p, n_local = self._moving_bvh[k].intersect(o_local, _rotate(np.take(d, sel, axis=0), rot))
+            win = t_m < np.take(dist, sel)  # inf < inf is False: misses never win
+            won = np.flatnonzero(win)
+            sel = np.take(sel, won)
+            dist[sel] = np.take(t_m, won)
             obj[sel] = i
-            tri[sel] = p
-            normal[sel] = rotate_rows(n_local, rot.T)
+            tri[sel] = np.take(p, won)
+            normal[sel] = _rotate(np.take(n_local, won, axis=0), rot.T)
             moved.append(i)
         out["distance"][:] = dist
         out["object_id"][:] = obj
@@ -126,19 +130,18 @@ class SceneCaster:
             np.abs(dn, out=out["cos_incidence"])
         if "normal" in out:
             np.multiply(normal, np.where(dn > 0, -1.0, 1.0)[:, None], out=out["normal"])
-        if "point" in out or ("velocity" in out and moved):
-            hit = obj >= 0
-            point = d * np.where(hit, dist, np.nan)[:, None]
+        if "point" in out:
+            point = d * np.where(obj >= 0, dist, np.nan)[:, None]
             point += o[0] if o.strides[0] == 0 else o
-            if "point" in out:
-                out["point"][:] = point
+            out["point"][:] = point
         if "velocity" in out:
             vel = out["velocity"]
             vel[:] = 0.0
-            for i in moved:
-                sel = np.nonzero(obj == i)[0]
-                if len(sel):
-                    vel[sel] = states[i].point_velocity(point[sel])
+            for i in moved:  # only points on moving objects have a velocity
+                sel = np.flatnonzero(obj == i)
+                p_hit = np.take(d, sel, axis=0) * np.take(dist, sel)[:, None]
+                p_hit += o[0] if o.strides[0] == 0 else np.take(o, sel, axis=0)
+                vel[sel] = states[i].point_velocity(p_hit)
 
 
 _CHUNK = 16384  # rays per task: a chunk's per-ray arrays stay in a core's L2 cache
@@ -163,6 +166,18 @@ def _check_fields(fields) -> frozenset:
 def _allocate(field: str, n: int) -> np.ndarray:
     k = _SHAPES.get(field)
     return np.empty((n, k) if k else n, dtype=_DTYPES.get(field, np.float64))
+
+
+def _rotate(v: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """``v @ m`` for rows v (n, 3), column by column (no BLAS, no (n, 1) x (3,) broadcasts)."""
+    out = np.empty((len(v), 3))
+    x, y, z = v[:, 0], v[:, 1], v[:, 2]
+    for k in range(3):
+        col = out[:, k]
+        np.multiply(x, m[0, k], out=col)
+        col += y * m[1, k]
+        col += z * m[2, k]
+    return out
 
 
 def _rays_near_sphere(o: np.ndarray, d: np.ndarray, centre: np.ndarray, radius: float,
