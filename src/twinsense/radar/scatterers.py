@@ -245,7 +245,12 @@ class ScatterRenderer:
                 np.multiply(self._dirs_cols[0], rot[k, 0], out=col)
                 col += rot[k, 1] * self._dirs_cols[1]
                 col += rot[k, 2] * self._dirs_cols[2]
-            self._rays = Rays(pose.position, world)
+            # Read-only rays (and a private origin): the caster may then keep
+            # the static hits between frames while the pose does not change.
+            origin = np.array(pose.position, dtype=float)
+            origin.setflags(write=False)
+            world.setflags(write=False)
+            self._rays = Rays(origin, world)
             self._rays_key = key
         return self._rays
 

@@ -55,6 +55,9 @@ class SceneCaster:
             c = 0.5 * (m.vertices.min(axis=0) + m.vertices.max(axis=0))
             self._moving_centre.append(c)
             self._moving_radius.append(float(np.linalg.norm(m.vertices - c, axis=1).max()) * (1 + 1e-9) + 1e-9)
+        # Static hits of the last few read-only ray bundles (one per fixed
+        # sensor): [origins, directions, arrays, complete], newest last.
+        self._memos: list[list] = []
 
     def cast(self, rays: Rays, t: float = 0.0, fields: Iterable[str] | None = None,
              workers: int | None = None) -> Hits:
@@ -64,6 +67,11 @@ class SceneCaster:
         others are None. ``workers``: threads for large bundles (default:
         the cores, at most 4). Rays are cast in chunks, each on one thread;
         every ray's result is the same whatever the chunking.
+
+        A sensor that does not move casts the same rays every frame: when
+        both ray arrays are read-only (and everything they view is), the
+        hits on the static objects are kept and reused while the same
+        arrays are cast again; only the moving objects are traced anew.
         """
         if self.scene.version != self._version:
             raise ConfigError("scene", "changed after the caster was built", "a new SceneCaster (use cast())")
@@ -74,17 +82,49 @@ class SceneCaster:
         out = {f: _allocate(f, n) for f in _ALWAYS | want}
         bounds = [(lo, min(lo + _CHUNK, n)) for lo in range(0, n, _CHUNK)] or [(0, 0)]
         workers = default_workers() if workers is None else workers
-        map_ordered(lambda b: self._cast_chunk(o[b[0]:b[1]], d[b[0]:b[1]], states,
-                                               {f: a[b[0]:b[1]] for f, a in out.items()}),
-                    bounds, workers if n >= _PARALLEL_MIN_RAYS else 1)
+        memo, ready = self._static_memo(o, d)
+
+        def chunk(b):
+            lo, hi = b
+            self._cast_chunk(o[lo:hi], d[lo:hi], states, {f: a[lo:hi] for f, a in out.items()},
+                             None if memo is None else tuple(a[lo:hi] for a in memo), ready)
+
+        map_ordered(chunk, bounds, workers if n >= _PARALLEL_MIN_RAYS else 1)
+        if memo is not None:
+            self._remember(o, d, memo, True)
         return Hits(**{f: out.get(f) for f in HIT_FIELDS})
 
-    def _cast_chunk(self, o, d, states, out) -> None:
-        """Cast one chunk of rays, writing every requested field into ``out`` (views)."""
+    def _static_memo(self, o, d) -> tuple[tuple | None, bool]:
+        """Arrays (distance, object, triangle, normal) for the static hits of these rays,
+        and whether they are already filled; None if the rays may change."""
+        if self._static_bvh is None or not (_frozen(o) and _frozen(d)):
+            return None, False
+        for entry in self._memos:
+            if entry[0] is o and entry[1] is d:
+                return entry[2], entry[3]
         n = len(d)
-        if self._static_bvh is not None:
+        memo = (np.empty(n), np.empty(n, np.int32), np.empty(n, np.int32), np.empty((n, 3)))
+        return memo, False
+
+    def _remember(self, o, d, memo, complete: bool) -> None:
+        self._memos = [e for e in self._memos if not (e[0] is o and e[1] is d)][-(_MEMOS - 1):]
+        self._memos.append([o, d, memo, complete])
+
+    def _cast_chunk(self, o, d, states, out, memo=None, ready=False) -> None:
+        """Cast one chunk of rays, writing every requested field into ``out`` (views).
+
+        ``memo``: views of the static-hit store for this chunk, filled
+        (``ready``) or to fill.
+        """
+        n = len(d)
+        if memo is not None and ready:
+            dist, obj, tri, normal = (a.copy() for a in memo)
+        elif self._static_bvh is not None:
             dist, g, tri, normal = self._static_bvh.intersect(o, d)
             obj = np.take(self._static_lut, g + 1)
+            if memo is not None:
+                for store, a in zip(memo, (dist, obj, tri, normal)):
+                    store[:] = a
         else:
             dist = np.full(n, np.inf)
             obj = np.full(n, -1, dtype=np.int32)
@@ -144,6 +184,7 @@ class SceneCaster:
                 vel[sel] = states[i].point_velocity(p_hit)
 
 
+_MEMOS = 4  # ray bundles whose static hits are kept
 _CHUNK = 16384  # rays per task: a chunk's per-ray arrays stay in a core's L2 cache
 _PARALLEL_MIN_RAYS = 2 * _CHUNK
 HIT_FIELDS = ("distance", "point", "normal", "cos_incidence", "object_id", "material_id",
@@ -166,6 +207,15 @@ def _check_fields(fields) -> frozenset:
 def _allocate(field: str, n: int) -> np.ndarray:
     k = _SHAPES.get(field)
     return np.empty((n, k) if k else n, dtype=_DTYPES.get(field, np.float64))
+
+
+def _frozen(a: np.ndarray) -> bool:
+    """True if ``a`` and every array it views are read-only (nothing can change it in place)."""
+    while isinstance(a, np.ndarray):
+        if a.flags.writeable:
+            return False
+        a = a.base
+    return True
 
 
 def _rotate(v: np.ndarray, m: np.ndarray) -> np.ndarray:
