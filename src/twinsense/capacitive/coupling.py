@@ -21,7 +21,14 @@ import numpy as np
 from twinsense.capacitive.mesh import SimplexMesh
 from twinsense.errors import ConfigError
 
-__all__ = ["CONDUCTOR_KINDS", "Inclusion", "MaterialMap", "inclusions_from_scene", "map_inclusions"]
+__all__ = [
+    "CONDUCTOR_KINDS",
+    "Inclusion",
+    "MaterialMap",
+    "bounds_in_mesh_frame",
+    "inclusions_from_scene",
+    "map_inclusions",
+]
 
 CONDUCTOR_KINDS = ("none", "grounded", "floating")
 
@@ -81,6 +88,14 @@ def _box_corners(b: np.ndarray) -> np.ndarray:
     return np.array([[b[i, 0], b[j, 1], b[k, 2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
 
 
+def bounds_in_mesh_frame(inc: Inclusion, mesh_to_world=None) -> np.ndarray:
+    """(2, 3) axis-aligned bounds [m] of ``inc`` in the mesh frame (the box whose cells are tested)."""
+    if mesh_to_world is None:
+        return inc.bounds
+    c = mesh_to_world.inverse().apply(_box_corners(inc.bounds))
+    return np.vstack([c.min(axis=0), c.max(axis=0)])
+
+
 def inclusions_from_scene(scene, t: float, kind: str = "capacitive") -> list[Inclusion]:
     """Inclusions of every scene object visible to ``kind`` at time ``t`` [s]."""
     out = []
@@ -125,11 +140,7 @@ def map_inclusions(
     floating, names = [], []
     cmin, cmax = mesh.cell_bounds
     for inc in inclusions:
-        if mesh_to_world is None:
-            b = inc.bounds
-        else:
-            c = mesh_to_world.inverse().apply(_box_corners(inc.bounds))
-            b = np.vstack([c.min(axis=0), c.max(axis=0)])
+        b = bounds_in_mesh_frame(inc, mesh_to_world)
         cand = np.flatnonzero(np.all(cmax >= b[0], axis=1) & np.all(cmin <= b[1], axis=1))
         if len(cand) == 0:
             continue

@@ -305,6 +305,7 @@ class ElectrostaticSystem:
         eps = np.ones(mesh.n_cells) if permittivity is None else np.array(permittivity, float)
         _check_permittivity(eps, mesh.n_cells)
         self.eps_r = eps
+        self.base_eps_r = eps.copy()  # the empty-scene state (static condensation checks against it)
 
         static_fixed = np.zeros(n, bool)
         terminal_of = np.full(n, -1, np.int64)

@@ -15,7 +15,8 @@ from typing import Any
 import numpy as np
 
 from twinsense import validation as v
-from twinsense.capacitive.coupling import inclusions_from_scene, map_inclusions
+from twinsense.capacitive.condensation import active_cells_in_boxes
+from twinsense.capacitive.coupling import bounds_in_mesh_frame, inclusions_from_scene, map_inclusions
 from twinsense.capacitive.fem import ElectrostaticSystem, check_outer
 from twinsense.capacitive.layouts import Layout
 from twinsense.capacitive.mesh import LayoutMesh, MeshSettings, mesh_layout
@@ -50,6 +51,11 @@ class CapacitiveConfig:
         sense electrodes.
     readout : ReadoutConfig
     solver : SolverConfig
+    active_boxes : tuple of (6,) tuples
+        Boxes (x_min, x_max, y_min, y_max, z_min, z_max) [m] in the sensor
+        frame that hold every scene object during the run. With
+        ``solver.condense`` the cells outside them are condensed once;
+        :meth:`CapacitiveSensor.prepare` adds the boxes swept by a scene.
     """
 
     layout: Layout
@@ -59,6 +65,7 @@ class CapacitiveConfig:
     pairs: tuple = ()
     readout: ReadoutConfig = field(default_factory=ReadoutConfig)
     solver: SolverConfig = field(default_factory=SolverConfig)
+    active_boxes: tuple = ()
 
     def __post_init__(self) -> None:
         if not isinstance(self.layout, Layout):
@@ -81,6 +88,13 @@ class CapacitiveConfig:
             raise ConfigError("CapacitiveConfig.readout", self.readout, "a ReadoutConfig")
         if not isinstance(self.solver, SolverConfig):
             raise ConfigError("CapacitiveConfig.solver", self.solver, "a SolverConfig")
+        boxes = []
+        for i, b in enumerate(self.active_boxes):
+            arr = v.vector(f"CapacitiveConfig.active_boxes[{i}]", b, 6, "m")
+            if not (arr[1] >= arr[0] and arr[3] >= arr[2] and arr[5] >= arr[4]):
+                raise ConfigError(f"CapacitiveConfig.active_boxes[{i}]", b, "a box with min <= max on every axis")
+            boxes.append(tuple(float(x) for x in arr))
+        object.__setattr__(self, "active_boxes", tuple(boxes))
 
     @property
     def frame_rate(self) -> float:
@@ -248,8 +262,48 @@ class CapacitiveSensor:
                 outer_boundary=self.config.outer_boundary,
                 center=_center(self.config.layout),
             )
-            self._solver = MaxwellSolver(self._system, self.config.solver)
+            active = None
+            if self.config.active_boxes:
+                active = active_cells_in_boxes(lm.mesh, self.config.active_boxes)
+            self._solver = MaxwellSolver(self._system, self.config.solver, active)
         return self._system
+
+    def prepare(self, scene, times) -> np.ndarray:
+        """Declare the capture times of a run, for static condensation.
+
+        The cells that any scene object can change at these times (those
+        meeting an object's bounding box, the cells :func:`map_inclusions`
+        tests) join the config's ``active_boxes``; with ``solver.condense``
+        everything else is condensed once at the next capture. Capturing at
+        other times stays exact: a frame that reaches a condensed cell makes
+        it active and condenses again.
+
+        Parameters
+        ----------
+        scene : Scene
+        times : (f,) float, capture times [s].
+
+        Returns
+        -------
+        (m,) bool, the active cells.
+        """
+        mesh = self.layout_mesh.mesh
+        active = active_cells_in_boxes(mesh, self.config.active_boxes)
+        cmin, cmax = mesh.cell_bounds
+        for t in np.atleast_1d(np.asarray(times, float)):
+            pose = self.mount.pose_at(scene, t)
+            for inc in self._inclusions(scene, t):
+                b = bounds_in_mesh_frame(inc, pose)
+                active |= np.all(cmax >= b[0], axis=1) & np.all(cmin <= b[1], axis=1)
+        _ = self.system
+        self._solver.set_active_cells(active)
+        return active
+
+    def _inclusions(self, scene, t: float):
+        incs = inclusions_from_scene(scene, t, self.kind)
+        if self.mount.parent is not None:
+            incs = [i for i in incs if i.name != self.mount.parent]
+        return incs
 
     def baseline(self) -> MaxwellResult:
         """Capacitances with an empty scene (computed once)."""
@@ -264,7 +318,8 @@ class CapacitiveSensor:
                 outer_boundary=self.config.outer_boundary,
                 center=_center(self.config.layout),
             )
-            tight = replace(self.config.solver, rtol=min(self.config.solver.rtol, 1e-8))
+            # The empty scene is one solve: no condensation.
+            tight = replace(self.config.solver, rtol=min(self.config.solver.rtol, 1e-8), condense=False)
             self._baseline = MaxwellSolver(empty, tight).solve()
         return self._baseline
 
@@ -272,9 +327,7 @@ class CapacitiveSensor:
         """Map the scene at time ``t`` onto the mesh and solve (incrementally)."""
         system = self.system
         pose = self.mount.pose_at(scene, t)
-        incs = inclusions_from_scene(scene, t, self.kind)
-        if self.mount.parent is not None:
-            incs = [i for i in incs if i.name != self.mount.parent]
+        incs = self._inclusions(scene, t)
         mm = map_inclusions(self.layout_mesh.mesh, self.layout_mesh.permittivity, incs, mesh_to_world=pose)
         system.set_permittivity(mm.permittivity)
         system.set_conductors(mm.grounded, mm.floating)

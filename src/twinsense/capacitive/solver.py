@@ -44,6 +44,17 @@ class SolverConfig:
     rebuild_factor : float
         Rebuild the AMG hierarchy when a solve needs more than this many times
         the iterations measured right after the last rebuild (and >= 8).
+    amg_strength_theta : float
+        Strength-of-connection threshold of the AMG aggregation.
+    smoothing_steps : int
+        Jacobi steps before and after each coarse correction.
+    condense : bool
+        Eliminate the cells no object can reach once (static condensation,
+        :mod:`twinsense.capacitive.condensation`) and solve only the active
+        region per frame. Needs the active cells (the sensor's
+        ``active_boxes`` or :meth:`CapacitiveSensor.prepare`). Exact; faster
+        only when the active region is a small part of the mesh (see
+        docs/benchmarks/capacitive.md), hence off by default.
     """
 
     preconditioner: str = "amg"
@@ -53,6 +64,7 @@ class SolverConfig:
     rebuild_factor: float = 2.0
     amg_strength_theta: float = 0.0
     smoothing_steps: int = 1
+    condense: bool = False
 
     def __post_init__(self) -> None:
         v.choice("SolverConfig.preconditioner", self.preconditioner, PRECONDITIONERS)
@@ -62,6 +74,8 @@ class SolverConfig:
         v.number("SolverConfig.rebuild_factor", self.rebuild_factor, lo=1.0)
         v.number("SolverConfig.amg_strength_theta", self.amg_strength_theta, lo=0.0, hi=1.0)
         v.integer("SolverConfig.smoothing_steps", self.smoothing_steps, lo=1, hi=10)
+        if not isinstance(self.condense, bool):
+            raise ConfigError("SolverConfig.condense", self.condense, "True or False")
 
 
 @dataclass(frozen=True)
@@ -202,7 +216,9 @@ class PCGSolver:
 
         Parameters
         ----------
-        A : (n, n) csr_matrix (SPD); B, X0 : (n, t) float.
+        A : (n, n) csr_matrix (SPD), or an operator with ``@``, ``shape``,
+            ``diagonal()`` and a ``sparse`` matrix the AMG hierarchy is built from.
+        B, X0 : (n, t) float.
         energy : (t,) float, optional, ``x0^T K x0`` per column (energy rule).
         free : (n,) bool, optional, unknowns that may change (see :func:`block_pcg`).
         """
@@ -216,12 +232,13 @@ class PCGSolver:
             X, it = block_pcg(A, B, X0, precond, cfg.rtol, cfg.maxiter, energy, cfg.energy_tol, free)
             return X, SolveInfo(it, False)
         rebuilt = False
+        sparse = getattr(A, "sparse", A)
         if self._ml is None or self._n != A.shape[0] or self._force_rebuild:
-            self._ml = BlockAMG(A, cfg.amg_strength_theta, cfg.smoothing_steps)
+            self._ml = BlockAMG(sparse, cfg.amg_strength_theta, cfg.smoothing_steps)
             self._n = A.shape[0]
             rebuilt = True
         else:
-            self._ml.set_fine(A)
+            self._ml.set_fine(sparse)
         X, it = block_pcg(A, B, X0, self._ml, cfg.rtol, cfg.maxiter, energy, cfg.energy_tol, free)
         worst = int(it.max()) if len(it) else 0
         if rebuilt:
@@ -355,20 +372,58 @@ class MaxwellSolver:
     The previous frame's potentials are the initial guess (with this frame's
     prescribed values put in), the AMG hierarchy is reused (see module notes).
 
+    With ``config.condense`` the never-changing cells are eliminated once
+    (:class:`~twinsense.capacitive.condensation.StaticCondensation`) and each
+    frame solves the reduced system. Should a frame change a cell outside the
+    active region after all, the condensation is rebuilt with those cells
+    made active, so the result stays exact.
+
     Parameters
     ----------
     system : ElectrostaticSystem
     config : SolverConfig, optional
+    active_cells : (m,) bool, optional
+        Cells that scene objects may change (needed with ``config.condense``).
     """
 
-    def __init__(self, system, config: SolverConfig | None = None) -> None:
+    def __init__(self, system, config: SolverConfig | None = None, active_cells: np.ndarray | None = None) -> None:
         self.system = system
-        self.pcg = PCGSolver(check_solver_config(config))
+        self.config = check_solver_config(config)
+        self.pcg = PCGSolver(self.config)
         self._X: np.ndarray | None = None
+        self._active = None if active_cells is None else np.asarray(active_cells, bool)
+        self._condensed = None
+        self.condensation_builds = 0
+
+    @property
+    def condensation(self):
+        """The StaticCondensation in use (None without ``condense``), built on first use."""
+        if not self.config.condense:
+            return None
+        if self._condensed is None:
+            if self._active is None:
+                raise ConfigError(
+                    "SolverConfig.condense",
+                    True,
+                    "active cells to condense around (CapacitiveConfig.active_boxes or CapacitiveSensor.prepare)",
+                )
+            from twinsense.capacitive.condensation import StaticCondensation
+
+            self._condensed = StaticCondensation(self.system, self._active)
+            self.condensation_builds += 1
+        return self._condensed
+
+    def set_active_cells(self, active_cells: np.ndarray) -> None:
+        """Replace the active cells (the condensation is rebuilt at the next solve)."""
+        self._active = np.asarray(active_cells, bool)
+        self._condensed = None
+        self.reset()
 
     @property
     def potentials(self) -> np.ndarray | None:
         """(n, t) node potentials [V] of the last solve, one column per terminal."""
+        if self._X is not None and self._condensed is not None:
+            return self._condensed.expand(self._X)
         return self._X
 
     def reset(self) -> None:
@@ -379,18 +434,35 @@ class MaxwellSolver:
     def solve(self) -> MaxwellResult:
         """Solve for every terminal and return the capacitances."""
         sysm = self.system
-        A, B, fixed, X_fixed = sysm.system()
+        if self.config.condense and self._active is not None:
+            from twinsense.capacitive.condensation import changed_static_cells
+
+            in_r = None if self._condensed is None else self._condensed.in_r
+            bad = changed_static_cells(sysm, self._active, in_r)
+            if np.any(bad):
+                # An object reached a cell declared static: make those cells
+                # active and condense again (exact, but costs a set-up).
+                self._active = self._active | bad
+                self._condensed = None
+                self.reset()
+        cond = self.condensation
+        if cond is not None:
+            A, B, fixed, X_fixed = cond.reduced_system()
+        else:
+            A, B, fixed, X_fixed = sysm.system()
         t = B.shape[1]
         X0 = X_fixed.copy()
         if self._X is not None:
             k = min(t, self._X.shape[1])
             X0[:, :k] = self._X[:, :k]
             X0[fixed] = X_fixed[fixed]
-        K = sysm.stiffness()
-        energy = np.einsum("ij,ij->j", X0, K @ X0)
+        if cond is not None:
+            energy = cond.energies(X0)
+        else:
+            energy = np.einsum("ij,ij->j", X0, sysm.stiffness() @ X0)
         X, info = self.pcg.solve(A, B, X0, energy, ~fixed)
         self._X = X
-        full = sysm.maxwell(X)
+        full = cond.maxwell(X) if cond is not None else sysm.maxwell(X)
         from twinsense.capacitive.fem import reduce_floating
 
         mat = reduce_floating(full, len(sysm.terminals))
