@@ -41,6 +41,7 @@ Two implementations:
 
 from __future__ import annotations
 
+import itertools
 import math
 import threading
 
@@ -378,18 +379,12 @@ def _leg_taylor(pos: list[np.ndarray], vel: list[np.ndarray], speed2: np.ndarray
     return r0, r1, r2, r3
 
 
-def _moving_chunk(p, v, pr, vr, w, rx: int, geo: _Geometry, chirp_centre: np.ndarray,
+def _moving_chunk(p, v, pr, vr, w, geo: _Geometry, chirp_centre: np.ndarray,
                   eps: float) -> np.ndarray:
-    """(M, N) rows of receiver ``rx`` for moving scatterers (one NUFFT per chirp).
+    """(n_rx, M, N) cube of moving scatterers (one NUFFT per receiver and chirp).
 
     ``pr``/``vr`` None: monostatic (the receive legs end at ``p``).
     """
-    n_chirps = len(chirp_centre)
-    n_samp = geo.n_samp
-    fc, slope, fs = geo.fc, geo.slope, geo.fs
-    half = n_samp / 2 / fs  # s = u * half, u in [-1, 1)
-    u = (np.arange(n_samp) - n_samp // 2) / (n_samp / 2)
-    plans = _thread_plans(n_samp, eps)
     tc = chirp_centre[:, None]
 
     def legs(p_, v_):
@@ -401,8 +396,17 @@ def _moving_chunk(p, v, pr, vr, w, rx: int, geo: _Geometry, chirp_centre: np.nda
     tx = _leg_taylor(pos, vel, speed2, geo.tx_per_chirp)
     if pr is not None:
         pos, vel, speed2 = legs(pr, vr)
-    rxl = _leg_taylor(pos, vel, speed2, geo.rx[rx])
-    t0, t1, t2, t3 = ((et + er) * (1.0 / SPEED_OF_LIGHT) for et, er in zip(tx, rxl))
+    return np.stack([_moving_receiver(tx, _leg_taylor(pos, vel, speed2, r), w, geo, eps)
+                     for r in geo.rx])
+
+
+def _moving_receiver(tx, rx, w, geo: _Geometry, eps: float) -> np.ndarray:
+    """(M, N) rows of one receiver from the Taylor terms (r0..r3, each (M, m)) of both legs."""
+    n_chirps, n_samp = tx[0].shape[0], geo.n_samp
+    fc, slope, fs = geo.fc, geo.slope, geo.fs
+    half = n_samp / 2 / fs  # s = u * half, u in [-1, 1)
+    u = (np.arange(n_samp) - n_samp // 2) / (n_samp / 2)
+    t0, t1, t2, t3 = ((et + er) * (1.0 / SPEED_OF_LIGHT) for et, er in zip(tx, rx))
     # phi(s) = 2 pi f0 tau + 2 pi S tau (t_c + s) - pi S tau^2, tau = t0 + t1 s + ...
     phi0 = t0 * (_TWO_PI * fc - math.pi * slope * t0)
     phi1 = _TWO_PI * (fc * t1 + slope * t0) - _TWO_PI * slope * t0 * t1
@@ -417,40 +421,62 @@ def _moving_chunk(p, v, pr, vr, w, rx: int, geo: _Geometry, chirp_centre: np.nda
     strength.imag = np.sin(ph32)
     strength *= w
     a2, a3 = phi2 * half**2, phi3 * half**3
+    # exp(j (a2 u^2 + a3 u^3)) = exp(j (c2 u^2 + c3 u^3)) exp(j (r2 u^2 + r3 u^3)) with
+    # c the mid-range of each chirp's coefficients: the first factor is exact on
+    # the output grid, only the small residuals r need the Taylor series (a2 is
+    # mostly S times the range rate, nearly the same for the points of a body).
+    c2 = _mid_range(a2)
+    c3 = _mid_range(a3)
+    a2 -= c2
+    a3 -= c3
     rows = np.empty((n_chirps, n_samp), dtype=complex)
-    # Series truncation and skipped terms each within eps / 4 of a scatterer's amplitude.
-    tol = 0.25 * eps
+    plans = _thread_plans(n_samp, eps)
+    # Series truncation and skipped terms each within eps / 2 of a scatterer's
+    # amplitude at any sample: the same form and size as the NUFFT's own error
+    # bound (eps times the sum of |strengths|), so the two together stay ~eps.
+    tol = 0.5 * eps
     order = _taylor_order(float(np.max(np.abs(a2) + np.abs(a3))), tol)
     if order == 0:
         for m in range(n_chirps):
             rows[m] = plans.rows(x[m], strength[m])
-        return rows
-    degrees, coeffs = _exp_quad_cubic(a2, a3, order, tol)  # (D, M, m)
-    coeffs[0] = strength
-    coeffs[1:] *= strength
-    upow = u[None, :] ** degrees[:, None]  # (D, N)
-    for m in range(n_chirps):
-        rows[m] = np.einsum("dn,dn->n", plans.rows(x[m], coeffs[:, m, :]), upow)
+    else:
+        degrees, coeffs = _exp_quad_cubic(a2, a3, order, tol)  # (D, M, m)
+        coeffs[0] = strength
+        coeffs[1:] *= strength
+        upow = u[None, :] ** degrees[:, None]  # (D, N)
+        for m in range(n_chirps):
+            rows[m] = np.einsum("dn,dn->n", plans.rows(x[m], coeffs[:, m, :]), upow)
+    if np.any(c2) or np.any(c3):
+        rows *= np.exp(1j * (c2 * u**2 + c3 * u**3))
     return rows
+
+
+def _mid_range(a: np.ndarray) -> np.ndarray:
+    """(M, 1) centre of each row's range of values."""
+    return 0.5 * (a.max(axis=1, keepdims=True) + a.min(axis=1, keepdims=True))
 
 
 def _moving_rows(p, v, pr, vr, w, geo: _Geometry, chirp_centre: np.ndarray, eps: float,
                  workers: int) -> np.ndarray:
-    """(n_rx, M, N) cube of moving scatterers: tasks per (chunk, receiver), summed in order."""
+    """(n_rx, M, N) cube of moving scatterers, in chunks summed in a fixed order."""
     n = len(p)
-    tasks = [(lo, min(lo + _CHUNK, n), a) for lo in range(0, n, _CHUNK)
-             for a in range(len(geo.rx))]
+    # At least two chunks, so that two threads share even a few thousand
+    # movers, but none tiny (each costs n_rx x M NUFFT calls); the split does
+    # not depend on ``workers``, so neither does the cube.
+    parts = max(1, min(max(2, -(-n // _CHUNK)), n // 1024))
+    edges = np.linspace(0, n, parts + 1).astype(int)
+    bounds = list(itertools.pairwise(edges))
 
-    def run(task):
-        lo, hi, a = task
+    def run(b):
+        lo, hi = b
         return _moving_chunk(p[lo:hi], v[lo:hi], None if pr is None else pr[lo:hi],
-                             None if vr is None else vr[lo:hi], w[lo:hi], a, geo,
-                             chirp_centre, eps)
+                             None if vr is None else vr[lo:hi], w[lo:hi], geo, chirp_centre, eps)
 
-    out = np.zeros((len(geo.rx), len(chirp_centre), geo.n_samp), dtype=complex)
-    for (_, _, a), rows in zip(tasks, map_ordered(run, tasks, workers)):
-        out[a] += rows
-    return out
+    parts = map_ordered(run, bounds, workers)
+    total = parts[0]
+    for part in parts[1:]:
+        total += part
+    return total
 
 
 def synthesize(points: np.ndarray, velocities: np.ndarray | None, weights: np.ndarray,
