@@ -97,7 +97,8 @@ PRESET_CONFIGS: dict[str, tuple[Callable[[], RadarConfig], str]] = {
     "ti_iwr6843": (iwr6843_config, "TI IWR6843: 3 Tx x 4 Rx TDM-MIMO, complex IF"),
 }
 
-_SENSOR_KEYS = ("name", "mount", "processing", "process", "backend", "eps", "workers")
+_SENSOR_KEYS = ("name", "mount", "processing", "process", "backend", "eps", "workers",
+                "reuse_static")
 
 
 def preset_config(preset: str, /, **overrides: Any) -> RadarConfig:
@@ -130,7 +131,8 @@ def preset_config(preset: str, /, **overrides: Any) -> RadarConfig:
 
 def make_radar(preset: str, /, **overrides: Any):
     """An :class:`FMCWRadar` from ``preset``; sensor keywords (name, mount,
-    processing, process, backend, eps, workers) go to the sensor, the rest to the config."""
+    processing, process, backend, eps, workers, reuse_static) go to the sensor, the rest
+    to the config."""
     from twinsense.radar.sensor import FMCWRadar
 
     sensor_kw = {k: overrides.pop(k) for k in list(overrides) if k in _SENSOR_KEYS}

@@ -216,13 +216,19 @@ def _times(rows: np.ndarray, matrix: np.ndarray) -> np.ndarray:
 class ScatterRenderer:
     """Renders a scene into :class:`Scatterers` for one radar configuration.
 
-    The camera (directions and pixel solid angles) is built once.
+    The camera (directions and pixel solid angles) is built once, the world
+    rays once per sensor pose. With ``reuse_static_hits`` the rays are
+    read-only, so the caster keeps the hits on static objects while the pose
+    stays (see :meth:`twinsense.render.SceneCaster.cast`); ``workers``: ray
+    cast threads (None: the cores, at most 4).
     """
 
-    def __init__(self, config: RadarConfig, backend: str = "embree", workers: int | None = None):
+    def __init__(self, config: RadarConfig, backend: str = "embree", workers: int | None = None,
+                 reuse_static_hits: bool = True):
         self.config = config
         self.backend = backend
         self.workers = workers
+        self.reuse_static_hits = reuse_static_hits
         self.camera = PinholeCamera.from_fov(config.render_width, config.render_height,
                                              config.hfov_deg, config.vfov_deg)
         d = self.camera.directions().reshape(-1, 3)
@@ -248,8 +254,9 @@ class ScatterRenderer:
             # Read-only rays (and a private origin): the caster may then keep
             # the static hits between frames while the pose does not change.
             origin = np.array(pose.position, dtype=float)
-            origin.setflags(write=False)
-            world.setflags(write=False)
+            if self.reuse_static_hits:
+                origin.setflags(write=False)
+                world.setflags(write=False)
             self._rays = Rays(origin, world)
             self._rays_key = key
         return self._rays

@@ -14,6 +14,7 @@ from twinsense.radar.config import RadarConfig
 from twinsense.radar.processing import ProcessingResult, ProcessingSettings, process_cube
 from twinsense.radar.scatterers import Scatterers, ScatterRenderer, received_amplitude
 from twinsense.radar.synthesis import synthesize
+from twinsense.render.parallel import default_workers
 from twinsense.scene import Mount, Pose
 
 
@@ -71,6 +72,21 @@ class RadarFrame:
         return out
 
 
+@dataclass(frozen=True, eq=False)
+class _StaticBase:
+    """The static scatterers of one frame and their IF cube (see ``FMCWRadar.reuse_static``)."""
+
+    config: RadarConfig
+    eps: float
+    points: np.ndarray  # (n, 3) [m], every scatterer of that frame
+    weights: np.ndarray  # (n,) complex
+    moving: np.ndarray  # (n,) bool; these rows are not in ``cube``
+    cube: np.ndarray  # synthesised cube of the static rows
+
+    def matches(self, config: RadarConfig, eps: float, n: int) -> bool:
+        return self.config is config and self.eps == eps and len(self.points) == n
+
+
 class FMCWRadar:
     """FMCW radar sensor (PHYSICS.md section 2).
 
@@ -89,15 +105,25 @@ class FMCWRadar:
         Ray-cast backend for the scene render.
     eps : float
         Requested relative accuracy of the fast IF synthesis.
-    workers : int
-        Threads for the IF synthesis (see :func:`twinsense.radar.synthesize`).
+    workers : int or None
+        Threads for the render and the IF synthesis (see
+        :func:`twinsense.radar.synthesize`); None: the cores, at most 4.
+    reuse_static : bool
+        Keep the ray-cast hits on static objects while the radar's pose does
+        not change, and keep the IF signal of the static scatterers of a
+        frame and, while
+        later frames see mostly the same static scatterers (a radar that does
+        not move), update it with only the scatterers that changed (those a
+        moving object now hides or uncovers). Exact up to the synthesis'
+        ``eps``; the result does not depend on the history beyond that.
     """
 
     kind = "radar"
 
     def __init__(self, config: RadarConfig, *, name: str = "radar", mount: Mount | None = None,
                  processing: ProcessingSettings | None = None, process: bool = True,
-                 backend: str = "embree", eps: float = 1e-7, workers: int = 1):
+                 backend: str = "embree", eps: float = 1e-6, workers: int | None = None,
+                 reuse_static: bool = True):
         if not isinstance(config, RadarConfig):
             raise ConfigError("FMCWRadar.config", config, "a RadarConfig")
         if not isinstance(name, str) or not name:
@@ -111,8 +137,11 @@ class FMCWRadar:
         self.process = bool(process)
         self.backend = backend
         self.eps = V.number("FMCWRadar.eps", eps, lo=1e-14, hi=1e-5)
-        self.workers = V.integer("FMCWRadar.workers", workers, lo=1, hi=64)
+        self.workers = (default_workers() if workers is None
+                        else V.integer("FMCWRadar.workers", workers, lo=1, hi=64))
+        self.reuse_static = bool(reuse_static)
         self._renderer: ScatterRenderer | None = None
+        self._static_base: _StaticBase | None = None
 
     # ---- sensor protocol ---------------------------------------------------
     @property
@@ -140,7 +169,8 @@ class FMCWRadar:
         """
         state = self.mount.state_at(scene, t)
         if self._renderer is None:
-            self._renderer = ScatterRenderer(self.config, self.backend)
+            self._renderer = ScatterRenderer(self.config, self.backend, self.workers,
+                                             reuse_static_hits=self.reuse_static)
         scat = self._renderer.render(scene, state, t)
         return self.capture_scatterers(scat, t, rng, pose=state.pose)
 
@@ -155,13 +185,7 @@ class FMCWRadar:
         s = scatterers
         w = effects.filtered_weights(amp, s.points, s.velocities, cfg, s.points_rx,
                                      s.velocities_rx)
-        keep = w != 0  # behind the antennas or filtered out entirely
-        arrays = (s.points, s.velocities, s.points_rx, s.velocities_rx)
-        if not keep.all():
-            arrays = tuple(None if a is None else a[keep] for a in arrays)
-            w = w[keep]
-        sig = synthesize(arrays[0], arrays[1], w, cfg, points_rx=arrays[2],
-                         velocities_rx=arrays[3], eps=self.eps, workers=self.workers)
+        sig = self._synthesize(s.points, s.velocities, s.points_rx, s.velocities_rx, w)
         sig = (sig + effects.leakage(cfg)) * cfg.if_chain.voltage_gain
         noise = effects.shape_noise(effects.thermal_noise(cfg, rng), cfg)
         # The DC offset sits on every real channel (on I and on Q alike).
@@ -173,6 +197,40 @@ class FMCWRadar:
             frame = RadarFrame(frame.t, adc, sig, noise, cfg, pose, scatterers,
                                self.process_cube(frame.cube, pose))
         return frame
+
+    def _synthesize(self, p, v, pr, vr, w) -> np.ndarray:
+        """IF cube of the scatterers (see ``reuse_static`` in the class docstring)."""
+        cfg = self.config
+        kw = {"eps": self.eps, "workers": self.workers}
+        if not self.reuse_static or pr is not None:
+            return synthesize(p, v, w, cfg, points_rx=pr, velocities_rx=vr, **kw)
+        moving = (v[:, 0] != 0) | (v[:, 1] != 0) | (v[:, 2] != 0)
+        # Zero weights (behind the antennas) add nothing; only movers cost per point.
+        mv = np.flatnonzero(moving & (w != 0))
+        cube = 0.0
+        if len(mv):
+            cube = synthesize(np.take(p, mv, axis=0), np.take(v, mv, axis=0), np.take(w, mv),
+                              cfg, **kw)
+        base = self._static_base
+        if base is not None and base.matches(cfg, self.eps, len(p)):
+            differ = moving != base.moving
+            for k in range(3):
+                differ |= p[:, k] != base.points[:, k]
+            differ |= w != base.weights
+            gone = np.flatnonzero(differ & ~base.moving)
+            new = np.flatnonzero(differ & ~moving)
+            if len(gone) + len(new) <= len(p) // 4:
+                static = base.cube.copy()
+                if len(gone):
+                    static -= synthesize(np.take(base.points, gone, axis=0), None,
+                                         np.take(base.weights, gone), cfg, **kw)
+                if len(new):
+                    static += synthesize(np.take(p, new, axis=0), None, np.take(w, new), cfg, **kw)
+                return static + cube
+        # A new base from this frame: the static scatterers (movers with zero weight).
+        static = synthesize(p, None, np.where(moving, 0.0, w), cfg, **kw)
+        self._static_base = _StaticBase(cfg, self.eps, p.copy(), w.copy(), moving, static)
+        return static + cube
 
     def process_cube(self, cube: np.ndarray, pose: Pose | None = None) -> ProcessingResult:
         """Run the processing chain on a raw (rx, chirp, sample) cube of this radar."""
