@@ -76,7 +76,7 @@ class ElementPattern:
                 g *= front
             if self.cos_exponent_elevation:
                 r2 = h2 + y * y
-                cos_el2 = np.divide(h2, r2, out=np.zeros_like(h2), where=r2 > 0)
+                cos_el2 = np.divide(h2, r2, out=np.zeros(len(h2)), where=r2 > 0)
                 g *= cos_el2 ** (0.5 * self.cos_exponent_elevation)
         return g
 

@@ -121,6 +121,15 @@ class Scatterers:
     def __len__(self) -> int:
         return len(self.points)
 
+    def take(self, rows: np.ndarray) -> Scatterers:
+        """The scatterers at ``rows`` (indices), in that order."""
+        def pick(a):
+            return None if a is None else np.take(a, rows, axis=0)
+
+        return Scatterers(pick(self.points), pick(self.velocities), pick(self.rcs),
+                          pick(self.object_id), pick(self.points_rx), pick(self.velocities_rx),
+                          pick(self.bounces))
+
     @classmethod
     def point_targets(cls, points, rcs, velocities=None) -> Scatterers:
         """Scatterers from explicit points (n, 3) [m], RCS (n,) [m^2] and velocities (n, 3)."""
@@ -310,7 +319,7 @@ class ScatterRenderer:
         # A sensor at rest: only points on moving objects move, R^T v row by row.
         moving = np.array([not o.is_static for o in scene.objects] + [False])
         rows = np.flatnonzero(np.take(moving, obj_hit))  # id -1 (none) -> last entry
-        out = np.zeros_like(points)
+        out = np.zeros(points.shape)
         if len(rows):
             out[rows] = _times(np.take(v_world, rows, axis=0), sensor_state.pose.rotation)
         return out

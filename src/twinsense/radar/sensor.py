@@ -79,6 +79,7 @@ class _StaticBase:
     config: RadarConfig
     eps: float
     points: np.ndarray  # (n, 3) [m], every scatterer of that frame
+    rcs: np.ndarray  # (n,) [m^2]
     weights: np.ndarray  # (n,) complex
     moving: np.ndarray  # (n,) bool; these rows are not in ``cube``
     cube: np.ndarray  # synthesised cube of the static rows
@@ -181,11 +182,7 @@ class FMCWRadar:
         cfg = self.config
         if rng is None:
             rng = np.random.default_rng(round(t * 1e6) & 0xFFFFFFFF)
-        amp = received_amplitude(scatterers, cfg)
-        s = scatterers
-        w = effects.filtered_weights(amp, s.points, s.velocities, cfg, s.points_rx,
-                                     s.velocities_rx)
-        sig = self._synthesize(s.points, s.velocities, s.points_rx, s.velocities_rx, w)
+        sig = self._signal(scatterers)
         sig = (sig + effects.leakage(cfg)) * cfg.if_chain.voltage_gain
         noise = effects.shape_noise(effects.thermal_noise(cfg, rng), cfg)
         # The DC offset sits on every real channel (on I and on Q alike).
@@ -198,39 +195,56 @@ class FMCWRadar:
                                self.process_cube(frame.cube, pose))
         return frame
 
-    def _synthesize(self, p, v, pr, vr, w) -> np.ndarray:
+    def _weights(self, s: Scatterers) -> np.ndarray:
+        """(n,) complex tone weights: radar-equation amplitudes times the IF filters."""
+        amp = received_amplitude(s, self.config)
+        return effects.filtered_weights(amp, s.points, s.velocities, self.config, s.points_rx,
+                                        s.velocities_rx)
+
+    def _signal(self, s: Scatterers) -> np.ndarray:
         """IF cube of the scatterers (see ``reuse_static`` in the class docstring)."""
         cfg = self.config
         kw = {"eps": self.eps, "workers": self.workers}
-        if not self.reuse_static or pr is not None:
-            return synthesize(p, v, w, cfg, points_rx=pr, velocities_rx=vr, **kw)
+        p, v = s.points, s.velocities
+        if not self.reuse_static or s.is_bistatic:
+            return synthesize(p, v, self._weights(s), cfg, points_rx=s.points_rx,
+                              velocities_rx=s.velocities_rx, **kw)
         moving = (v[:, 0] != 0) | (v[:, 1] != 0) | (v[:, 2] != 0)
-        # Zero weights (behind the antennas) add nothing; only movers cost per point.
-        mv = np.flatnonzero(moving & (w != 0))
-        cube = 0.0
-        if len(mv):
-            cube = synthesize(np.take(p, mv, axis=0), np.take(v, mv, axis=0), np.take(w, mv),
-                              cfg, **kw)
         base = self._static_base
         if base is not None and base.matches(cfg, self.eps, len(p)):
-            differ = moving != base.moving
+            # Rows that may differ from the base: movers (now or then) and any
+            # row whose point or RCS changed. The others have the base's weights.
+            differ = moving | base.moving
             for k in range(3):
                 differ |= p[:, k] != base.points[:, k]
-            differ |= w != base.weights
-            gone = np.flatnonzero(differ & ~base.moving)
-            new = np.flatnonzero(differ & ~moving)
-            if len(gone) + len(new) <= len(p) // 4:
+            differ |= s.rcs != base.rcs
+            rows = np.flatnonzero(differ)
+            if len(rows) <= len(p) // 4:
+                w = base.weights.copy()
+                if len(rows):
+                    w[rows] = self._weights(s.take(rows))
+                gone = rows[~np.take(base.moving, rows)]
+                new = rows[~np.take(moving, rows)]
                 static = base.cube.copy()
                 if len(gone):
                     static -= synthesize(np.take(base.points, gone, axis=0), None,
                                          np.take(base.weights, gone), cfg, **kw)
                 if len(new):
                     static += synthesize(np.take(p, new, axis=0), None, np.take(w, new), cfg, **kw)
-                return static + cube
+                return static + self._moving_signal(p, v, w, moving)
         # A new base from this frame: the static scatterers (movers with zero weight).
+        w = self._weights(s)
         static = synthesize(p, None, np.where(moving, 0.0, w), cfg, **kw)
-        self._static_base = _StaticBase(cfg, self.eps, p.copy(), w.copy(), moving, static)
-        return static + cube
+        self._static_base = _StaticBase(cfg, self.eps, p.copy(), s.rcs.copy(), w, moving, static)
+        return static + self._moving_signal(p, v, w, moving)
+
+    def _moving_signal(self, p, v, w, moving):
+        # Zero weights (behind the antennas) add nothing; only movers cost per point.
+        mv = np.flatnonzero(moving & (w != 0))
+        if len(mv) == 0:
+            return 0.0
+        return synthesize(np.take(p, mv, axis=0), np.take(v, mv, axis=0), np.take(w, mv),
+                          self.config, eps=self.eps, workers=self.workers)
 
     def process_cube(self, cube: np.ndarray, pose: Pose | None = None) -> ProcessingResult:
         """Run the processing chain on a raw (rx, chirp, sample) cube of this radar."""

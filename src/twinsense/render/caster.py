@@ -103,7 +103,8 @@ class SceneCaster:
             if entry[0] is o and entry[1] is d:
                 return entry[2], entry[3]
         n = len(d)
-        memo = (np.empty(n), np.empty(n, np.int32), np.empty(n, np.int32), np.empty((n, 3)))
+        memo = (np.empty(n), np.empty(n, np.int32), np.empty(n, np.int32), np.empty((n, 3)),
+                np.empty(n))
         return memo, False
 
     def _remember(self, o, d, memo, complete: bool) -> None:
@@ -113,24 +114,23 @@ class SceneCaster:
     def _cast_chunk(self, o, d, states, out, memo=None, ready=False) -> None:
         """Cast one chunk of rays, writing every requested field into ``out`` (views).
 
-        ``memo``: views of the static-hit store for this chunk, filled
-        (``ready``) or to fill.
+        ``memo``: views of the static-hit store for this chunk (distance,
+        object, triangle, normal, normal . direction), filled (``ready``) or
+        to fill.
         """
-        n = len(d)
         if memo is not None and ready:
-            dist, obj, tri, normal = (a.copy() for a in memo)
-        elif self._static_bvh is not None:
-            dist, g, tri, normal = self._static_bvh.intersect(o, d)
-            obj = np.take(self._static_lut, g + 1)
-            if memo is not None:
-                for store, a in zip(memo, (dist, obj, tri, normal)):
-                    store[:] = a
+            static = memo
         else:
-            dist = np.full(n, np.inf)
-            obj = np.full(n, -1, dtype=np.int32)
-            tri = np.full(n, -1, dtype=np.int32)
-            normal = np.zeros((n, 3))
-        moved = []
+            static = self._static_chunk(o, d)
+            if memo is not None:
+                for store, a in zip(memo, static):
+                    store[:] = a
+        dist_s, obj_s, tri_s, normal_s, dn_s = static
+        dist, obj = out["distance"], out["object_id"]
+        dist[:] = dist_s
+        obj[:] = obj_s
+        # Moving objects, in order; a later one that is nearer overwrites.
+        changes = []
         for k, i in enumerate(self._moving):
             st = states[i]
             rot, pos = st.pose.rotation, st.pose.position
@@ -148,28 +148,30 @@ class SceneCaster:
             else:
                 o_local = _rotate(np.take(o, sel, axis=0) - pos, rot)
             t_m, _, p, n_local = self._moving_bvh[k].intersect(o_local, _rotate(np.take(d, sel, axis=0), rot))
-            win = t_m < np.take(dist, sel)  # inf < inf is False: misses never win
-            won = np.flatnonzero(win)
-            sel = np.take(sel, won)
-            dist[sel] = np.take(t_m, won)
-            obj[sel] = i
-            tri[sel] = np.take(p, won)
-            normal[sel] = _rotate(np.take(n_local, won, axis=0), rot.T)
-            moved.append(i)
-        out["distance"][:] = dist
-        out["object_id"][:] = obj
+            won = np.flatnonzero(t_m < np.take(dist, sel))  # inf < inf is False: misses never win
+            if len(won) == 0:
+                continue
+            rows = np.take(sel, won)
+            dist[rows] = np.take(t_m, won)
+            obj[rows] = i
+            normal = _rotate(np.take(n_local, won, axis=0), rot.T)
+            changes.append((rows, np.take(p, won), normal, _dot_rows(normal, np.take(d, rows, axis=0)),
+                            i))
         if "triangle_id" in out:
-            out["triangle_id"][:] = tri
+            out["triangle_id"][:] = tri_s
+            for rows, tri, *_ in changes:
+                out["triangle_id"][rows] = tri
         if "material_id" in out:
             np.take(self._mat_lut, obj + 1, out=out["material_id"])
         # |n . d| is the incidence cosine; the normal is turned towards the ray.
-        dn = normal[:, 0] * d[:, 0]
-        dn += normal[:, 1] * d[:, 1]
-        dn += normal[:, 2] * d[:, 2]
         if "cos_incidence" in out:
-            np.abs(dn, out=out["cos_incidence"])
+            np.abs(dn_s, out=out["cos_incidence"])
+            for rows, _, _, dn, _ in changes:
+                out["cos_incidence"][rows] = np.abs(dn)
         if "normal" in out:
-            np.multiply(normal, np.where(dn > 0, -1.0, 1.0)[:, None], out=out["normal"])
+            np.multiply(normal_s, np.where(dn_s > 0, -1.0, 1.0)[:, None], out=out["normal"])
+            for rows, _, normal, dn, _ in changes:
+                out["normal"][rows] = normal * np.where(dn > 0, -1.0, 1.0)[:, None]
         if "point" in out:
             point = d * np.where(obj >= 0, dist, np.nan)[:, None]
             point += o[0] if o.strides[0] == 0 else o
@@ -177,11 +179,24 @@ class SceneCaster:
         if "velocity" in out:
             vel = out["velocity"]
             vel[:] = 0.0
-            for i in moved:  # only points on moving objects have a velocity
-                sel = np.flatnonzero(obj == i)
+            for i in dict.fromkeys(c[4] for c in changes):
+                sel = np.flatnonzero(obj == i)  # only points on moving objects have a velocity
                 p_hit = np.take(d, sel, axis=0) * np.take(dist, sel)[:, None]
                 p_hit += o[0] if o.strides[0] == 0 else np.take(o, sel, axis=0)
                 vel[sel] = states[i].point_velocity(p_hit)
+
+    def _static_chunk(self, o, d):
+        """Hits of rays on the static objects: distance, object, triangle, normal, normal . d."""
+        n = len(d)
+        if self._static_bvh is not None:
+            dist, g, tri, normal = self._static_bvh.intersect(o, d)
+            obj = np.take(self._static_lut, g + 1)
+        else:
+            dist = np.full(n, np.inf)
+            obj = np.full(n, -1, dtype=np.int32)
+            tri = np.full(n, -1, dtype=np.int32)
+            normal = np.zeros((n, 3))
+        return dist, obj, tri, normal, _dot_rows(normal, d)
 
 
 _MEMOS = 4  # ray bundles whose static hits are kept
@@ -216,6 +231,14 @@ def _frozen(a: np.ndarray) -> bool:
             return False
         a = a.base
     return True
+
+
+def _dot_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise dot products of two (n, 3) arrays."""
+    out = a[:, 0] * b[:, 0]
+    out += a[:, 1] * b[:, 1]
+    out += a[:, 2] * b[:, 2]
+    return out
 
 
 def _rotate(v: np.ndarray, m: np.ndarray) -> np.ndarray:
