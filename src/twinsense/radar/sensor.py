@@ -223,15 +223,18 @@ class FMCWRadar:
                 w = base.weights.copy()
                 if len(rows):
                     w[rows] = self._weights(s.take(rows))
+                # One synthesis of the change: the base's hidden static
+                # scatterers with negated weights, the newly seen static ones,
+                # and the movers (zero weights, behind the antennas, add nothing).
                 gone = rows[~np.take(base.moving, rows)]
                 new = rows[~np.take(moving, rows)]
-                static = base.cube.copy()
-                if len(gone):
-                    static -= synthesize(np.take(base.points, gone, axis=0), None,
-                                         np.take(base.weights, gone), cfg, **kw)
-                if len(new):
-                    static += synthesize(np.take(p, new, axis=0), None, np.take(w, new), cfg, **kw)
-                return static + self._moving_signal(p, v, w, moving)
+                mv = np.flatnonzero(moving & (w != 0))
+                dp = np.concatenate([np.take(base.points, gone, axis=0), np.take(p, new, axis=0),
+                                     np.take(p, mv, axis=0)])
+                dv = np.zeros_like(dp)
+                dv[len(gone) + len(new):] = np.take(v, mv, axis=0)
+                dw = np.concatenate([-np.take(base.weights, gone), np.take(w, new), np.take(w, mv)])
+                return base.cube + synthesize(dp, dv, dw, cfg, **kw)
         # A new base from this frame: the static scatterers (movers with zero weight).
         w = self._weights(s)
         static = synthesize(p, None, np.where(moving, 0.0, w), cfg, **kw)

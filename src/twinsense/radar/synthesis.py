@@ -79,6 +79,11 @@ def _check_inputs(points, velocities, weights, points_rx=None, velocities_rx=Non
     return p, v, w, pr, vr
 
 
+def _nonzero_rows(a: np.ndarray) -> np.ndarray:
+    """(n,) bool: rows of a (n, 3) with any non-zero component."""
+    return (a[:, 0] != 0.0) | (a[:, 1] != 0.0) | (a[:, 2] != 0.0)
+
+
 def _output(cube: np.ndarray, config: RadarConfig) -> np.ndarray:
     return cube if config.if_chain.complex_if else cube.real.copy()
 
@@ -343,18 +348,6 @@ def _thread_plans(num_samples: int, eps: float) -> _Plans:
     return cache[key]
 
 
-def _static_rows(p, pr, w, geo: _Geometry, eps: float, workers: int) -> np.ndarray:
-    """(n_pairs, N) rows of static scatterers, summed over chunks in a fixed order."""
-    n = len(p)
-    bounds = [(lo, min(lo + _CHUNK, n)) for lo in range(0, n, _CHUNK)]
-    parts = map_ordered(lambda b: _static_chunk(p[b[0]:b[1]], pr[b[0]:b[1]], w[b[0]:b[1]],
-                                                geo, eps), bounds, workers)
-    total = parts[0]
-    for part in parts[1:]:
-        total += part
-    return total
-
-
 def _leg_taylor(pos: list[np.ndarray], vel: list[np.ndarray], speed2: np.ndarray,
                 element: np.ndarray) -> tuple[np.ndarray, ...]:
     """Distance |d + v s| = r0 + r1 s + r2 s^2 + r3 s^3 + O(s^4) from one antenna element.
@@ -456,27 +449,11 @@ def _mid_range(a: np.ndarray) -> np.ndarray:
     return 0.5 * (a.max(axis=1, keepdims=True) + a.min(axis=1, keepdims=True))
 
 
-def _moving_rows(p, v, pr, vr, w, geo: _Geometry, chirp_centre: np.ndarray, eps: float,
-                 workers: int) -> np.ndarray:
-    """(n_rx, M, N) cube of moving scatterers, in chunks summed in a fixed order."""
-    n = len(p)
-    # At least two chunks, so that two threads share even a few thousand
-    # movers, but none tiny (each costs n_rx x M NUFFT calls); the split does
-    # not depend on ``workers``, so neither does the cube.
+def _moving_bounds(n: int) -> list[tuple[int, int]]:
+    """Chunks of moving scatterers: at least two, so that two threads share even a
+    few thousand movers, but none tiny (each costs n_rx x M NUFFT calls)."""
     parts = max(1, min(max(2, -(-n // _CHUNK)), n // 1024))
-    edges = np.linspace(0, n, parts + 1).astype(int)
-    bounds = list(itertools.pairwise(edges))
-
-    def run(b):
-        lo, hi = b
-        return _moving_chunk(p[lo:hi], v[lo:hi], None if pr is None else pr[lo:hi],
-                             None if vr is None else vr[lo:hi], w[lo:hi], geo, chirp_centre, eps)
-
-    parts = map_ordered(run, bounds, workers)
-    total = parts[0]
-    for part in parts[1:]:
-        total += part
-    return total
+    return [(int(a), int(b)) for a, b in itertools.pairwise(np.linspace(0, n, parts + 1))]
 
 
 def synthesize(points: np.ndarray, velocities: np.ndarray | None, weights: np.ndarray,
@@ -498,21 +475,45 @@ def synthesize(points: np.ndarray, velocities: np.ndarray | None, weights: np.nd
     geo = _Geometry(config, n_chirps)
     cube = np.zeros((n_rx, n_chirps, n_samp), dtype=complex)
 
-    moving = np.any(v != 0.0, axis=1)
+    moving = _nonzero_rows(v)
     if vr is not v:
-        moving |= np.any(vr != 0.0, axis=1)
-    if moving.any():
+        moving |= _nonzero_rows(vr)
+    mv = np.flatnonzero(moving)
+    n = len(p)
+    # One list of tasks: chunks of static scatterers (one NUFFT per (tx, rx)
+    # pair, copied to that transmitter's chirps; movers ride along with zero
+    # weight, cheaper than copying the static ones out) and chunks of movers.
+    # The split depends only on the input, and the parts are summed in task
+    # order, so the cube does not depend on ``workers``.
+    tasks = []
+    if len(mv) < n:
+        w_static = np.where(moving, 0.0, w) if len(mv) else w
+        tasks += [("static", lo, min(lo + _CHUNK, n)) for lo in range(0, n, _CHUNK)]
+    if len(mv):
         bistatic = pr is not p
+        pm, vm, wm = np.take(p, mv, axis=0), np.take(v, mv, axis=0), np.take(w, mv)
+        prm = np.take(pr, mv, axis=0) if bistatic else None
+        vrm = np.take(vr, mv, axis=0) if bistatic else None
         t_c = c.adc_start_time + (n_samp // 2) / c.sample_rate
-        cube += _moving_rows(p[moving], v[moving], pr[moving] if bistatic else None,
-                             vr[moving] if bistatic else None, w[moving], geo,
-                             c.chirp_times() + t_c, eps, workers)
-    if not moving.all():
-        # Static: one NUFFT per (tx, rx) pair, copied to that transmitter's
-        # chirps. Moving scatterers ride along with zero weight, which costs
-        # less than copying the static ones out.
-        w_static = np.where(moving, 0.0, w) if moving.any() else w
-        rows = _static_rows(p, pr, w_static, geo, eps, workers)
+        centres = c.chirp_times() + t_c
+        tasks += [("moving", lo, hi) for lo, hi in _moving_bounds(len(mv))]
+
+    def run(task):
+        kind, lo, hi = task
+        if kind == "static":
+            return _static_chunk(p[lo:hi], pr[lo:hi], w_static[lo:hi], geo, eps)
+        return _moving_chunk(pm[lo:hi], vm[lo:hi], None if prm is None else prm[lo:hi],
+                             None if vrm is None else vrm[lo:hi], wm[lo:hi], geo, centres, eps)
+
+    static_rows = None
+    for (kind, _, _), part in zip(tasks, map_ordered(run, tasks, workers)):
+        if kind == "moving":
+            cube += part
+        elif static_rows is None:
+            static_rows = part
+        else:
+            static_rows += part
+    if static_rows is not None:
         for j, (k, a) in enumerate(geo.pairs):
-            cube[a, geo.tx_of == geo.txs[k]] += rows[j]
+            cube[a, geo.tx_of == geo.txs[k]] += static_rows[j]
     return _output(cube, config)

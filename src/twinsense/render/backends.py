@@ -39,7 +39,7 @@ class Intersector:
                                     - np.repeat(offsets[1:], counts), -1).astype(np.int32)
         self._offsets = offsets
 
-    def intersect(self, origins: np.ndarray, directions: np.ndarray):
+    def intersect(self, origins: np.ndarray, directions: np.ndarray, threads: int | None = None):
         """Closest hits.
 
         Parameters
@@ -47,6 +47,9 @@ class Intersector:
         origins, directions : (n, 3) float
             Rays (``t`` is in units of the direction's length). A broadcast
             origin (one point for all rays, stride 0) is used as one point.
+        threads : int, optional
+            Threads for a large bundle (default: the backend's own setting);
+            1 when the caller already runs bundles in parallel.
 
         Returns
         -------
@@ -131,10 +134,11 @@ class EmbreeIntersector(Intersector):
     def _run(self, o32, d32):
         return self._scene.run(o32, d32)  # closest-hit triangle id, -1 on a miss
 
-    def intersect(self, origins, directions):
+    def intersect(self, origins, directions, threads=None):
         o = np.asarray(origins, dtype=float)
         d = np.asarray(directions, dtype=float)
         n = len(d)
+        threads = self.threads if threads is None else threads
         if len(self._tri) == 0 or n == 0:
             return self._finish(o, d, np.full(n, -1, np.int64), np.full(n, np.inf))
         d32 = np.ascontiguousarray(d, dtype=np.float32)
@@ -143,10 +147,10 @@ class EmbreeIntersector(Intersector):
             o32[:] = o[0]
         else:
             o32 = np.ascontiguousarray(o, dtype=np.float32)
-        if n >= 20000 and self.threads > 1:
+        if n >= 20000 and threads > 1:
             # embreex releases the GIL while tracing, so threads scale.
-            bounds = np.linspace(0, n, self.threads + 1).astype(int)
-            parts = list(_pool(self.threads).map(
+            bounds = np.linspace(0, n, threads + 1).astype(int)
+            parts = list(_pool(threads).map(
                 lambda ab: self._run(o32[ab[0]:ab[1]], d32[ab[0]:ab[1]]), itertools.pairwise(bounds)))
             face = np.concatenate(parts)
         else:
@@ -174,7 +178,7 @@ class NumpyIntersector(Intersector):
         self._tri = np.concatenate(tris) if tris else np.zeros((0, 3, 3))
         self._chunk = chunk
 
-    def intersect(self, origins, directions):
+    def intersect(self, origins, directions, threads=None):
         o = np.asarray(origins, dtype=float)
         d = np.asarray(directions, dtype=float)
         n = len(o)

@@ -80,9 +80,13 @@ class SceneCaster:
         n = len(d)
         states = {i: self.scene.objects[i].state_at(t) for i in self._moving}
         out = {f: _allocate(f, n) for f in _ALWAYS | want}
-        bounds = [(lo, min(lo + _CHUNK, n)) for lo in range(0, n, _CHUNK)] or [(0, 0)]
         workers = default_workers() if workers is None else workers
         memo, ready = self._static_memo(o, d)
+        # Tracing dominates a cold cast: small chunks keep its per-ray arrays in
+        # cache. With the static hits kept, a chunk only copies and culls, and
+        # many small NumPy calls would contend for the GIL: a few large chunks.
+        size = _CHUNK if not ready else max(_CHUNK, -(-n // (2 * max(workers, 1))))
+        bounds = [(lo, min(lo + size, n)) for lo in range(0, n, size)] or [(0, 0)]
 
         def chunk(b):
             lo, hi = b
@@ -147,7 +151,8 @@ class SceneCaster:
                 o_local = np.broadcast_to(o_local[0], (len(sel), 3))
             else:
                 o_local = _rotate(np.take(o, sel, axis=0) - pos, rot)
-            t_m, _, p, n_local = self._moving_bvh[k].intersect(o_local, _rotate(np.take(d, sel, axis=0), rot))
+            t_m, _, p, n_local = self._moving_bvh[k].intersect(o_local, _rotate(np.take(d, sel, axis=0), rot),
+                                                               threads=1)
             won = np.flatnonzero(t_m < np.take(dist, sel))  # inf < inf is False: misses never win
             if len(won) == 0:
                 continue
@@ -189,7 +194,7 @@ class SceneCaster:
         """Hits of rays on the static objects: distance, object, triangle, normal, normal . d."""
         n = len(d)
         if self._static_bvh is not None:
-            dist, g, tri, normal = self._static_bvh.intersect(o, d)
+            dist, g, tri, normal = self._static_bvh.intersect(o, d, threads=1)
             obj = np.take(self._static_lut, g + 1)
         else:
             dist = np.full(n, np.inf)
@@ -258,12 +263,19 @@ def _rays_near_sphere(o: np.ndarray, d: np.ndarray, centre: np.ndarray, radius: 
     """Indices of rays (unit d) that enter the sphere before distance ``t_max``."""
     if o.strides[0] == 0:  # one shared origin (a camera): scalar offsets
         w = centre - o[0]
-        tca = d[:, 0] * w[0] + d[:, 1] * w[1] + d[:, 2] * w[2]
-        d2 = (w @ w) - tca * tca
-    else:
-        w = centre - o
-        tca = d[:, 0] * w[:, 0] + d[:, 1] * w[:, 1] + d[:, 2] * w[:, 2]
-        d2 = w[:, 0] ** 2 + w[:, 1] ** 2 + w[:, 2] ** 2 - tca * tca
+        tca = d[:, 0] * w[0]
+        tca += d[:, 1] * w[1]
+        tca += d[:, 2] * w[2]
+        # Outside the sphere, the rays that meet it form a cone around w:
+        # tca >= sqrt(|w|^2 - r^2) (this also gives tca > 0); inside, all rays do.
+        w2 = float(w @ w)
+        cand = (np.flatnonzero(tca >= np.sqrt(w2 - radius * radius)) if w2 > radius * radius
+                else np.arange(len(d)))
+        tc = np.take(tca, cand)
+        return cand[(tc + radius > 0) & (tc - radius < np.take(t_max, cand))]
+    w = centre - o
+    tca = d[:, 0] * w[:, 0] + d[:, 1] * w[:, 1] + d[:, 2] * w[:, 2]
+    d2 = w[:, 0] ** 2 + w[:, 1] ** 2 + w[:, 2] ** 2 - tca * tca
     return np.nonzero((d2 <= radius * radius) & (tca + radius > 0) & (tca - radius < t_max))[0]
 
 
