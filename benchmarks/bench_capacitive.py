@@ -8,7 +8,16 @@ cells, warm-started AMG-PCG, capacitances), the time of a full re-solve
 same process, their ratio, and the largest deviation of the incremental result
 from a tight full re-solve relative to the largest matrix entry.
 
-Run: .venv/bin/python benchmarks/bench_capacitive.py [--frames N]
+Static condensation (``SolverConfig(condense=True)``): the same frames on a
+sensor prepared with the cylinder's swept volume over the whole T2 run; it
+prints the set-up (factorisation and interface block), the reduced system's
+size, the incremental update time against the uncondensed one in the same
+process and the accuracy against the tight full re-solve.
+
+gmsh mesher (``MeshSettings(mesher="gmsh")``): meshing time and update time
+on an unstructured mesh of the same layout of about the target size.
+
+Run: .venv/bin/python benchmarks/bench_capacitive.py [--frames N] [--skip-condense] [--skip-gmsh]
 """
 
 from __future__ import annotations
@@ -55,7 +64,7 @@ def sensor_with(mesh: MeshSettings, solver: SolverConfig | None = None):
     return type(s)(cfg, name="bed")
 
 
-def run_case(label: str, mesh: MeshSettings, frames: int, full_every: int) -> None:
+def run_case(label: str, mesh: MeshSettings, frames: int, full_every: int, condense: bool = True) -> None:
     scene = printer_scene(PATHS["T2"])
     rate = 30.0
     times = np.arange(frames) / rate
@@ -100,19 +109,98 @@ def run_case(label: str, mesh: MeshSettings, frames: int, full_every: int) -> No
         f"{full * 1e3:8.1f} ms  -> incremental is x{full / inc:.1f} faster"
     )
     print(f"  max |C_incremental - C_full(rtol 1e-11)| / max|C|: {max(errors):.2e}")
+    if condense:
+        run_condensed(mesh, sensor, scene, times, inc_times, full_every)
+
+
+def run_condensed(mesh: MeshSettings, plain, scene, times, plain_times, full_every: int) -> None:
+    """The same frames with static condensation around the run's swept volume."""
+    tool = scene.object("tool")
+    run_times = np.arange(0.0, tool.motion.length / 0.04, 1 / 30.0)  # the whole T2 run at 30 Hz
+    sensor = sensor_with(mesh, SolverConfig(condense=True))
+    sensor._mesh = plain.layout_mesh
+    t0 = time.perf_counter()
+    active = sensor.prepare(scene, run_times)
+    sensor.solve_at(scene, times[0])  # factorisation, interface block, AMG, first solve
+    setup = time.perf_counter() - t0
+    cond = sensor._solver.condensation
+    n_nodes = plain.layout_mesh.mesh.n_nodes
+    inc_times, errors, iters = [], [], []
+    tight = SolverConfig(rtol=1e-11, energy_tol=0.0)
+    for k, t in enumerate(times[1:]):
+        t0 = time.perf_counter()
+        res = sensor.solve_at(scene, t)
+        inc_times.append(time.perf_counter() - t0)
+        iters.append(res.iterations.mean())
+        if k % full_every == 0:
+            ref_sensor = sensor_with(mesh, tight)
+            ref_sensor._mesh = plain.layout_mesh
+            ref = ref_sensor.solve_at(scene, t).matrix
+            errors.append(np.abs(res.matrix - ref).max() / np.abs(ref).max())
+    inc = np.median(inc_times)
+    ref = np.median(plain_times)
+    print(
+        f"  condensed: active cells {int(active.sum())} of {active.size}; reduced system {cond.n_reduced} "
+        f"of {n_nodes} nodes, dense interface block {cond.n_interface}^2, eliminated {len(cond.f)}"
+    )
+    print(f"    set-up (swept volume, SuperLU factorisation, interface block, AMG, first solve): {setup:8.2f} s")
+    print(
+        f"    incremental update, median: {inc * 1e3:8.1f} ms (p90 {np.percentile(inc_times, 90) * 1e3:.1f} ms; "
+        f"mean CG iterations {np.mean(iters):.1f}) vs {ref * 1e3:.1f} ms uncondensed -> x{ref / inc:.2f}; "
+        f"rebuilds {sensor._solver.condensation_builds - 1}"
+    )
+    print(f"    max |C_condensed - C_full(rtol 1e-11)| / max|C|: {max(errors):.2e}")
+
+
+def run_gmsh(frames: int) -> None:
+    """Printer bed on a gmsh mesh of about the target size: meshing and update times."""
+    from twinsense.capacitive.gmsh_mesher import gmsh_version
+
+    z_top = TOOL_CLEARANCE + TOOL_HEIGHT
+    mesh = MeshSettings(
+        margin=0.02,
+        height=0.06,
+        depth=0.01,
+        h_min=2.5e-3,
+        h_max=0.025,
+        growth=1.5,
+        refine=((-0.1, 0.1, -0.1, 0.1, 0.0, z_top),),
+        h_refine=0.01,
+        use_cache=False,
+        mesher="gmsh",
+    )
+    sensor = sensor_with(mesh)
+    t0 = time.perf_counter()
+    lm = sensor.layout_mesh
+    t_mesh = time.perf_counter() - t0
+    scene = printer_scene(PATHS["T2"])
+    times = np.arange(frames) / 30.0
+    sensor.solve_at(scene, times[0])
+    inc_times = []
+    for t in times[1:]:
+        t0 = time.perf_counter()
+        sensor.solve_at(scene, t)
+        inc_times.append(time.perf_counter() - t0)
+    inc = np.median(inc_times)
+    print(f"gmsh {gmsh_version()} mesher: {lm.mesh.n_cells} tets, {lm.mesh.n_nodes} nodes, meshing {t_mesh:.2f} s")
+    print(f"  incremental update, median: {inc * 1e3:8.1f} ms ({1 / inc:5.1f} updates/s)")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--frames", type=int, default=91)
     ap.add_argument("--full-every", type=int, default=15)
+    ap.add_argument("--skip-condense", action="store_true")
+    ap.add_argument("--skip-gmsh", action="store_true")
     args = ap.parse_args()
     print(
         f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
         f"Python {platform.python_version()}, numpy {np.__version__}"
     )
     for label, mesh in CASES.items():
-        run_case(label, mesh, args.frames, args.full_every)
+        run_case(label, mesh, args.frames, args.full_every, condense=not args.skip_condense)
+    if not args.skip_gmsh:
+        run_gmsh(args.frames)
 
 
 if __name__ == "__main__":

@@ -233,6 +233,8 @@ class CapacitiveSensor:
             "mode": c.mode,
             "outer_boundary": c.outer_boundary,
             "n_cells": int(self.layout_mesh.mesh.n_cells),
+            "mesher": c.mesh.mesher,
+            "condense": c.solver.condense,
             "readout": {
                 "sample_rate_hz": c.readout.sample_rate,
                 "noise_rms_f": c.readout.noise_rms,

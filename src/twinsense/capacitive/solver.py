@@ -111,8 +111,9 @@ def block_pcg(
     ``alpha_k r_k^T z_k``; for a unit-potential problem ``2 f + const`` is
     the terminal's capacitance ``x^T K x`` and its error is the sum of the
     decrements still to come. The energy rule stops when that tail,
-    estimated from the last decrement and the ratio of the last two as a
-    geometric series, is below ``energy_tol`` times the current energy.
+    estimated from the last decrement as a geometric series with the
+    largest of the last three decrement ratios, is below ``energy_tol``
+    times the current energy.
 
     Parameters
     ----------
@@ -147,6 +148,7 @@ def block_pcg(
     use_energy = energy is not None and energy_tol > 0
     E = np.array(energy, float) if use_energy else np.zeros(t)
     last = np.full(t, np.inf)
+    ratios = np.zeros((2, t))  # the two ratios before the current one
     mask = None if free is None else free.astype(float)[:, None]
 
     def apply(Rm):
@@ -172,7 +174,13 @@ def block_pcg(
             # a stall never reads as convergence).
             prev = last[active]
             ratio = np.where(np.isfinite(prev), np.minimum(drop / prev, 0.9), 0.9)
-            tail = drop * ratio / (1.0 - ratio)
+            # The largest of the last three ratios: CG's decrements are not
+            # a clean geometric series (least of all with a preconditioner
+            # whose coarse levels lag the matrix), and one unusually large
+            # step must not read as fast convergence.
+            seen = np.maximum(ratio, ratios[:, active].max(axis=0))
+            ratios[:, active] = np.vstack([ratios[1:, active], ratio])
+            tail = drop * seen / (1.0 - seen)
             last[active] = drop
             still &= tail > energy_tol * np.abs(E[active])
         if not np.any(still):
