@@ -5,6 +5,13 @@ See PHYSICS.md section 3. The pipeline: :mod:`layouts` (electrodes) ->
 per-cell material) -> :mod:`fem` (P1 stiffness, conductors, boundary) ->
 :mod:`solver` (warm-started AMG-PCG, Maxwell matrix) -> :mod:`readout`;
 :class:`CapacitiveSensor` ties them together.
+
+Options: :mod:`gmsh_mesher` (``MeshSettings(mesher="gmsh")``, the optional
+GPL gmsh package) embeds curved and slanted electrode outlines exactly;
+:mod:`condensation` (``SolverConfig(condense=True)`` with
+``CapacitiveConfig.active_boxes`` or :meth:`CapacitiveSensor.prepare`)
+eliminates the cells no object reaches once, so each frame solves a smaller
+system.
 """
 
 from twinsense.capacitive.coupling import Inclusion, MaterialMap, map_inclusions
