@@ -82,10 +82,14 @@ class SceneCaster:
         out = {f: _allocate(f, n) for f in _ALWAYS | want}
         workers = default_workers() if workers is None else workers
         memo, ready = self._static_memo(o, d)
-        # Tracing dominates a cold cast: small chunks keep its per-ray arrays in
-        # cache. With the static hits kept, a chunk only copies and culls, and
-        # many small NumPy calls would contend for the GIL: a few large chunks.
-        size = _CHUNK if not ready else max(_CHUNK, -(-n // (2 * max(workers, 1))))
+        # Tracing dominates a cold cast: chunks of rays on all workers, small
+        # enough to keep their per-ray arrays in cache. With the static hits
+        # kept, a cast only copies them and traces the few rays near moving
+        # objects: threads then lose more to handing the GIL over than they
+        # gain (measured), so the whole bundle is one chunk on this thread.
+        size = _CHUNK if not ready else max(n, 1)
+        if ready:
+            workers = 1
         bounds = [(lo, min(lo + size, n)) for lo in range(0, n, size)] or [(0, 0)]
 
         def chunk(b):
