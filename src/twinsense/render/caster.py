@@ -86,18 +86,20 @@ class SceneCaster:
         # enough to keep their per-ray arrays in cache. With the static hits
         # kept, a cast only copies them and traces the few rays near moving
         # objects: threads then lose more to handing the GIL over than they
-        # gain (measured), so the whole bundle is one chunk on this thread.
+        # gain (measured), so the whole bundle is one chunk on this thread,
+        # whose ray tracing near moving objects may still use the workers.
         size = _CHUNK if not ready else max(n, 1)
-        if ready:
-            workers = 1
+        chunk_workers = workers if n >= _PARALLEL_MIN_RAYS and not ready else 1
+        trace_threads = 1 if chunk_workers > 1 else workers
         bounds = [(lo, min(lo + size, n)) for lo in range(0, n, size)] or [(0, 0)]
 
         def chunk(b):
             lo, hi = b
             self._cast_chunk(o[lo:hi], d[lo:hi], states, {f: a[lo:hi] for f, a in out.items()},
-                             None if memo is None else tuple(a[lo:hi] for a in memo), ready)
+                             None if memo is None else tuple(a[lo:hi] for a in memo), ready,
+                             trace_threads)
 
-        map_ordered(chunk, bounds, workers if n >= _PARALLEL_MIN_RAYS else 1)
+        map_ordered(chunk, bounds, chunk_workers)
         if memo is not None:
             self._remember(o, d, memo, True)
         return Hits(**{f: out.get(f) for f in HIT_FIELDS})
@@ -119,17 +121,17 @@ class SceneCaster:
         self._memos = [e for e in self._memos if not (e[0] is o and e[1] is d)][-(_MEMOS - 1):]
         self._memos.append([o, d, memo, complete])
 
-    def _cast_chunk(self, o, d, states, out, memo=None, ready=False) -> None:
+    def _cast_chunk(self, o, d, states, out, memo=None, ready=False, threads=1) -> None:
         """Cast one chunk of rays, writing every requested field into ``out`` (views).
 
         ``memo``: views of the static-hit store for this chunk (distance,
         object, triangle, normal, normal . direction), filled (``ready``) or
-        to fill.
+        to fill. ``threads``: for tracing this chunk's rays.
         """
         if memo is not None and ready:
             static = memo
         else:
-            static = self._static_chunk(o, d)
+            static = self._static_chunk(o, d, threads)
             if memo is not None:
                 for store, a in zip(memo, static):
                     store[:] = a
@@ -156,7 +158,7 @@ class SceneCaster:
             else:
                 o_local = _rotate(np.take(o, sel, axis=0) - pos, rot)
             t_m, _, p, n_local = self._moving_bvh[k].intersect(o_local, _rotate(np.take(d, sel, axis=0), rot),
-                                                               threads=1)
+                                                               threads=threads)
             won = np.flatnonzero(t_m < np.take(dist, sel))  # inf < inf is False: misses never win
             if len(won) == 0:
                 continue
@@ -194,11 +196,11 @@ class SceneCaster:
                 p_hit += o[0] if o.strides[0] == 0 else np.take(o, sel, axis=0)
                 vel[sel] = states[i].point_velocity(p_hit)
 
-    def _static_chunk(self, o, d):
+    def _static_chunk(self, o, d, threads=1):
         """Hits of rays on the static objects: distance, object, triangle, normal, normal . d."""
         n = len(d)
         if self._static_bvh is not None:
-            dist, g, tri, normal = self._static_bvh.intersect(o, d, threads=1)
+            dist, g, tri, normal = self._static_bvh.intersect(o, d, threads=threads)
             obj = np.take(self._static_lut, g + 1)
         else:
             dist = np.full(n, np.inf)
