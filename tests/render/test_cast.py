@@ -5,7 +5,7 @@ import pytest
 
 from twinsense import Box, ConstantVelocity, PinholeCamera, Plane, Pose, Rays, Scene, Sphere, cast
 from twinsense.errors import ConfigError
-from twinsense.render import BACKENDS, make_intersector
+from twinsense.render import BACKENDS, caster_for, make_intersector
 from twinsense.scene import Oscillation
 
 
@@ -193,3 +193,28 @@ def test_static_hits_of_read_only_rays_are_reused_exactly():
     w.directions[:] = w.directions[::-1]
     _assert_same_hits(cast(s, w, 0.0), cast(s, Rays(origin, w.directions.copy()), 0.0))
     assert not np.array_equal(cast(s, w, 0.0).distance, first.distance)
+
+
+@pytest.mark.parametrize("frozen", [True, False])
+def test_static_hits_plus_moving_changes_give_the_full_cast(frozen):
+    # cast_static (no movers) + cast_moving (rays a mover wins, with their hits)
+    # must compose to exactly what cast gives, for every field.
+    s, rays = _busy_scene_and_rays(60, 40)
+    if frozen:
+        d = rays.directions.copy()
+        d.setflags(write=False)
+        origin = np.array(rays.origins[0])
+        origin.setflags(write=False)
+        rays = Rays(origin, d)
+    caster = caster_for(s, "tof")
+    static = caster.cast_static(rays)
+    assert not np.isin(static.object_id, [3, 4]).any()  # the ball and the spinner
+    for t in (0.0, 0.37, 0.9):
+        rows, moving = caster.cast_moving(rays, t, static.distance)
+        full = cast(s, rays, t)
+        assert len(rows) > 0 and np.isin(moving.object_id, [3, 4]).all()
+        composed = {f: getattr(static, f).copy() for f in static.__dataclass_fields__}
+        for f, a in composed.items():
+            a[rows] = getattr(moving, f)
+        for f, a in composed.items():
+            np.testing.assert_array_equal(a, getattr(full, f), err_msg=f)

@@ -42,12 +42,13 @@ taken as static during a frame.
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
 
 from twinsense.radar.config import RadarConfig
-from twinsense.render import PinholeCamera, Rays, cast
+from twinsense.render import PinholeCamera, Rays, cast, caster_for
 
 
 @dataclass(frozen=True, eq=False)
@@ -212,6 +213,21 @@ def backscatter_rcs(distance: np.ndarray, cos_incidence: np.ndarray, solid_angle
 _DIRECT_FIELDS = ("distance", "cos_incidence", "object_id", "material_id", "velocity")
 
 
+@dataclass(eq=False)
+class _Snapshot:
+    """What the static objects alone give along one bundle of rays (every ray hits)."""
+
+    rays: Rays
+    scene: weakref.ref
+    version: int
+    refl: np.ndarray  # per scene material
+    spec: np.ndarray
+    distance: np.ndarray | None = None  # (n,) [m]
+    points: np.ndarray | None = None  # (n, 3) [m], sensor frame
+    rcs: np.ndarray | None = None  # (n,) [m^2]
+    object_id: np.ndarray | None = None  # (n,)
+
+
 def _times(rows: np.ndarray, matrix: np.ndarray) -> np.ndarray:
     """(n, 3) @ (3, 3) without BLAS.
 
@@ -248,6 +264,7 @@ class ScatterRenderer:
         self._solid_angle = d[:, 2] ** 3 / (self.camera.fx * self.camera.fy)
         self._rays_key: bytes | None = None
         self._rays: Rays | None = None
+        self._snap: _Snapshot | None = None
 
     def _world_rays(self, pose) -> Rays:
         """World rays of the render from ``pose`` (kept while the pose does not change)."""
@@ -277,6 +294,11 @@ class ScatterRenderer:
         pose, linear and angular velocity of the sensor, world frame).
         """
         rays = self._world_rays(sensor_state.pose)
+        at_rest = not (np.any(sensor_state.linear_velocity) or np.any(sensor_state.angular_velocity))
+        if self.reuse_static_hits and at_rest and not self.config.multipath:
+            snap = self._static_snapshot(scene, rays)
+            if snap is not None:
+                return self._render_over(snap, scene, sensor_state, t, rays)
         fields = _DIRECT_FIELDS + (("point", "normal") if self.config.multipath else ())
         hits = cast(scene, rays, t, kind="radar", backend=self.backend, fields=fields,
                     workers=self.workers)
@@ -294,9 +316,7 @@ class ScatterRenderer:
         for k in range(3):
             np.multiply(take(self._dirs_cols[k]), dist, out=points[:, k])
         velocities = self._hit_velocities(scene, sensor_state, hits, idx, obj_hit, points)
-        mats = scene.materials
-        refl = np.array([m.radar_reflectivity for m in mats], dtype=float)
-        spec = np.array([m.radar_specular for m in mats], dtype=float)
+        refl, spec = self._scene_luts(scene)
         mid = take(hits.material_id)
         rcs = backscatter_rcs(dist, take(hits.cos_incidence), take(self._solid_angle),
                               np.take(refl, mid), np.take(spec, mid),
@@ -308,6 +328,55 @@ class ScatterRenderer:
         second = self._second_bounce(scene, sensor_state, t, hits, idx,
                                      np.take(rays.directions, idx, axis=0), refl, spec)
         return Scatterers.concatenate([direct, second]) if len(second) else direct
+
+    def _static_snapshot(self, scene, rays: Rays) -> _Snapshot | None:
+        """Scatterer arrays of the static objects alone, seen along ``rays`` (kept per
+        rays and scene version); None if a ray misses them (then rows would shift)."""
+        snap = self._snap
+        if (snap is not None and snap.rays is rays and snap.scene() is scene
+                and snap.version == scene.version):
+            return snap if snap.points is not None else None
+        caster = caster_for(scene, "radar", self.backend)
+        hits = caster.cast_static(rays, ("distance", "cos_incidence", "material_id"),
+                                  self.workers)
+        snap = _Snapshot(rays, weakref.ref(scene), scene.version, *self._scene_luts(scene))
+        if (hits.object_id >= 0).all():
+            dist = hits.distance
+            points = np.empty((len(dist), 3))
+            for k in range(3):
+                np.multiply(self._dirs_cols[k], dist, out=points[:, k])
+            mid = hits.material_id
+            snap.distance, snap.points, snap.object_id = dist, points, hits.object_id
+            snap.rcs = backscatter_rcs(dist, hits.cos_incidence, self._solid_angle,
+                                       np.take(snap.refl, mid), np.take(snap.spec, mid),
+                                       math.radians(self.config.specular_lobe_deg))
+        self._snap = snap
+        return snap if snap.points is not None else None
+
+    def _render_over(self, snap: _Snapshot, scene, sensor_state, t, rays) -> Scatterers:
+        """The frame's scatterers: the static snapshot with the rays moving objects win
+        at ``t`` replaced (the same numbers as the full render, for a radar at rest)."""
+        caster = caster_for(scene, "radar", self.backend)
+        rows, mh = caster.cast_moving(rays, t, snap.distance, self.workers)
+        points, rcs, obj = snap.points.copy(), snap.rcs.copy(), snap.object_id.copy()
+        velocities = np.zeros(points.shape)
+        if len(rows):
+            points[rows] = np.take(self._dirs, rows, axis=0) * mh.distance[:, None]
+            mid = mh.material_id
+            rcs[rows] = backscatter_rcs(mh.distance, mh.cos_incidence,
+                                        np.take(self._solid_angle, rows), np.take(snap.refl, mid),
+                                        np.take(snap.spec, mid),
+                                        math.radians(self.config.specular_lobe_deg))
+            obj[rows] = mh.object_id
+            velocities[rows] = _times(mh.velocity, sensor_state.pose.rotation)
+        return Scatterers(points, velocities, rcs, obj)
+
+    @staticmethod
+    def _scene_luts(scene) -> tuple[np.ndarray, np.ndarray]:
+        """Radar reflectivity and specular share per scene material."""
+        mats = scene.materials
+        return (np.array([m.radar_reflectivity for m in mats], dtype=float),
+                np.array([m.radar_specular for m in mats], dtype=float))
 
     def _hit_velocities(self, scene, sensor_state, hits, idx, obj_hit, points) -> np.ndarray:
         """(m, 3) velocities of the hit points relative to the sensor, sensor frame."""

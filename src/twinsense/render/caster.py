@@ -60,13 +60,15 @@ class SceneCaster:
         self._memos: list[list] = []
 
     def cast(self, rays: Rays, t: float = 0.0, fields: Iterable[str] | None = None,
-             workers: int | None = None) -> Hits:
+             workers: int | None = None, *, moving: bool = True) -> Hits:
         """Closest hits of ``rays`` (world frame) against the scene posed at time ``t`` [s].
 
         ``fields``: the :class:`Hits` fields to compute (default all); the
         others are None. ``workers``: threads for large bundles (default:
         the cores, at most 4). Rays are cast in chunks, each on one thread;
         every ray's result is the same whatever the chunking.
+
+        ``moving=False`` leaves the moving objects out (see :meth:`cast_static`).
 
         A sensor that does not move casts the same rays every frame: when
         both ray arrays are read-only (and everything they view is), the
@@ -78,7 +80,7 @@ class SceneCaster:
         want = _check_fields(fields)
         o, d = rays.origins, rays.directions
         n = len(d)
-        states = {i: self.scene.objects[i].state_at(t) for i in self._moving}
+        states = {i: self.scene.objects[i].state_at(t) for i in self._moving} if moving else {}
         out = {f: _allocate(f, n) for f in _ALWAYS | want}
         workers = default_workers() if workers is None else workers
         memo, ready = self._static_memo(o, d)
@@ -103,6 +105,90 @@ class SceneCaster:
         if memo is not None:
             self._remember(o, d, memo, True)
         return Hits(**{f: out.get(f) for f in HIT_FIELDS})
+
+    def cast_static(self, rays: Rays, fields: Iterable[str] | None = None,
+                    workers: int | None = None) -> Hits:
+        """Hits of ``rays`` on the static objects alone (moving objects left out).
+
+        Time-independent; kept for read-only rays like the static part of
+        :meth:`cast`. With :meth:`cast_moving`, a fixed sensor can keep what
+        it derives from these hits and update only the rays movers change.
+        """
+        return self.cast(rays, 0.0, fields, workers, moving=False)
+
+    def cast_moving(self, rays: Rays, t: float, static_distance: np.ndarray,
+                    workers: int | None = None) -> tuple[np.ndarray, Hits]:
+        """Rays on which a moving object is nearer than the static hit, at time ``t`` [s].
+
+        ``static_distance`` (n,) is the distance of each ray's static hit
+        (from :meth:`cast_static`, inf on a miss). Returns the indices (k,)
+        of those rays, ascending, and their :class:`Hits` (k rays, every
+        field) — the same numbers as :meth:`cast` gives on these rays; on all
+        other rays :meth:`cast` gives the static hits.
+        """
+        if self.scene.version != self._version:
+            raise ConfigError("scene", "changed after the caster was built", "a new SceneCaster (use cast())")
+        o, d = rays.origins, rays.directions
+        workers = default_workers() if workers is None else workers
+        dist = np.array(static_distance, dtype=float)
+        states = {i: self.scene.objects[i].state_at(t) for i in self._moving}
+        changes = self._moving_changes(o, d, states, dist, workers)
+        if not changes:
+            return np.zeros(0, np.int64), Hits(*(_allocate(f, 0) for f in HIT_FIELDS))
+        rows = np.unique(np.concatenate([c[0] for c in changes]))
+        k = len(rows)
+        obj = np.empty(k, np.int32)
+        tri = np.empty(k, np.int32)
+        normal = np.empty((k, 3))
+        dn = np.empty(k)
+        for r, i, tr, nrm, dot in changes:  # in order: a later, nearer object overwrites
+            at = np.searchsorted(rows, r)
+            obj[at], tri[at], normal[at], dn[at] = i, tr, nrm, dot
+        distance = np.take(dist, rows)
+        d_rows = np.take(d, rows, axis=0)
+        point = d_rows * distance[:, None]
+        point += o[0] if o.strides[0] == 0 else np.take(o, rows, axis=0)
+        velocity = np.zeros((k, 3))
+        for i in dict.fromkeys(c[1] for c in changes):
+            sel = np.flatnonzero(obj == i)
+            velocity[sel] = states[i].point_velocity(np.take(point, sel, axis=0))
+        hits = Hits(distance, point, normal * np.where(dn > 0, -1.0, 1.0)[:, None], np.abs(dn),
+                    obj, np.take(self._mat_lut, obj + 1), tri, velocity)
+        return rows, hits
+
+    def _moving_changes(self, o, d, states, dist, threads) -> list[tuple]:
+        """Trace the rays near each moving object; ``dist`` is updated where one is nearer.
+
+        Returns, per object that wins rays, in order: (rows, object index,
+        triangle ids, world normals (not turned), normal . direction).
+        """
+        changes = []
+        for k, i in enumerate(self._moving):
+            st = states[i]
+            rot, pos = st.pose.rotation, st.pose.position
+            # Rays into the object's frame: x_local = R^T (x - p). A rigid
+            # motion preserves lengths, so the local distance is the world one.
+            # Cull: only rays that pass through the object's bounding sphere
+            # before their current closest hit can hit it.
+            centre = pos + rot @ self._moving_centre[k]
+            sel = _rays_near_sphere(o, d, centre, self._moving_radius[k], dist)
+            if len(sel) == 0:
+                continue
+            if o.strides[0] == 0:  # one shared origin: move it once
+                o_local = _rotate((o[0] - pos)[None], rot)
+                o_local = np.broadcast_to(o_local[0], (len(sel), 3))
+            else:
+                o_local = _rotate(np.take(o, sel, axis=0) - pos, rot)
+            t_m, _, p, n_local = self._moving_bvh[k].intersect(o_local, _rotate(np.take(d, sel, axis=0), rot),
+                                                               threads=threads)
+            won = np.flatnonzero(t_m < np.take(dist, sel))  # inf < inf is False: misses never win
+            if len(won) == 0:
+                continue
+            rows = np.take(sel, won)
+            dist[rows] = np.take(t_m, won)
+            normal = _rotate(np.take(n_local, won, axis=0), rot.T)
+            changes.append((rows, i, np.take(p, won), normal, _dot_rows(normal, np.take(d, rows, axis=0))))
+        return changes
 
     def _static_memo(self, o, d) -> tuple[tuple | None, bool]:
         """Arrays (distance, object, triangle, normal) for the static hits of these rays,
@@ -140,48 +226,23 @@ class SceneCaster:
         dist[:] = dist_s
         obj[:] = obj_s
         # Moving objects, in order; a later one that is nearer overwrites.
-        changes = []
-        for k, i in enumerate(self._moving):
-            st = states[i]
-            rot, pos = st.pose.rotation, st.pose.position
-            # Rays into the object's frame: x_local = R^T (x - p). A rigid
-            # motion preserves lengths, so the local distance is the world one.
-            # Cull: only rays that pass through the object's bounding sphere
-            # before their current closest hit can hit it.
-            centre = pos + rot @ self._moving_centre[k]
-            sel = _rays_near_sphere(o, d, centre, self._moving_radius[k], dist)
-            if len(sel) == 0:
-                continue
-            if o.strides[0] == 0:  # one shared origin: move it once
-                o_local = _rotate((o[0] - pos)[None], rot)
-                o_local = np.broadcast_to(o_local[0], (len(sel), 3))
-            else:
-                o_local = _rotate(np.take(o, sel, axis=0) - pos, rot)
-            t_m, _, p, n_local = self._moving_bvh[k].intersect(o_local, _rotate(np.take(d, sel, axis=0), rot),
-                                                               threads=threads)
-            won = np.flatnonzero(t_m < np.take(dist, sel))  # inf < inf is False: misses never win
-            if len(won) == 0:
-                continue
-            rows = np.take(sel, won)
-            dist[rows] = np.take(t_m, won)
+        changes = self._moving_changes(o, d, states, dist, threads) if states else []
+        for rows, i, _, _, _ in changes:
             obj[rows] = i
-            normal = _rotate(np.take(n_local, won, axis=0), rot.T)
-            changes.append((rows, np.take(p, won), normal, _dot_rows(normal, np.take(d, rows, axis=0)),
-                            i))
         if "triangle_id" in out:
             out["triangle_id"][:] = tri_s
-            for rows, tri, *_ in changes:
+            for rows, _, tri, _, _ in changes:
                 out["triangle_id"][rows] = tri
         if "material_id" in out:
             np.take(self._mat_lut, obj + 1, out=out["material_id"])
         # |n . d| is the incidence cosine; the normal is turned towards the ray.
         if "cos_incidence" in out:
             np.abs(dn_s, out=out["cos_incidence"])
-            for rows, _, _, dn, _ in changes:
+            for rows, _, _, _, dn in changes:
                 out["cos_incidence"][rows] = np.abs(dn)
         if "normal" in out:
             np.multiply(normal_s, np.where(dn_s > 0, -1.0, 1.0)[:, None], out=out["normal"])
-            for rows, _, normal, dn, _ in changes:
+            for rows, _, _, normal, dn in changes:
                 out["normal"][rows] = normal * np.where(dn > 0, -1.0, 1.0)[:, None]
         if "point" in out:
             point = d * np.where(obj >= 0, dist, np.nan)[:, None]
@@ -190,7 +251,7 @@ class SceneCaster:
         if "velocity" in out:
             vel = out["velocity"]
             vel[:] = 0.0
-            for i in dict.fromkeys(c[4] for c in changes):
+            for i in dict.fromkeys(c[1] for c in changes):
                 sel = np.flatnonzero(obj == i)  # only points on moving objects have a velocity
                 p_hit = np.take(d, sel, axis=0) * np.take(dist, sel)[:, None]
                 p_hit += o[0] if o.strides[0] == 0 else np.take(o, sel, axis=0)
