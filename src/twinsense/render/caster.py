@@ -135,7 +135,8 @@ class SceneCaster:
         changes = self._moving_changes(o, d, states, dist, workers)
         if not changes:
             return np.zeros(0, np.int64), Hits(*(_allocate(f, 0) for f in HIT_FIELDS))
-        rows = np.unique(np.concatenate([c[0] for c in changes]))
+        # One object's rows are already ascending (from a cull by np.nonzero).
+        rows = changes[0][0] if len(changes) == 1 else np.unique(np.concatenate([c[0] for c in changes]))
         k = len(rows)
         obj = np.empty(k, np.int32)
         tri = np.empty(k, np.int32)
