@@ -4,7 +4,9 @@ Prints Mrays/s of ``twinsense.render.cast`` with every per-ray output
 (distance, point, normal, incidence, object, material, triangle, velocity)
 for a static scene and for the same scene with moving objects, next to a
 bare embreex call (closest-hit ids only, single thread) measured in the same
-process, so the ratio holds on a busy machine.
+process, so the ratio holds on a busy machine. Also: one thread against the
+default workers, only the fields a radar needs, and a fixed sensor's repeated
+cast of the same read-only rays (static hits kept, moving objects traced).
 
 Run:  .venv/bin/python benchmarks/bench_render.py
 """
@@ -18,7 +20,7 @@ import time
 import numpy as np
 
 from twinsense.demos.office import build_office_scene, sensor_pose, triangle_count
-from twinsense.render import PinholeCamera, cast, caster_for
+from twinsense.render import PinholeCamera, Rays, cast, caster_for
 
 
 def best_of(fn, repeats=7):
@@ -29,6 +31,9 @@ def best_of(fn, repeats=7):
         fn()
         times.append(time.perf_counter() - t0)
     return min(times), float(np.median(times))
+
+
+LEAN = ("distance", "cos_incidence", "object_id", "material_id", "velocity")  # what a radar asks
 
 
 def main() -> None:
@@ -52,6 +57,22 @@ def main() -> None:
             print(f"  bare embreex, 1 thread      : {rb * 1e3:6.1f} ms best, {rm * 1e3:6.1f} ms median "
                   f"-> {n / rb / 1e6:5.1f} Mrays/s")
             print(f"  ratio twinsense / bare      : {best / rb:5.2f}")
+        b1, _ = best_of(lambda scene=scene: cast(scene, rays, 0.3, workers=1))
+        print(f"  the same on 1 thread        : {b1 * 1e3:6.1f} ms best "
+              f"(workers / 1 thread: {best / b1:4.2f})")
+        bl, _ = best_of(lambda scene=scene: cast(scene, rays, 0.3, fields=LEAN))
+        print(f"  radar's fields only         : {bl * 1e3:6.1f} ms best")
+        d = rays.directions.copy()
+        d.setflags(write=False)
+        origin = np.array(rays.origins[0])
+        origin.setflags(write=False)
+        fixed = Rays(origin, d)
+        bw, _ = best_of(lambda scene=scene, fixed=fixed: cast(scene, fixed, 0.3, fields=LEAN))
+        print(f"  fixed sensor, repeated cast : {bw * 1e3:6.1f} ms best (static hits kept)")
+        static = caster.cast_static(fixed, ("distance",))
+        bm, _ = best_of(lambda c=caster, fixed=fixed, static=static: c.cast_moving(fixed, 0.3,
+                                                                                   static.distance))
+        print(f"  cast_moving only            : {bm * 1e3:6.1f} ms best")
         h = cast(scene, rays, 0.3)
         print(f"  hit fraction {h.hit.mean():.3f}")
 
