@@ -161,6 +161,7 @@ class EmbreeIntersector(Intersector):
 
 
 _POOLS: dict[int, ThreadPoolExecutor] = {}
+os.register_at_fork(after_in_child=_POOLS.clear)  # a forked child starts its own threads
 
 
 def _pool(n: int) -> ThreadPoolExecutor:

@@ -17,6 +17,9 @@ T = TypeVar("T")
 R = TypeVar("R")
 
 _POOLS: dict[int, ThreadPoolExecutor] = {}
+# A forked child (e.g. a process-pool worker) inherits the pools but not their
+# threads: it must start its own, or its tasks would wait forever.
+os.register_at_fork(after_in_child=_POOLS.clear)
 
 
 def pool(workers: int) -> ThreadPoolExecutor:
