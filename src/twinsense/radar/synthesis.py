@@ -496,7 +496,9 @@ def synthesize(points: np.ndarray, velocities: np.ndarray | None, weights: np.nd
         vrm = np.take(vr, mv, axis=0) if bistatic else None
         t_c = c.adc_start_time + (n_samp // 2) / c.sample_rate
         centres = c.chirp_times() + t_c
-        tasks += [("moving", lo, hi) for lo, hi in _moving_bounds(len(mv))]
+        # Movers first: their chunks are the longest, so the threads then
+        # share the short static chunks evenly at the end.
+        tasks = [("moving", lo, hi) for lo, hi in _moving_bounds(len(mv))] + tasks
 
     def run(task):
         kind, lo, hi = task
