@@ -220,20 +220,21 @@ class FMCWRadar:
             differ |= s.rcs != base.rcs
             rows = np.flatnonzero(differ)
             if len(rows) <= len(p) // 4:
-                w = base.weights.copy()
-                if len(rows):
-                    w[rows] = self._weights(s.take(rows))
+                # Only the changed rows need weights (the others keep the base's).
+                w_rows = self._weights(s.take(rows)) if len(rows) else np.zeros(0, complex)
                 # One synthesis of the change: the base's hidden static
                 # scatterers with negated weights, the newly seen static ones,
                 # and the movers (zero weights, behind the antennas, add nothing).
                 gone = rows[~np.take(base.moving, rows)]
-                new = rows[~np.take(moving, rows)]
-                mv = np.flatnonzero(moving & (w != 0))
+                is_new = ~np.take(moving, rows)
+                is_mover = ~is_new & (w_rows != 0)
+                new, mv = rows[is_new], rows[is_mover]
                 dp = np.concatenate([np.take(base.points, gone, axis=0), np.take(p, new, axis=0),
                                      np.take(p, mv, axis=0)])
                 dv = np.zeros_like(dp)
                 dv[len(gone) + len(new):] = np.take(v, mv, axis=0)
-                dw = np.concatenate([-np.take(base.weights, gone), np.take(w, new), np.take(w, mv)])
+                dw = np.concatenate([-np.take(base.weights, gone), w_rows[is_new],
+                                     w_rows[is_mover]])
                 return base.cube + synthesize(dp, dv, dw, cfg, **kw)
         # A new base from this frame: the static scatterers (movers with zero weight).
         w = self._weights(s)

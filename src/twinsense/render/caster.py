@@ -130,9 +130,11 @@ class SceneCaster:
             raise ConfigError("scene", "changed after the caster was built", "a new SceneCaster (use cast())")
         o, d = rays.origins, rays.directions
         workers = default_workers() if workers is None else workers
-        dist = np.array(static_distance, dtype=float)
+        # Later objects cull against earlier ones' hits: a private copy then.
+        several = len(self._moving) > 1
+        dist = np.array(static_distance, dtype=float) if several else np.asarray(static_distance, float)
         states = {i: self.scene.objects[i].state_at(t) for i in self._moving}
-        changes = self._moving_changes(o, d, states, dist, workers)
+        changes = self._moving_changes(o, d, states, dist, workers, update=several)
         if not changes:
             return np.zeros(0, np.int64), Hits(*(_allocate(f, 0) for f in HIT_FIELDS))
         # One object's rows are already ascending (from a cull by np.nonzero).
@@ -142,10 +144,10 @@ class SceneCaster:
         tri = np.empty(k, np.int32)
         normal = np.empty((k, 3))
         dn = np.empty(k)
-        for r, i, tr, nrm, dot in changes:  # in order: a later, nearer object overwrites
+        distance = np.empty(k)
+        for r, i, tr, nrm, dot, t_won in changes:  # in order: a later, nearer object overwrites
             at = np.searchsorted(rows, r)
-            obj[at], tri[at], normal[at], dn[at] = i, tr, nrm, dot
-        distance = np.take(dist, rows)
+            obj[at], tri[at], normal[at], dn[at], distance[at] = i, tr, nrm, dot, t_won
         d_rows = np.take(d, rows, axis=0)
         point = d_rows * distance[:, None]
         point += o[0] if o.strides[0] == 0 else np.take(o, rows, axis=0)
@@ -157,11 +159,12 @@ class SceneCaster:
                     obj, np.take(self._mat_lut, obj + 1), tri, velocity)
         return rows, hits
 
-    def _moving_changes(self, o, d, states, dist, threads) -> list[tuple]:
-        """Trace the rays near each moving object; ``dist`` is updated where one is nearer.
+    def _moving_changes(self, o, d, states, dist, threads, update=True) -> list[tuple]:
+        """Trace the rays near each moving object; ``dist`` is updated where one is
+        nearer (unless ``update`` is False: one object, nothing to cull against).
 
         Returns, per object that wins rays, in order: (rows, object index,
-        triangle ids, world normals (not turned), normal . direction).
+        triangle ids, world normals (not turned), normal . direction, distances).
         """
         changes = []
         for k, i in enumerate(self._moving):
@@ -186,9 +189,12 @@ class SceneCaster:
             if len(won) == 0:
                 continue
             rows = np.take(sel, won)
-            dist[rows] = np.take(t_m, won)
+            t_won = np.take(t_m, won)
+            if update:
+                dist[rows] = t_won
             normal = _rotate(np.take(n_local, won, axis=0), rot.T)
-            changes.append((rows, i, np.take(p, won), normal, _dot_rows(normal, np.take(d, rows, axis=0))))
+            changes.append((rows, i, np.take(p, won), normal,
+                            _dot_rows(normal, np.take(d, rows, axis=0)), t_won))
         return changes
 
     def _static_memo(self, o, d) -> tuple[tuple | None, bool]:
@@ -228,22 +234,22 @@ class SceneCaster:
         obj[:] = obj_s
         # Moving objects, in order; a later one that is nearer overwrites.
         changes = self._moving_changes(o, d, states, dist, threads) if states else []
-        for rows, i, _, _, _ in changes:
+        for rows, i, *_ in changes:
             obj[rows] = i
         if "triangle_id" in out:
             out["triangle_id"][:] = tri_s
-            for rows, _, tri, _, _ in changes:
+            for rows, _, tri, *_ in changes:
                 out["triangle_id"][rows] = tri
         if "material_id" in out:
             np.take(self._mat_lut, obj + 1, out=out["material_id"])
         # |n . d| is the incidence cosine; the normal is turned towards the ray.
         if "cos_incidence" in out:
             np.abs(dn_s, out=out["cos_incidence"])
-            for rows, _, _, _, dn in changes:
+            for rows, _, _, _, dn, _ in changes:
                 out["cos_incidence"][rows] = np.abs(dn)
         if "normal" in out:
             np.multiply(normal_s, np.where(dn_s > 0, -1.0, 1.0)[:, None], out=out["normal"])
-            for rows, _, _, normal, dn in changes:
+            for rows, _, _, normal, dn, _ in changes:
                 out["normal"][rows] = normal * np.where(dn > 0, -1.0, 1.0)[:, None]
         if "point" in out:
             point = d * np.where(obj >= 0, dist, np.nan)[:, None]
