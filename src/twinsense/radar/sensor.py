@@ -110,13 +110,13 @@ class FMCWRadar:
         Threads for the render and the IF synthesis (see
         :func:`twinsense.radar.synthesize`); None: the cores, at most 4.
     reuse_static : bool
-        Keep the ray-cast hits on static objects while the radar's pose does
-        not change, and keep the IF signal of the static scatterers of a
-        frame and, while
-        later frames see mostly the same static scatterers (a radar that does
-        not move), update it with only the scatterers that changed (those a
-        moving object now hides or uncovers). Exact up to the synthesis'
-        ``eps``; the result does not depend on the history beyond that.
+        For a radar at rest (same pose, no velocity) in an unchanged scene:
+        keep the hits on static objects and the static scatterer arrays
+        (only rays near moving objects are traced again), and keep the IF
+        signal of a frame's static scatterers, updating it with only the
+        scatterers that changed (those a moving object now hides or
+        uncovers, and the movers). Exact up to the synthesis' ``eps``; a
+        moving radar or a changed scene simply rebuilds what is kept.
     """
 
     kind = "radar"
