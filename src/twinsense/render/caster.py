@@ -5,6 +5,14 @@ coordinates. Each moving rigid object keeps its own structure in its local
 frame; rays are moved into that frame instead of rebuilding the BVH every
 frame (a rigid motion preserves distances, so hit distances need no change).
 Structures are cached per (scene, sensor kind, backend).
+
+Speed: large bundles are cast in chunks on worker threads (Embree and NumPy
+release the GIL). A fixed sensor casts the same rays every frame; if its
+ray arrays are read-only, the hits on static objects are kept (for the last
+few bundles) and only rays near moving objects are traced again.
+:meth:`SceneCaster.cast_static` and :meth:`SceneCaster.cast_moving` give the
+two parts separately, for callers that keep what they derive from the
+static hits.
 """
 
 from __future__ import annotations
@@ -198,8 +206,8 @@ class SceneCaster:
         return changes
 
     def _static_memo(self, o, d) -> tuple[tuple | None, bool]:
-        """Arrays (distance, object, triangle, normal) for the static hits of these rays,
-        and whether they are already filled; None if the rays may change."""
+        """Arrays (distance, object, triangle, normal, normal . direction) for the static
+        hits of these rays, and whether they are already filled; None if the rays may change."""
         if self._static_bvh is None or not (_frozen(o) and _frozen(d)):
             return None, False
         for entry in self._memos:
