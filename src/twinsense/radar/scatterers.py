@@ -163,8 +163,9 @@ def received_amplitude(scatterers: Scatterers, config: RadarConfig) -> np.ndarra
     power = g
     power *= (2.0 * config.tx_power * lam**2 / (4 * math.pi) ** 3) * scatterers.rcs
     # A = sqrt(2 P_r); no return from a point at an element's origin.
-    np.divide(power, den, out=power, where=den > 0)
-    power[den <= 0] = 0.0
+    ok = den > 0
+    np.divide(power, den, out=power, where=ok)
+    power[~ok] = 0.0
     return np.sqrt(power, out=power)
 
 
@@ -244,8 +245,11 @@ class ScatterRenderer:
     The camera (directions and pixel solid angles) is built once, the world
     rays once per sensor pose. With ``reuse_static_hits`` the rays are
     read-only, so the caster keeps the hits on static objects while the pose
-    stays (see :meth:`twinsense.render.SceneCaster.cast`); ``workers``: ray
-    cast threads (None: the cores, at most 4).
+    stays (see :meth:`twinsense.render.SceneCaster.cast`), and a radar at
+    rest in a scene where every ray meets a static object keeps the static
+    scatterer arrays and replaces only the rows moving objects win (the same
+    numbers as a full render). ``workers``: ray cast threads (None: the
+    cores, at most 4).
     """
 
     def __init__(self, config: RadarConfig, backend: str = "embree", workers: int | None = None,
