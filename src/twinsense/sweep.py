@@ -96,7 +96,10 @@ def expand_grid(parameters: Mapping[str, Sequence[Any]]) -> list[dict]:
     return [dict(zip(keys, combo)) for combo in itertools.product(*values)]
 
 
-def _run_one(raw: dict, source: str, base_dir: str, out_dir: str) -> dict:
+def _run_one(raw: dict, source: str, base_dir: str, out_dir: str, threads: int | None = None) -> dict:
+    if threads is not None:
+        # One simulation per process: the sensors' thread pools use this many.
+        os.environ["TWINSENSE_THREADS"] = str(threads)
     sc = scenario_from_dict(raw, source=source, base_dir=Path(base_dir))
     res = sc.run(out_dir)
     return {"recording": str(res.path) if res.path else None, "frames": res.frame_counts}
@@ -150,8 +153,9 @@ def sweep(scenario, parameters: Mapping[str, Sequence[Any]], out_dir, *, backend
         outcomes = [_safe(_run_one, *j) for j in jobs]
     elif backend == "process":
         n = workers or os.cpu_count() or 1
+        per_process = max(1, (os.cpu_count() or 1) // min(n, len(jobs)))
         with ProcessPoolExecutor(max_workers=min(n, len(jobs))) as ex:
-            futures = [ex.submit(_safe, _run_one, *j) for j in jobs]
+            futures = [ex.submit(_safe, _run_one, *j, per_process) for j in jobs]
             outcomes = [f.result() for f in futures]
     else:
         outcomes = _run_ray(jobs)

@@ -31,7 +31,15 @@ def pool(workers: int) -> ThreadPoolExecutor:
 
 
 def default_workers() -> int:
-    """Threads used when none are given: the machine's cores, at most 4."""
+    """Threads used when none are given: ``$TWINSENSE_THREADS``, else the machine's cores (at most 4).
+
+    Parameter sweeps that run one simulation per process set
+    ``TWINSENSE_THREADS=1`` in their workers so processes and threads do not
+    oversubscribe the cores.
+    """
+    env = os.environ.get("TWINSENSE_THREADS", "").strip()
+    if env.isdigit() and int(env) > 0:
+        return int(env)
     return max(1, min(4, os.cpu_count() or 1))
 
 
