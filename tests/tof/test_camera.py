@@ -13,7 +13,6 @@ from twinsense.tof import InvalidReason, ToFCamera
 from twinsense.tof.config import C_LIGHT, H_PLANCK
 from twinsense.tof.effects import crosstalk
 from twinsense.tof.pipeline import expected_raw
-from twinsense.tof.raycast import caster_for
 from twinsense.tof.signal import beam_profile, pixel_phasors
 
 
@@ -297,42 +296,74 @@ def test_motion_artifacts_render_each_raw_frame_at_its_time(wall_scene, make_cam
                                atol=1e-6)
 
 
-def test_fast_caster_agrees_with_shared_renderer(look_x):
+def _moving_scene():
     scene = _saturation_scene()
     scene.add_object("mover", Box((0.3, 0.3, 0.3)), "wood",
                      motion=ConstantVelocity(Pose(position=(1.2, 0.4, 0.1)), (0, -1.0, 0)))
     # A spinning, elongated object: the rays go into its rotating frame and are culled
-    # against its bounding sphere and box there.
+    # against its bounding sphere there.
     scene.add_object("spinner", Box((0.1, 0.6, 0.05)), "plastic",
                      motion=ConstantVelocity(Pose(position=(1.0, -0.3, -0.1)), (0, 0, 0), (0.3, 2.0, 5.0)))
+    return scene
+
+
+def test_tof_hits_are_the_shared_casters_hits(look_x):
+    """The camera renders through twinsense.render.cast: same rays, same hits, moving objects too."""
+    scene = _moving_scene()
     cam = ToFCamera.preset("generic", mount=look_x, width=40, height=30)
     rays = cam.pinhole.rays(look_x, 2)
-    ref = cast(scene, rays, 0.1, kind="tof")
-    fast = caster_for(scene).cast(look_x.position, rays.directions.astype(np.float32), 0.1, normals=True)
-    np.testing.assert_array_equal(fast.object_id, ref.object_id)
-    hit = ref.hit
-    # Embree float32 distances: ~1e-7 relative, 1e-6 m at these ranges.
-    np.testing.assert_allclose(fast.distance[hit], ref.distance[hit], atol=1e-5)
-    np.testing.assert_allclose(fast.cos_incidence[hit], ref.cos_incidence[hit], atol=1e-5)
-    np.testing.assert_allclose(fast.normal[hit], ref.normal[hit], atol=1e-5)
-    assert np.all(np.isinf(fast.distance[~hit]))
+    for t in (0.0, 0.1, 0.37):
+        ref = cast(scene, rays, t, kind="tof")
+        hits = cam._renderer.hits(scene, look_x.rotation, look_x.position, t, normals=True)
+        assert np.any(np.isin(ref.object_id, [2, 3]))  # the movers are in view
+        # Same rays (the camera's are the pinhole's, rotated without BLAS): the hit
+        # objects agree exactly; distances, cosines and normals to float64 rounding
+        # of the ray directions (~1e-16 relative), far below 1e-12.
+        np.testing.assert_array_equal(hits.object_id, ref.object_id)
+        hit = ref.hit
+        np.testing.assert_allclose(hits.distance[hit], ref.distance[hit], rtol=1e-12)
+        np.testing.assert_allclose(hits.cos_incidence, ref.cos_incidence, atol=1e-12)
+        np.testing.assert_allclose(hits.normal, ref.normal, atol=1e-12)
+        assert np.all(np.isinf(hits.distance[~hit]))
+        # The surface samples are these hits in float32, 0 on a miss.
+        samples = cam.render(scene, t)
+        d_ref = np.where(hit, ref.distance, 0.0).astype(np.float32).reshape(samples.distance.shape)
+        np.testing.assert_allclose(samples.distance, d_ref, rtol=1e-6)
 
 
-def test_render_workers_give_the_same_frames(look_x):
-    """Tracing part of the rays in a worker process changes nothing in the output."""
-    scene = _saturation_scene()
-    scene.add_object("mover", Box((0.3, 0.3, 0.3)), "wood",
-                     motion=ConstantVelocity(Pose(position=(1.2, 0.4, 0.1)), (0, -1.0, 0)))
-    for extra in ({}, {"motion_artifacts": True}, {"crosstalk_sigma_px": 2.5, "quantization": False},
-                  {"noise": False, "modulation_frequencies": (20e6,)}):
-        kw = dict(mount=look_x, width=40, height=30, **extra)
-        serial = ToFCamera.preset("generic", **kw)
-        parallel = ToFCamera.preset("generic", render_workers=1, **kw)
-        for t in (0.0, 0.2):
-            a = serial.capture(scene, t, np.random.default_rng(3))
-            b = parallel.capture(scene, t, np.random.default_rng(3))
-            for name, arr in a.streams().items():
-                np.testing.assert_array_equal(arr, b.streams()[name], err_msg=name)
+def test_kept_static_phasors_equal_a_full_rendering(look_x):
+    """A fixed camera keeps its static-scene phasors and recomputes only pixels that see
+    movers: bit for bit what a full rendering at each time gives."""
+    scene = _moving_scene()
+    cam = ToFCamera.preset("generic", mount=look_x, width=40, height=30)
+    for t in (0.0, 0.1, 0.37, 0.1, 5.0):  # 5 s: the mover has left the view
+        fast = cam._renderer.phasors(scene, look_x.rotation, look_x.position, t)
+        full = pixel_phasors(cam.render(scene, t), cam.radiometry)
+        for name in ("real", "imag", "tap_sum"):
+            np.testing.assert_array_equal(getattr(fast, name), getattr(full, name), err_msg=f"{name} t={t}")
+    # Frames with motion artefacts render every raw frame this way, too.
+    motion = ToFCamera.preset("generic", mount=look_x, width=40, height=30, motion_artifacts=True,
+                              noise=False)
+    frame = motion.capture(scene, 0.1)
+    times = motion.config.raw_frame_times(0.1) + 0.5 * motion.config.exposure_time
+    ref = expected_raw([pixel_phasors(motion.render(scene, float(ti)), motion.radiometry) for ti in times],
+                       motion.config)
+    fast = expected_raw([motion._renderer.phasors(scene, look_x.rotation, look_x.position, float(ti))
+                         for ti in times], motion.config)
+    for a, b in zip(fast, ref):
+        np.testing.assert_array_equal(a, b)
+    assert np.isfinite(frame.distance).any()
+
+
+def test_camera_rays_are_read_only_and_kept_per_pose(look_x):
+    """Read-only rays let the shared caster keep the static hits of a fixed camera."""
+    cam = ToFCamera.preset("generic", mount=look_x, width=8, height=6)
+    rays = cam._renderer.rays(look_x.rotation, look_x.position)
+    assert not rays.directions.flags.writeable and not rays.origins.flags.writeable
+    assert cam._renderer.rays(look_x.rotation, look_x.position.copy()) is rays
+    ref = cam.pinhole.rays(look_x, cam.config.supersample)
+    np.testing.assert_array_equal(rays.directions, ref.directions)
+    np.testing.assert_array_equal(rays.origins, ref.origins)
 
 
 def test_vignetting_and_beam_fall_off_across_a_wall(wall_scene, look_x):

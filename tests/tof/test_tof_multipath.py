@@ -10,7 +10,6 @@ from twinsense.scene import Box, Pose, Scene
 from twinsense.tof import ToFCamera
 from twinsense.tof.config import C_LIGHT
 from twinsense.tof.multipath import indirect_phasors
-from twinsense.tof.raycast import caster_for
 from twinsense.tof.signal import beam_profile
 
 R2 = math.sqrt(0.5)
@@ -34,8 +33,7 @@ def test_indirect_light_matches_quadrature(look_x, small_config):
     cam = ToFCamera(cfg, look_x)
     scene = _corner()
     pose = look_x
-    samples, normals = cam._renderer.samples(scene, caster_for(scene), pose.rotation, pose.position, 0.0,
-                                             normals=True)
+    samples, normals = cam._renderer.samples(scene, pose.rotation, pose.position, 0.0, normals=True)
     ind = indirect_phasors(samples.distance, normals, samples.albedo, cam.radiometry, None)
 
     # Reference: receiver = the surface point seen by pixel (7, 3) on the left wall; sources =

@@ -6,18 +6,17 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from twinsense import validation as V
 from twinsense.errors import ConfigError
+from twinsense.linalg import rotate_rows
+from twinsense.render import Rays, cast
 from twinsense.scene.pose import Pose
 from twinsense.scene.scene import Mount, Scene
 from twinsense.tof.config import ToFConfig
 from twinsense.tof.frame import ToFFrame
 from twinsense.tof.multipath import indirect_phasors
-from twinsense.tof.parallel import parallel_renderer_for
 from twinsense.tof.pipeline import finish_geometry, noise_rows, noise_seeds, run_chain
 from twinsense.tof.presets import tof_preset
-from twinsense.tof.raycast import caster_for, rotate_rows
-from twinsense.tof.rendering import BandRenderer
+from twinsense.tof.rendering import ToFRenderer
 from twinsense.tof.signal import PixelPhasors, SurfaceSamples, pixel_phasors
 
 
@@ -34,11 +33,11 @@ class ToFCamera:
         along world +z.
     name : str
         Name of the sensor in recordings.
-    render_workers : int
-        Extra processes that render and process a band of image rows of every
-        frame (0: all in this process). Used by the default path (one
-        rendering per frame, no multipath); on two cores 1 worker gives
-        ~1.7x the frame rate. The output does not depend on it.
+
+    Rays are cast with the shared caster (:mod:`twinsense.render`), whose
+    worker threads trace large bundles in parallel. A camera that does not
+    move keeps its static-scene pixel signals and recomputes only the pixels
+    where moving objects are seen (see :class:`ToFRenderer`).
 
     Examples
     --------
@@ -49,7 +48,7 @@ class ToFCamera:
     kind = "tof"
 
     def __init__(self, config: ToFConfig | None = None, mount: Mount | Pose | None = None,
-                 name: str = "tof", render_workers: int = 0):
+                 name: str = "tof"):
         config = ToFConfig() if config is None else config
         if not isinstance(config, ToFConfig):
             raise ConfigError(f"{name}.config", config, "a ToFConfig")
@@ -64,20 +63,19 @@ class ToFCamera:
         self.config = config
         self.mount = mount
         self.name = name
-        self.render_workers = V.integer(f"{name}.render_workers", render_workers, lo=0, hi=64)
-        self._renderer = BandRenderer(config)
+        self._renderer = ToFRenderer(config, self.kind)
         self.pinhole = self._renderer.pinhole
         self.radiometry = self._renderer.radiometry
         self._pixel_dirs = self._renderer.pixel_dirs
 
     @classmethod
     def preset(cls, preset_name: str, mount: Mount | Pose | None = None, name: str = "tof",
-               render_workers: int = 0, **overrides) -> ToFCamera:
+               **overrides) -> ToFCamera:
         """A camera from a named preset (``pmd_pico_flexx``, ``paper_pico_flexx``, ``generic``).
 
         ``overrides`` replace config fields; ``mode=`` picks a pico flexx Royale mode.
         """
-        return cls(tof_preset(preset_name, **overrides), mount, name, render_workers)
+        return cls(tof_preset(preset_name, **overrides), mount, name)
 
     @property
     def frame_rate(self) -> float:
@@ -112,20 +110,14 @@ class ToFCamera:
         if rng is None:
             rng = np.random.default_rng()
         seeds = noise_seeds(cfg, rng) if cfg.noise else None
-        if self.render_workers > 0 and not (cfg.motion_artifacts or cfg.multipath):
-            # Rendering and the per-pixel chain split by image rows across processes.
-            pose = self.mount.pose_at(scene, t)
-            par = parallel_renderer_for(scene, self.kind, self.render_workers)
-            out = par.frame(self._renderer, scene, pose.rotation, pose.position, t, seeds)
+        if cfg.motion_artifacts:
+            times = cfg.raw_frame_times(t) + 0.5 * cfg.exposure_time
+            phasors: PixelPhasors | list[PixelPhasors] = [
+                self._render_phasors(scene, float(ti)) for ti in times]
         else:
-            if cfg.motion_artifacts:
-                times = cfg.raw_frame_times(t) + 0.5 * cfg.exposure_time
-                phasors: PixelPhasors | list[PixelPhasors] = [
-                    self._render_phasors(scene, float(ti)) for ti in times]
-            else:
-                phasors = self._render_phasors(scene, t)
-            noise = noise_rows(cfg, seeds, 0, cfg.height) if seeds is not None else None
-            out = run_chain(phasors, cfg, noise=noise)
+            phasors = self._render_phasors(scene, t)
+        noise = noise_rows(cfg, seeds, 0, cfg.height) if seeds is not None else None
+        out = run_chain(phasors, cfg, noise=noise)
         distance, depth, invalid, confidence, points = finish_geometry(out, self._pixel_dirs, cfg)
         pose = self.mount.pose_at(scene, t)
         world = distance[..., None] * self._renderer.pixel_world_directions(pose.rotation)
@@ -140,26 +132,25 @@ class ToFCamera:
     def render(self, scene: Scene, t: float = 0.0) -> SurfaceSamples:
         """Sub-pixel surface samples (H*N, W*N) seen at time ``t`` (see :class:`SurfaceSamples`)."""
         pose = self.mount.pose_at(scene, t)
-        samples, _ = self._renderer.samples(scene, caster_for(scene, self.kind), pose.rotation,
-                                            pose.position, t)
+        samples, _ = self._renderer.samples(scene, pose.rotation, pose.position, t)
         return samples
 
     def _render_phasors(self, scene: Scene, t: float) -> PixelPhasors:
         """Expected pixel phasors at time ``t``."""
         cfg = self.config
         pose = self.mount.pose_at(scene, t)
-        caster = caster_for(scene, self.kind)
         if not cfg.multipath:
-            return self._renderer.phasors(scene, caster, pose.rotation, pose.position, t)
-        samples, normals = self._renderer.samples(scene, caster, pose.rotation, pose.position, t,
-                                                  normals=True)
+            return self._renderer.phasors(scene, pose.rotation, pose.position, t)
+        samples, normals = self._renderer.samples(scene, pose.rotation, pose.position, t, normals=True)
         phasors = pixel_phasors(samples, self.radiometry)
         occluded = None
         if cfg.multipath_visibility:
             rot = pose.rotation
 
             def occluded(o, d, dmax):
-                return caster.occluded(pose.apply(o), rotate_rows(d, rot.T), dmax, t)
+                # Shadow rays: the closest hit, if any, nearer than dmax blocks the path.
+                rays = Rays(pose.apply(o), rotate_rows(d, rot.T))
+                return cast(scene, rays, t, self.kind, fields=("distance",)).distance < dmax
 
         return phasors + indirect_phasors(samples.distance, normals, samples.albedo, self.radiometry,
                                           occluded)

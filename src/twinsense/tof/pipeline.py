@@ -14,7 +14,7 @@ import numpy as np
 
 from twinsense.tof.config import PHASE_STEPS, ToFConfig
 from twinsense.tof.demodulation import depth_noise, phase_amplitude, radial_distance
-from twinsense.tof.effects import CROSSTALK_TRUNCATE, crosstalk, digitize, gray_value
+from twinsense.tof.effects import crosstalk, digitize, gray_value
 from twinsense.tof.filters import flying_pixel_mask, noise_mask
 from twinsense.tof.frame import InvalidReason
 from twinsense.tof.signal import PixelPhasors, correlation_images
@@ -172,34 +172,6 @@ def chain_from_raw(corr: np.ndarray, taps: np.ndarray, gray_taps: np.ndarray, co
     if cfg.noise_filter:
         invalid[noise_mask(sigma_d, invalid == 0, cfg.max_noise)] |= np.uint8(InvalidReason.TOO_NOISY)
     return ChainOutput(dig.raw, gray, phase, amp, distance, sigma_d, invalid)
-
-
-def band_chain(phasors: PixelPhasors, extended: tuple[int, int], band: tuple[int, int], config: ToFConfig,
-               noise: ChainNoise | None) -> ChainOutput:
-    """The chain for image rows ``band`` from the phasors of rows ``extended`` (band plus halo).
-
-    The halo (:func:`crosstalk_halo` rows, or the image border) lets the
-    cross-talk blur see the same neighbours as on the full image, so the band
-    equals those rows of :func:`run_chain` bit for bit.
-
-    Parameters
-    ----------
-    phasors : PixelPhasors
-        Rows ``extended`` = [e0, e1) of the image.
-    band : (r0, r1)
-        Rows to return, inside ``extended``.
-    noise : ChainNoise or None
-        The band's rows of the frame's noise draws.
-    """
-    corr, taps, gray_taps = blurred_raw(phasors, config)
-    rows = slice(band[0] - extended[0], band[1] - extended[0])
-    return chain_from_raw(corr[..., rows, :], taps[..., rows, :], gray_taps[rows], config, noise)
-
-
-def crosstalk_halo(config: ToFConfig) -> int:
-    """Rows of neighbours the cross-talk blur reads on each side (its kernel radius)."""
-    sigma = config.crosstalk_sigma_px
-    return int(CROSSTALK_TRUNCATE * sigma + 0.5) if sigma > 0 else 0
 
 
 def finish_geometry(out: ChainOutput, pixel_dirs: np.ndarray, config: ToFConfig

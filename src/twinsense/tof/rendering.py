@@ -1,20 +1,31 @@
-"""Rendering a band of image rows: sub-pixel rays -> surface samples -> pixel phasors.
+"""Rendering for the ToF chain: sub-pixel rays -> shared ray caster -> surface samples -> pixel phasors.
 
-A band is a range of sensor pixel rows [r0, r1); its sub-pixel rays are rows
-r0*N .. r1*N of the supersampled image. Everything up to the pixel phasors is
-per pixel, so bands can be rendered independently (in different processes)
-and stacked without changing a single bit of the result.
+Rays are cast with :mod:`twinsense.render` (Embree, chunked on the shared
+worker threads), asking only for the fields the signal model needs:
+distance, incidence cosine and object, plus normals for multipath.
+
+A camera that does not move casts the same (read-only) rays every frame. The
+hits on static objects then never change, so neither do the surface samples
+and pixel phasors derived from them: :meth:`ToFRenderer.phasors` keeps the
+static-scene phasors and recomputes only the pixels in which a moving object
+is nearer than the static hit (:meth:`twinsense.render.SceneCaster.cast_moving`).
+Everything up to the pixel phasors is per pixel, so this gives bit for bit
+what rendering the whole image gives.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from twinsense.render.rays import PinholeCamera
+from twinsense.linalg import rotate_rows
+from twinsense.render import Hits, PinholeCamera, Rays, caster_for
 from twinsense.scene.scene import Scene
 from twinsense.tof.config import ToFConfig
-from twinsense.tof.raycast import ToFRayCaster, rotate_rows
 from twinsense.tof.signal import PixelPhasors, Radiometry, SurfaceSamples, pixel_phasors, radiance_factor
+
+#: Hit fields the direct-light model needs (normals only for multipath).
+DIRECT_FIELDS = ("distance", "cos_incidence", "object_id")
+_RAY_BUNDLES = 4  # camera poses whose rays are kept (the shared caster keeps 4 static-hit sets)
 
 
 def pinhole_for(config: ToFConfig) -> PinholeCamera:
@@ -32,69 +43,160 @@ def material_table(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return albedo, spec, retro
 
 
-class BandRenderer:
-    """Renders bands of a ToF camera's image (sensor-frame quantities fixed per config).
+class ToFRenderer:
+    """Renders a ToF camera's image through the shared caster (sensor-frame quantities fixed per config).
 
     Parameters
     ----------
     config : ToFConfig
+    kind : str
+        Sensor kind for object visibility (layers).
     """
 
-    def __init__(self, config: ToFConfig):
+    def __init__(self, config: ToFConfig, kind: str = "tof"):
         self.config = config
+        self.kind = kind
         self.pinhole = pinhole_for(config)
-        self.sub_dirs = self.pinhole.directions(config.supersample).astype(np.float32)
+        n = config.supersample
+        sub = self.pinhole.directions(n)  # (H*N, W*N, 3) float64, read-only
+        self._sub_rows = sub.reshape(-1, 3)
+        self.sub_dirs = sub.astype(np.float32)
         self.pixel_dirs = self.pinhole.directions(1).astype(np.float32)
         self.radiometry = Radiometry(config, self.sub_dirs)
-        self._dirs_cache: dict[tuple, np.ndarray] = {}
+        self._rays: dict[bytes, Rays] = {}
+        self._pixel_world: dict[bytes, np.ndarray] = {}
+        self._static: dict[int, tuple] = {}
 
-    def world_directions(self, rotation: np.ndarray, rows: tuple[int, int]) -> np.ndarray:
-        """Unit world directions (n, 3) float32 of the band's sub-pixel rays (cached per rotation)."""
-        key = (rotation.tobytes(), rows)
-        d = self._dirs_cache.get(key)
-        if d is None:
-            n = self.config.supersample
-            band = self.sub_dirs[rows[0] * n:rows[1] * n].reshape(-1, 3)
-            d = rotate_rows(band, rotation.T)
-            if len(self._dirs_cache) > 8:  # a moving camera: keep only the newest rotations
-                self._dirs_cache.clear()
-            self._dirs_cache[key] = d
-        return d
+    # --- rays ------------------------------------------------------------------
+
+    def rays(self, rotation: np.ndarray, position: np.ndarray) -> Rays:
+        """World rays of all sub-pixels (H*N*W*N rows, row-major image order) from a pose.
+
+        Cached per pose, with read-only arrays: the shared caster then keeps
+        the static hits of a camera that does not move.
+        """
+        key = rotation.tobytes() + position.tobytes()
+        r = self._rays.get(key)
+        if r is None:
+            d = rotate_rows(self._sub_rows, rotation.T)
+            d.setflags(write=False)
+            o = np.array(position, dtype=float)
+            o.setflags(write=False)
+            r = Rays(np.broadcast_to(o, d.shape), d)
+            if len(self._rays) >= _RAY_BUNDLES:  # a moving camera: keep only the newest poses
+                self._rays.pop(next(iter(self._rays)))
+            self._rays[key] = r
+        return r
 
     def pixel_world_directions(self, rotation: np.ndarray) -> np.ndarray:
         """Unit world directions (H, W, 3) float32 of the pixel-centre rays (cached per rotation)."""
-        key = ("pixel", rotation.tobytes())
-        d = self._dirs_cache.get(key)
+        key = rotation.tobytes()
+        d = self._pixel_world.get(key)
         if d is None:
-            d = rotate_rows(self.pixel_dirs.reshape(-1, 3), rotation.T).reshape(self.pixel_dirs.shape)
-            self._dirs_cache[key] = d
+            d = rotate_rows(self.pixel_dirs, rotation.T)
+            if len(self._pixel_world) >= _RAY_BUNDLES:
+                self._pixel_world.pop(next(iter(self._pixel_world)))
+            self._pixel_world[key] = d
         return d
 
-    def samples(self, scene: Scene, caster: ToFRayCaster, rotation: np.ndarray, position: np.ndarray,
-                t: float, rows: tuple[int, int] | None = None, normals: bool = False
-                ) -> tuple[SurfaceSamples, np.ndarray | None]:
-        """Surface samples of the band (rows*N, W*N) and, if asked, sensor-frame normals (..., 3)."""
-        cfg = self.config
-        rows = (0, cfg.height) if rows is None else rows
-        n = cfg.supersample
-        shape = ((rows[1] - rows[0]) * n, cfg.width * n)
-        hits = caster.cast(position, self.world_directions(rotation, rows), t, normals=normals)
-        albedo_o, spec_o, retro_o = material_table(scene)
-        obj = hits.object_id  # -1 on a miss picks the zero entry at the end of each table
-        albedo = albedo_o[obj].reshape(shape)
-        cos_i = hits.cos_incidence.reshape(shape)
-        rf = radiance_factor(albedo, spec_o[obj].reshape(shape), retro_o[obj].reshape(shape),
-                             cos_i, cfg.specular_exponent, cfg.retroreflector_gain)
-        dist = np.where(hits.hit, hits.distance, np.float32(0.0)).reshape(shape)
+    # --- samples ---------------------------------------------------------------
+
+    def hits(self, scene: Scene, rotation: np.ndarray, position: np.ndarray, t: float,
+             normals: bool = False) -> Hits:
+        """Closest hits of the sub-pixel rays at time ``t`` [s] (n = H*N*W*N rays)."""
+        fields = (*DIRECT_FIELDS, "normal") if normals else DIRECT_FIELDS
+        return caster_for(scene, self.kind).cast(self.rays(rotation, position), t, fields)
+
+    def samples(self, scene: Scene, rotation: np.ndarray, position: np.ndarray, t: float,
+                normals: bool = False) -> tuple[SurfaceSamples, np.ndarray | None]:
+        """Surface samples (H*N, W*N) at time ``t`` and, if asked, sensor-frame normals (H*N, W*N, 3)."""
+        hits = self.hits(scene, rotation, position, t, normals)
+        shape = self.sub_dirs.shape[:2]
+        samples = surface_samples(hits, material_table(scene), self.config, shape)
         normals_sensor = None
         if normals:
-            normals_sensor = rotate_rows(hits.normal, rotation).reshape(*shape, 3)
-        return SurfaceSamples(dist, cos_i, rf, albedo), normals_sensor
+            normals_sensor = rotate_rows(hits.normal, rotation).astype(np.float32).reshape(*shape, 3)
+        return samples, normals_sensor
 
-    def phasors(self, scene: Scene, caster: ToFRayCaster, rotation: np.ndarray, position: np.ndarray,
-                t: float, rows: tuple[int, int] | None = None) -> PixelPhasors:
-        """Pixel phasors (F, rows, W) of the band, direct light only."""
+    def phasors(self, scene: Scene, rotation: np.ndarray, position: np.ndarray, t: float) -> PixelPhasors:
+        """Pixel phasors (F, H, W) at time ``t`` [s], direct light only.
+
+        The static-scene phasors of the pose are kept; only the pixels in
+        which a moving object is nearer than the static hit are recomputed.
+        """
+        caster = caster_for(scene, self.kind)
+        rays = self.rays(rotation, position)
+        entry = self._static.get(id(rays))
+        if entry is None or entry[0] is not rays or entry[1] is not caster:
+            st = caster.cast_static(rays, DIRECT_FIELDS)
+            tables = material_table(scene)
+            samples = surface_samples(st, tables, self.config, self.sub_dirs.shape[:2])
+            static_phasors = pixel_phasors(samples, self.radiometry)
+            for a in (*samples.__dict__.values(), *static_phasors.__dict__.values()):
+                a.setflags(write=False)  # returned as they are on frames without movers: kept intact
+            entry = (rays, caster, st.distance, tables, samples, static_phasors)
+            if len(self._static) >= _RAY_BUNDLES:
+                self._static.pop(next(iter(self._static)))
+            self._static[id(rays)] = entry
+        _, _, static_distance, tables, static_samples, static_phasors = entry
+        rows, moving = caster.cast_moving(rays, t, static_distance)
+        if len(rows) == 0:
+            return static_phasors
+        return self._patched(static_samples, static_phasors, rows, moving, tables)
+
+    def _patched(self, samples: SurfaceSamples, phasors: PixelPhasors, rays: np.ndarray, hits: Hits,
+                 tables) -> PixelPhasors:
+        """``phasors`` with the pixels that contain the sub-pixel rays ``rays`` (k,) recomputed
+        from ``samples`` with those rays' samples replaced by ``hits``."""
         cfg = self.config
-        rows = (0, cfg.height) if rows is None else rows
-        samples, _ = self.samples(scene, caster, rotation, position, t, rows)
-        return pixel_phasors(samples, self.radiometry.band(*rows))
+        n = cfg.supersample
+        wn = cfg.width * n
+        # The changed pixels, and all N x N sub-pixels of each, gathered into a strip
+        # (N, P*N) whose block sums are the P pixels' sums.
+        pix = np.unique((rays // wn // n) * cfg.width + (rays % wn) // n)
+        pr, pc = np.divmod(pix, cfg.width)
+        i = np.arange(n)
+        sub_r = (pr[None, :, None] * n + i[:, None, None]).repeat(n, axis=2).reshape(n, -1)
+        sub_c = (pc[None, :, None] * n + i[None, None, :]).repeat(n, axis=0).reshape(n, -1)
+        flat = sub_r * wn + sub_c  # (N, P*N) sub-pixel ray indices
+        new = surface_samples(hits, tables, cfg, (len(rays),))
+        strip = [np.take(getattr(samples, f), flat) for f in _SAMPLE_FIELDS]
+        # Positions of the changed rays in the strip.
+        order = np.argsort(flat, axis=None)
+        at = order[np.searchsorted(flat.ravel()[order], rays)]
+        for a, f in zip(strip, _SAMPLE_FIELDS):
+            a.ravel()[at] = getattr(new, f)
+        part = pixel_phasors(SurfaceSamples(*strip), _radiometry_at(self.radiometry, sub_r, sub_c))
+        real, imag, taps = phasors.real.copy(), phasors.imag.copy(), phasors.tap_sum.copy()
+        real[:, pr, pc] = part.real[:, 0]
+        imag[:, pr, pc] = part.imag[:, 0]
+        taps[pr, pc] = part.tap_sum[0]
+        return PixelPhasors(real, imag, taps)
+
+
+_SAMPLE_FIELDS = ("distance", "cos_incidence", "radiance_factor", "albedo")
+
+
+def surface_samples(hits: Hits, tables, config: ToFConfig, shape: tuple[int, ...]) -> SurfaceSamples:
+    """Surface samples (float32, ``shape``) from hits with distance, cos_incidence and object_id.
+
+    ``tables``: per-object (albedo, specular, retro-reflective) from :func:`material_table`.
+    """
+    albedo_o, spec_o, retro_o = tables
+    obj = hits.object_id  # -1 on a miss picks the zero entry at the end of each table
+    albedo = np.take(albedo_o, obj).reshape(shape)
+    cos_i = hits.cos_incidence.astype(np.float32).reshape(shape)
+    rf = radiance_factor(albedo, np.take(spec_o, obj).reshape(shape), np.take(retro_o, obj).reshape(shape),
+                         cos_i, config.specular_exponent, config.retroreflector_gain)
+    dist = hits.distance.astype(np.float32)
+    dist[obj < 0] = 0.0
+    return SurfaceSamples(dist.reshape(shape), cos_i, rf, albedo)
+
+
+def _radiometry_at(radiometry: Radiometry, sub_r: np.ndarray, sub_c: np.ndarray) -> Radiometry:
+    """The per-sub-pixel constants of ``radiometry`` at the sub-pixels (sub_r, sub_c) (same shape)."""
+    out = object.__new__(Radiometry)
+    out.__dict__.update(radiometry.__dict__)
+    for name in ("directions", "camera_gain", "beam", "signal_gain", "ambient_gain"):
+        setattr(out, name, getattr(radiometry, name)[sub_r, sub_c])
+    return out
