@@ -14,13 +14,12 @@ answers ``intersect(origins, directions) -> (t, geom_id, prim_id)`` with
 from __future__ import annotations
 
 import itertools
-import os
 from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
 from twinsense.errors import UnknownNameError
+from twinsense.render.parallel import default_workers, map_ordered
 
 MeshArrays = tuple[np.ndarray, np.ndarray]  # vertices (n, 3) float, faces (m, 3) int
 
@@ -125,7 +124,7 @@ class EmbreeIntersector(Intersector):
         # id, which is all we need (ids, planes and normals come from tables).
         tris = [v[f] for v, f in self.meshes]
         self._tri = np.ascontiguousarray(np.concatenate(tris) if tris else np.zeros((0, 3, 3)), dtype=np.float32)
-        self.threads = threads or min(4, os.cpu_count() or 1)
+        self.threads = threads or default_workers()
         if len(self._tri):
             TriangleMesh(self._scene, self._tri)
             # Build the BVH now (Embree commits lazily on the first query).
@@ -150,24 +149,14 @@ class EmbreeIntersector(Intersector):
         if n >= 20000 and threads > 1:
             # embreex releases the GIL while tracing, so threads scale.
             bounds = np.linspace(0, n, threads + 1).astype(int)
-            parts = list(_pool(threads).map(
-                lambda ab: self._run(o32[ab[0]:ab[1]], d32[ab[0]:ab[1]]), itertools.pairwise(bounds)))
+            parts = map_ordered(lambda ab: self._run(o32[ab[0]:ab[1]], d32[ab[0]:ab[1]]),
+                                itertools.pairwise(bounds), threads)
             face = np.concatenate(parts)
         else:
             face = self._run(o32, d32)
         # Embree traces in float32; the distance is recomputed in float64
         # against the hit triangle's plane (exact for the hit triangle).
         return self._finish(o, d, face.astype(np.int64, copy=False))
-
-
-_POOLS: dict[int, ThreadPoolExecutor] = {}
-os.register_at_fork(after_in_child=_POOLS.clear)  # a forked child starts its own threads
-
-
-def _pool(n: int) -> ThreadPoolExecutor:
-    if n not in _POOLS:
-        _POOLS[n] = ThreadPoolExecutor(n, thread_name_prefix="twinsense-ray")
-    return _POOLS[n]
 
 
 class NumpyIntersector(Intersector):
