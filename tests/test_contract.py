@@ -78,3 +78,9 @@ def test_unknown_preset_lists_valid_names(kind):
 
     with pytest.raises(UnknownNameError, match="one of: "):
         make_sensor(kind, "no_such_device")
+
+
+@pytest.mark.parametrize("kind, preset", PRESETS, ids=[f"{k}-{p}" for k, p in PRESETS])
+def test_frame_rate_override(kind, preset):
+    # Scenario files set a sensor's rate with `frame_rate:`; every preset takes it.
+    assert make_sensor(kind, preset, frame_rate=10.0).frame_rate == pytest.approx(10.0)

@@ -59,16 +59,21 @@ PRESETS = {
 
 
 def make_capacitive(preset: str, /, **overrides: Any) -> CapacitiveSensor:
-    """A CapacitiveSensor from ``preset``; ``overrides`` take ``name``, ``mount``
-    and any CapacitiveConfig field."""
+    """A CapacitiveSensor from ``preset``; ``overrides`` take ``name``, ``mount``,
+    ``frame_rate`` [Hz] (the readout's sample rate) and any CapacitiveConfig field."""
     if preset not in PRESETS:
         raise UnknownNameError("capacitive preset", preset, list(PRESETS))
     config = PRESETS[preset][0]()
     sensor_kw = {k: overrides.pop(k) for k in ("name", "mount") if k in overrides}
+    if "frame_rate" in overrides:
+        # The frame rate is the readout's sample rate [Hz].
+        from dataclasses import replace
+
+        config = replace(config, readout=replace(config.readout, sample_rate=overrides.pop("frame_rate")))
     valid = {f.name for f in fields(CapacitiveConfig)}
     for key in overrides:
         if key not in valid:
-            raise UnknownNameError("capacitive preset override", key, sorted(valid | {"name", "mount"}))
+            raise UnknownNameError("capacitive preset override", key, sorted(valid | {"name", "mount", "frame_rate"}))
     if overrides:
         kw = {f.name: getattr(config, f.name) for f in fields(CapacitiveConfig)}
         kw.update(overrides)

@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from twinsense import validation
 from twinsense.errors import ConfigError, UnknownNameError
 from twinsense.radar.antennas import (
     SPEED_OF_LIGHT,
@@ -106,7 +107,8 @@ def preset_config(preset: str, /, **overrides: Any) -> RadarConfig:
 
     An override names a RadarConfig field (``tx_power_dbm=10``), a field of a
     sub-config (``num_chirps=4``, ``if_gain_db=30``, ``noise_figure_db=10``)
-    or a nested path (``chirp__num_chirps=4``).
+    or a nested path (``chirp__num_chirps=4``); ``frame_rate`` [Hz] sets
+    ``frame_repetition_time``.
     """
     if preset not in PRESET_CONFIGS:
         raise UnknownNameError("radar preset", preset, list(PRESET_CONFIGS))
@@ -115,6 +117,10 @@ def preset_config(preset: str, /, **overrides: Any) -> RadarConfig:
     subs = {part: {f.name for f in fields(type(getattr(cfg, part)))}
             for part in ("chirp", "if_chain", "noise")}
     resolved: dict[str, Any] = {}
+    if "frame_rate" in overrides:
+        # Frames per second [Hz] set the frame repetition time.
+        rate = validation.positive(f"{preset} override 'frame_rate'", overrides.pop("frame_rate"), "Hz")
+        overrides["frame_repetition_time"] = 1.0 / rate
     for key, value in overrides.items():
         if key in top or "__" in key:
             resolved[key] = value
