@@ -75,3 +75,19 @@ def test_office_demo_writes_every_output(tmp_path):
         # The IR reflector saturates: flagged pixels with depth exactly 0.
         inv, depth = tof["invalid"][-1], tof["depth"][-1]
         assert np.any(inv & 1) and np.all(depth[(inv & 1) > 0] == 0)
+
+
+@pytest.mark.parametrize("example", sorted((ROOT / "examples").glob("*.yaml")), ids=lambda p: p.name)
+def test_every_example_validates(example):
+    r = run("validate", str(example))
+    assert r.returncode == 0, r.stderr
+
+
+def test_robot_cell_runs_all_sensor_kinds(tmp_path):
+    r = run("run", str(ROOT / "examples" / "robot_cell.yaml"), "-o", str(tmp_path), "--no-progress")
+    assert r.returncode == 0, r.stderr
+    from twinsense import open_recording
+
+    with open_recording(tmp_path / "recording.h5") as rec:
+        assert {s.kind for s in rec.sensors.values()} == {"tof", "radar", "capacitive"}
+        assert len(rec["radar"]) == 2 and len(rec["skin"]) == 4  # 10 Hz and 20 Hz over 0.2 s
