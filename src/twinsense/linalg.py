@@ -31,4 +31,6 @@ def rotate_rows(v: np.ndarray, m: np.ndarray) -> np.ndarray:
         np.multiply(x, m[0, k], out=col, casting="unsafe")
         col += np.multiply(y, m[1, k], out=tmp, casting="unsafe")
         col += np.multiply(z, m[2, k], out=tmp, casting="unsafe")
-    return out.reshape(v.shape)
+    # No reshape view for (n, 3) rows: the result owns its data (callers may
+    # freeze it, and a view of a writeable base would not count as frozen).
+    return out if v.ndim == 2 else out.reshape(v.shape)

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from twinsense.render import cast
+from twinsense.render.caster import _frozen
 from twinsense.scene import Box, ConstantVelocity, Material, Pose, Scene
 from twinsense.tof import InvalidReason, ToFCamera
 from twinsense.tof.config import C_LIGHT, H_PLANCK
@@ -359,7 +360,7 @@ def test_camera_rays_are_read_only_and_kept_per_pose(look_x):
     """Read-only rays let the shared caster keep the static hits of a fixed camera."""
     cam = ToFCamera.preset("generic", mount=look_x, width=8, height=6)
     rays = cam._renderer.rays(look_x.rotation, look_x.position)
-    assert not rays.directions.flags.writeable and not rays.origins.flags.writeable
+    assert _frozen(rays.directions) and _frozen(rays.origins)
     assert cam._renderer.rays(look_x.rotation, look_x.position.copy()) is rays
     ref = cam.pinhole.rays(look_x, cam.config.supersample)
     np.testing.assert_array_equal(rays.directions, ref.directions)

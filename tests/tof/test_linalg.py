@@ -16,7 +16,7 @@ def test_rotate_rows_is_a_matrix_product_in_the_rows_dtype():
     np.testing.assert_allclose(rotate_rows(v64, m), v64 @ m, rtol=1e-12, atol=1e-14)
     v32 = v64.astype(np.float32)
     out32 = rotate_rows(v32, m)
-    assert out32.dtype == np.float32 and out32.flags.c_contiguous
+    assert out32.dtype == np.float32 and out32.flags.c_contiguous and out32.base is None
     # float32: the matrix is rounded to float32 first, as before (1e-5 ~ 100 ulp).
     np.testing.assert_allclose(out32, v32 @ m.astype(np.float32), rtol=1e-5, atol=1e-6)
     ints = rng.integers(-5, 5, size=(20, 3))

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -109,15 +111,19 @@ class ToFCamera:
         cfg = self.config
         if rng is None:
             rng = np.random.default_rng()
-        seeds = noise_seeds(cfg, rng) if cfg.noise else None
+        # The noise draws do not depend on the scene: they are made on a
+        # background thread while this one renders (NumPy's generators release
+        # the GIL while filling arrays). The seeds come from ``rng`` here, in
+        # order, so the frame does not depend on the thread.
+        noise = (_background().submit(noise_rows, cfg, noise_seeds(cfg, rng), 0, cfg.height)
+                 if cfg.noise else None)
         if cfg.motion_artifacts:
             times = cfg.raw_frame_times(t) + 0.5 * cfg.exposure_time
             phasors: PixelPhasors | list[PixelPhasors] = [
                 self._render_phasors(scene, float(ti)) for ti in times]
         else:
             phasors = self._render_phasors(scene, t)
-        noise = noise_rows(cfg, seeds, 0, cfg.height) if seeds is not None else None
-        out = run_chain(phasors, cfg, noise=noise)
+        out = run_chain(phasors, cfg, noise=None if noise is None else noise.result())
         distance, depth, invalid, confidence, points = finish_geometry(out, self._pixel_dirs, cfg)
         pose = self.mount.pose_at(scene, t)
         world = distance[..., None] * self._renderer.pixel_world_directions(pose.rotation)
@@ -154,6 +160,18 @@ class ToFCamera:
 
         return phasors + indirect_phasors(samples.distance, normals, samples.albedo, self.radiometry,
                                           occluded)
+
+
+_BACKGROUND: list[ThreadPoolExecutor] = []
+# A forked child inherits the pool but not its thread: it must start its own.
+os.register_at_fork(after_in_child=_BACKGROUND.clear)
+
+
+def _background() -> ThreadPoolExecutor:
+    """One background thread for work that overlaps rendering (created on first use)."""
+    if not _BACKGROUND:
+        _BACKGROUND.append(ThreadPoolExecutor(1, thread_name_prefix="twinsense-tof"))
+    return _BACKGROUND[0]
 
 
 def capture_sequence(camera: ToFCamera, scene: Scene, times: Sequence[float],

@@ -121,13 +121,19 @@ class ToFRenderer:
     def phasors(self, scene: Scene, rotation: np.ndarray, position: np.ndarray, t: float) -> PixelPhasors:
         """Pixel phasors (F, H, W) at time ``t`` [s], direct light only.
 
-        The static-scene phasors of the pose are kept; only the pixels in
-        which a moving object is nearer than the static hit are recomputed.
+        From the second frame at the same pose on, the static-scene phasors
+        of the pose are kept and only the pixels in which a moving object is
+        nearer than the static hit are recomputed.
         """
         caster = caster_for(scene, self.kind)
+        fresh = (rotation.tobytes() + position.tobytes()) not in self._rays
         rays = self.rays(rotation, position)
         entry = self._static.get(id(rays))
         if entry is None or entry[0] is not rays or entry[1] is not caster:
+            if fresh:
+                # A pose seen for the first time: a camera that moves every frame
+                # would never reuse what is kept, so render the whole image once.
+                return pixel_phasors(self.samples(scene, rotation, position, t)[0], self.radiometry)
             st = caster.cast_static(rays, DIRECT_FIELDS)
             tables = material_table(scene)
             samples = surface_samples(st, tables, self.config, self.sub_dirs.shape[:2])
