@@ -71,7 +71,7 @@ def main() -> None:
     moving = ToFCamera.preset("pmd_pico_flexx", mount=pose)
 
     def moving_capture():
-        moving.mount = Mount(Pose.look_at(SENSOR_EYE, np.asarray(SENSOR_TARGET) + (0.0, next(step), 0.0)))
+        moving.mount = Mount(Pose.look_at(SENSOR_EYE, np.add(SENSOR_TARGET, (0.0, next(step), 0.0))))
         moving.capture(scene, next(t), rng)
 
     best, med = timed(moving_capture, 40)

@@ -157,9 +157,14 @@ class ToFRenderer:
         cfg = self.config
         n = cfg.supersample
         wn = cfg.width * n
-        # The changed pixels, and all N x N sub-pixels of each, gathered into a strip
-        # (N, P*N) whose block sums are the P pixels' sums.
-        pix = np.unique((rays // wn // n) * cfg.width + (rays % wn) // n)
+        # The changed pixels (a mask over the image: cheaper than sorting), and
+        # all N x N sub-pixels of each, gathered into a strip (N, P*N) whose
+        # block sums are the P pixels' sums.
+        sr, sc = np.divmod(rays, wn)
+        pixel_of_ray = (sr // n) * cfg.width + sc // n
+        changed = np.zeros(cfg.height * cfg.width, bool)
+        changed[pixel_of_ray] = True
+        pix = np.flatnonzero(changed)
         pr, pc = np.divmod(pix, cfg.width)
         i = np.arange(n)
         sub_r = (pr[None, :, None] * n + i[:, None, None]).repeat(n, axis=2).reshape(n, -1)
@@ -167,12 +172,13 @@ class ToFRenderer:
         flat = sub_r * wn + sub_c  # (N, P*N) sub-pixel ray indices
         new = surface_samples(hits, tables, cfg, (len(rays),))
         strip = [np.take(getattr(samples, f), flat) for f in _SAMPLE_FIELDS]
-        # Positions of the changed rays in the strip.
-        order = np.argsort(flat, axis=None)
-        at = order[np.searchsorted(flat.ravel()[order], rays)]
+        # Position of each changed ray in the strip: row i = sub-row mod N, column
+        # (rank of its pixel among the changed ones) * N + sub-column mod N.
+        rank = np.cumsum(changed, dtype=np.int64) - 1
+        at = (sr % n) * flat.shape[1] + np.take(rank, pixel_of_ray) * n + sc % n
         for a, f in zip(strip, _SAMPLE_FIELDS):
             a.ravel()[at] = getattr(new, f)
-        part = pixel_phasors(SurfaceSamples(*strip), _radiometry_at(self.radiometry, sub_r, sub_c))
+        part = pixel_phasors(SurfaceSamples(*strip), _radiometry_at(self.radiometry, flat))
         real, imag, taps = phasors.real.copy(), phasors.imag.copy(), phasors.tap_sum.copy()
         real[:, pr, pc] = part.real[:, 0]
         imag[:, pr, pc] = part.imag[:, 0]
@@ -199,10 +205,12 @@ def surface_samples(hits: Hits, tables, config: ToFConfig, shape: tuple[int, ...
     return SurfaceSamples(dist.reshape(shape), cos_i, rf, albedo)
 
 
-def _radiometry_at(radiometry: Radiometry, sub_r: np.ndarray, sub_c: np.ndarray) -> Radiometry:
-    """The per-sub-pixel constants of ``radiometry`` at the sub-pixels (sub_r, sub_c) (same shape)."""
+def _radiometry_at(radiometry: Radiometry, flat: np.ndarray) -> Radiometry:
+    """The per-sub-pixel constants of ``radiometry`` at the sub-pixels of flat index ``flat``
+    (row * W*N + column), in ``flat``'s shape."""
     out = object.__new__(Radiometry)
     out.__dict__.update(radiometry.__dict__)
-    for name in ("directions", "camera_gain", "beam", "signal_gain", "ambient_gain"):
-        setattr(out, name, getattr(radiometry, name)[sub_r, sub_c])
+    for name in ("camera_gain", "beam", "signal_gain", "ambient_gain"):
+        setattr(out, name, np.take(getattr(radiometry, name), flat))
+    out.directions = np.take(radiometry.directions.reshape(-1, 3), flat, axis=0)
     return out
