@@ -332,19 +332,31 @@ def test_tof_hits_are_the_shared_casters_hits(look_x):
         np.testing.assert_allclose(samples.distance, d_ref, rtol=1e-6)
 
 
-def test_kept_static_phasors_equal_a_full_rendering(look_x):
+@pytest.mark.parametrize("supersample", [1, 2, 3])
+def test_kept_static_phasors_equal_a_full_rendering(look_x, supersample):
     """A fixed camera keeps its static-scene phasors and recomputes only pixels that see
     movers: bit for bit what a full rendering at each time gives."""
     scene = _moving_scene()
-    cam = ToFCamera.preset("generic", mount=look_x, width=40, height=30)
+    cam = ToFCamera.preset("generic", mount=look_x, width=40, height=30, supersample=supersample)
     for t in (0.0, 0.1, 0.37, 0.1, 5.0):  # 5 s: the mover has left the view
         fast = cam._renderer.phasors(scene, look_x.rotation, look_x.position, t)
         full = pixel_phasors(cam.render(scene, t), cam.radiometry)
         for name in ("real", "imag", "tap_sum"):
             np.testing.assert_array_equal(getattr(fast, name), getattr(full, name), err_msg=f"{name} t={t}")
+    # Nothing moving in view: the kept phasors themselves (read-only, so nothing downstream
+    # can change them in place).
+    quiet = _saturation_scene()
+    quiet.add_object("mover", Box((0.3, 0.3, 0.3)), "wood",
+                     motion=ConstantVelocity(Pose(position=(1.2, 40.0, 0.1)), (0, 1.0, 0)))
+    cam.capture(quiet, 0.0, np.random.default_rng(0))
+    kept = cam._renderer.phasors(quiet, look_x.rotation, look_x.position, 1.0)
+    assert not kept.real.flags.writeable
+    np.testing.assert_array_equal(kept.real, pixel_phasors(cam.render(quiet, 1.0), cam.radiometry).real)
+    frame = cam.capture(quiet, 2.0, np.random.default_rng(0))
+    np.testing.assert_array_equal(frame.raw, cam.capture(quiet, 3.0, np.random.default_rng(0)).raw)
     # Frames with motion artefacts render every raw frame this way, too.
     motion = ToFCamera.preset("generic", mount=look_x, width=40, height=30, motion_artifacts=True,
-                              noise=False)
+                              noise=False, supersample=supersample)
     frame = motion.capture(scene, 0.1)
     times = motion.config.raw_frame_times(0.1) + 0.5 * motion.config.exposure_time
     ref = expected_raw([pixel_phasors(motion.render(scene, float(ti)), motion.radiometry) for ti in times],
