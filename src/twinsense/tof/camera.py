@@ -16,7 +16,7 @@ from twinsense.scene.scene import Mount, Scene
 from twinsense.tof.config import ToFConfig
 from twinsense.tof.frame import ToFFrame
 from twinsense.tof.multipath import indirect_phasors
-from twinsense.tof.pipeline import finish_geometry, noise_rows, noise_seeds, run_chain
+from twinsense.tof.pipeline import blurred_raw, chain_in_halves, finish_geometry, noise_rows, noise_seeds
 from twinsense.tof.presets import tof_preset
 from twinsense.tof.rendering import ToFRenderer
 from twinsense.tof.signal import PixelPhasors, SurfaceSamples, pixel_phasors
@@ -123,7 +123,9 @@ class ToFCamera:
                 self._render_phasors(scene, float(ti)) for ti in times]
         else:
             phasors = self._render_phasors(scene, t)
-        out = run_chain(phasors, cfg, noise=None if noise is None else noise.result())
+        corr, taps, gray_taps = blurred_raw(phasors, cfg)
+        out = chain_in_halves(corr, taps, gray_taps, cfg, None if noise is None else noise.result(),
+                              _background())
         distance, depth, invalid, confidence, points = finish_geometry(out, self._pixel_dirs, cfg)
         pose = self.mount.pose_at(scene, t)
         world = distance[..., None] * self._renderer.pixel_world_directions(pose.rotation)
@@ -168,7 +170,7 @@ os.register_at_fork(after_in_child=_BACKGROUND.clear)
 
 
 def _background() -> ThreadPoolExecutor:
-    """One background thread for work that overlaps rendering (created on first use)."""
+    """One background thread for work beside this one: noise draws, half of the chain (created on first use)."""
     if not _BACKGROUND:
         _BACKGROUND.append(ThreadPoolExecutor(1, thread_name_prefix="twinsense-tof"))
     return _BACKGROUND[0]

@@ -8,6 +8,7 @@ unwrapping -> validity (saturation, low signal, flying pixels, noise).
 
 from __future__ import annotations
 
+from concurrent.futures import Executor
 from dataclasses import dataclass
 
 import numpy as np
@@ -172,6 +173,27 @@ def chain_from_raw(corr: np.ndarray, taps: np.ndarray, gray_taps: np.ndarray, co
     if cfg.noise_filter:
         invalid[noise_mask(sigma_d, invalid == 0, cfg.max_noise)] |= np.uint8(InvalidReason.TOO_NOISY)
     return ChainOutput(dig.raw, gray, phase, amp, distance, sigma_d, invalid)
+
+
+def chain_in_halves(corr: np.ndarray, taps: np.ndarray, gray_taps: np.ndarray, config: ToFConfig,
+                    noise: ChainNoise | None, executor: Executor) -> ChainOutput:
+    """:func:`chain_from_raw` with the top half of the rows on ``executor``, the rest on this thread.
+
+    Every step is per pixel and NumPy releases the GIL on these array
+    operations, so two threads share the work and the result equals the
+    whole-image chain bit for bit.
+    """
+    mid = config.height // 2
+
+    def rows(lo, hi):
+        part = None if noise is None else ChainNoise(noise.raw[..., lo:hi, :], noise.gray[lo:hi])
+        return chain_from_raw(corr[..., lo:hi, :], taps[..., lo:hi, :], gray_taps[lo:hi], config, part)
+
+    top = executor.submit(rows, 0, mid)
+    bottom = rows(mid, config.height)
+    top = top.result()
+    return ChainOutput(*(np.concatenate([getattr(top, f), getattr(bottom, f)], axis=-2)
+                         for f in ChainOutput.__dataclass_fields__))
 
 
 def finish_geometry(out: ChainOutput, pixel_dirs: np.ndarray, config: ToFConfig
