@@ -8,7 +8,8 @@ A camera that does not move casts the same (read-only) rays every frame. The
 hits on static objects then never change, so neither do the surface samples
 and pixel phasors derived from them: :meth:`ToFRenderer.phasors` keeps the
 static-scene phasors and recomputes only the pixels in which a moving object
-is nearer than the static hit (:meth:`twinsense.render.SceneCaster.cast_moving`).
+is nearer than the static hit (the caster itself keeps the static hits of
+read-only rays and traces only the rays near moving objects).
 Everything up to the pixel phasors is per pixel, so this gives bit for bit
 what rendering the whole image gives.
 """
@@ -140,15 +141,21 @@ class ToFRenderer:
             static_phasors = pixel_phasors(samples, self.radiometry)
             for a in (*samples.__dict__.values(), *static_phasors.__dict__.values()):
                 a.setflags(write=False)  # returned as they are on frames without movers: kept intact
-            entry = (rays, caster, st.distance, tables, samples, static_phasors)
+            entry = (rays, caster, st.object_id, tables, samples, static_phasors)
             if len(self._static) >= _RAY_BUNDLES:
                 self._static.pop(next(iter(self._static)))
             self._static[id(rays)] = entry
-        _, _, static_distance, tables, static_samples, static_phasors = entry
-        rows, moving = caster.cast_moving(rays, t, static_distance)
+        _, _, static_object, tables, static_samples, static_phasors = entry
+        # The caster keeps the static hits of these read-only rays and traces only
+        # the rays near moving objects; a ray changes exactly where a moving
+        # object is nearer, i.e. where the hit object is no longer the static one.
+        hits = caster.cast(rays, t, DIRECT_FIELDS)
+        rows = np.flatnonzero(hits.object_id != static_object)
         if len(rows) == 0:
             return static_phasors
-        return self._patched(static_samples, static_phasors, rows, moving, tables)
+        changed = Hits(np.take(hits.distance, rows), None, None, np.take(hits.cos_incidence, rows),
+                       np.take(hits.object_id, rows), None, None, None)
+        return self._patched(static_samples, static_phasors, rows, changed, tables)
 
     def _patched(self, samples: SurfaceSamples, phasors: PixelPhasors, rays: np.ndarray, hits: Hits,
                  tables) -> PixelPhasors:
