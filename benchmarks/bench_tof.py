@@ -23,6 +23,7 @@ import time
 import numpy as np
 
 from twinsense.demos.office import SENSOR_EYE, SENSOR_TARGET, build_office_scene, sensor_pose, triangle_count
+from twinsense.linalg import rotate_rows
 from twinsense.render import Rays, caster_for
 from twinsense.scene.pose import Pose
 from twinsense.scene.scene import Mount
@@ -123,6 +124,23 @@ def main() -> None:
     mp_open = ToFCamera(cfg.replaced(multipath=True, multipath_visibility=False), pose)
     best, med = timed(lambda: mp_open.capture(scene, next(t), rng), 5)
     report("multipath without shadow rays", best, med)
+    # rotate_rows against the broadcast form it replaced, 342 000 rows (2 x 2
+    # supersampled 224 x 171 image, twice), float64.
+    v = np.random.default_rng(1).normal(size=(342_000, 3))
+    m = pose.rotation
+
+    def broadcast_form():
+        out = v[..., 0:1] * m[0]
+        out += v[..., 1:2] * m[1]
+        out += v[..., 2:3] * m[2]
+        return out
+
+    assert np.array_equal(broadcast_form(), rotate_rows(v, m))
+    b_best, b_med = timed(broadcast_form, 30)
+    report("rotate_rows reference: broadcast (n, 1) x (3,) form", b_best, b_med)
+    r_best, r_med = timed(lambda: rotate_rows(v, m), 30)
+    report("rotate_rows: columns into a preallocated array", r_best, r_med)
+    print(f"  rotate_rows speed-up: {b_med / r_med:.1f}x (identical results)")
     print(f"\ntarget >= 60 fps for the full chain on 2 cores, 1 process: "
           f"{'met' if default_fps >= 60 else 'NOT met'} ({default_fps:.1f} fps median, fixed camera)")
 

@@ -95,9 +95,8 @@ def noise_rows(config: ToFConfig, seeds: np.ndarray, r0: int, r1: int) -> ChainN
     """Standard normal draws of image rows [r0, r1) from the per-block streams ``seeds``.
 
     Each block of rows has its own generator (PCG64 seeded through
-    SeedSequence, so the streams are independent), which lets separate
-    processes draw their own rows and still give the frame one process
-    would: the draws depend on the seeds only, not on how the image is split.
+    SeedSequence, so the streams are independent): the draws depend on the
+    seeds only, not on which thread makes them or how the image is split.
     """
     cfg = config
     k = NOISE_BLOCK_ROWS
