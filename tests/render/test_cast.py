@@ -222,3 +222,31 @@ def test_static_hits_plus_moving_changes_give_the_full_cast(frozen, spinner):
         for f, a in composed.items():
             np.testing.assert_array_equal(a, getattr(full, f), err_msg=f)
         np.testing.assert_array_equal(static.distance, kept)
+
+
+def test_moving_object_culling_loses_no_hit():
+    # The caster traces a moving object only for rays that pass its bounding
+    # sphere and its box (in its own frame). Reference: the same object posed
+    # in world coordinates at t and intersected by brute force, with no culling.
+    from twinsense.render.backends import NumpyIntersector
+    from twinsense.scene import Capsule, Keyframes
+
+    s = Scene()
+    s.add_object("wall", Plane((20, 20)), "drywall", pose=Pose((0, 0, 6)))
+    mot = Keyframes([0.0, 1.0], (Pose.from_euler_deg((0.2, -0.1, 3.0), (20, 70, 10)),
+                                 Pose.from_euler_deg((-0.3, 0.2, 2.5), (-30, 80, 60))))
+    s.add_object("arm", Capsule(0.15, 1.2), "metal", motion=mot)
+    rng = np.random.default_rng(3)
+    d = rng.normal(size=(6000, 3)) * [0.35, 0.35, 0] + [0, 0, 1]
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    rays = Rays(np.broadcast_to([0.0, 0.0, 0.0], d.shape), d)
+    for t in (0.0, 0.4, 0.9):
+        h = cast(s, rays, t)
+        arm = s.objects[1]
+        m = arm.geometry.mesh
+        ref = NumpyIntersector([(arm.pose_at(t).apply(m.vertices), m.faces)])
+        t_ref, g_ref, _, _ = ref.intersect(np.zeros_like(d), d)
+        on_arm = (g_ref >= 0) & (t_ref < 6.0 / d[:, 2])
+        assert on_arm.sum() > 200  # the arm covers part of the view
+        assert np.array_equal(h.object_id == 1, on_arm)
+        np.testing.assert_allclose(h.distance[on_arm], t_ref[on_arm], atol=1e-9)

@@ -57,12 +57,15 @@ class SceneCaster:
         self._moving_bvh = []
         self._moving_centre = []
         self._moving_radius = []
+        self._moving_box = []
         for i in self._moving:
             m = objs[i].geometry.mesh
             self._moving_bvh.append(make_intersector(backend, [(m.vertices, np.asarray(m.faces))]))
             c = 0.5 * (m.vertices.min(axis=0) + m.vertices.max(axis=0))
             self._moving_centre.append(c)
             self._moving_radius.append(float(np.linalg.norm(m.vertices - c, axis=1).max()) * (1 + 1e-9) + 1e-9)
+            pad = 1e-9 * (1.0 + float(np.abs(m.vertices).max()))
+            self._moving_box.append((m.vertices.min(axis=0) - pad, m.vertices.max(axis=0) + pad))
         # Static hits of the last few read-only ray bundles (one per fixed
         # sensor): [origins, directions, arrays, complete], newest last.
         self._memos: list[list] = []
@@ -191,8 +194,16 @@ class SceneCaster:
                 o_local = np.broadcast_to(o_local[0], (len(sel), 3))
             else:
                 o_local = _rotate(np.take(o, sel, axis=0) - pos, rot)
-            t_m, _, p, n_local = self._moving_bvh[k].intersect(o_local, _rotate(np.take(d, sel, axis=0), rot),
-                                                               threads=threads)
+            d_local = _rotate(np.take(d, sel, axis=0), rot)
+            # Second cull in the object's frame: its bounding box is much
+            # tighter than the sphere for elongated objects (a person).
+            inside = _rays_hit_box(o_local, d_local, *self._moving_box[k], np.take(dist, sel))
+            if not inside.all():
+                sel, d_local = sel[inside], d_local[inside]
+                o_local = o_local[inside] if o_local.strides[0] else o_local[:len(sel)]
+                if len(sel) == 0:
+                    continue
+            t_m, _, p, n_local = self._moving_bvh[k].intersect(o_local, d_local, threads=threads)
             won = np.flatnonzero(t_m < np.take(dist, sel))  # inf < inf is False: misses never win
             if len(won) == 0:
                 continue
@@ -338,6 +349,23 @@ def _rotate(v: np.ndarray, m: np.ndarray) -> np.ndarray:
         col += y * m[1, k]
         col += z * m[2, k]
     return out
+
+
+def _rays_hit_box(o: np.ndarray, d: np.ndarray, lo: np.ndarray, hi: np.ndarray, t_max: np.ndarray) -> np.ndarray:
+    """(n,) bool: rays (origins o, shared (stride 0) or (n, 3); directions d (n, 3)) that
+    enter the axis-aligned box [lo, hi] before ``t_max`` (slab test, one axis at a time)."""
+    near = np.zeros(len(d))
+    far = np.array(t_max, dtype=float, copy=True)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for a in range(3):
+            oa = o[0, a] if o.strides[0] == 0 else o[:, a]
+            inv = 1.0 / d[:, a]
+            t1 = (lo[a] - oa) * inv
+            t2 = (hi[a] - oa) * inv
+            # fmin/fmax ignore the NaN of 0 * inf (a ray lying in a slab's plane).
+            near = np.fmax(near, np.fmin(t1, t2))
+            far = np.fmin(far, np.fmax(t1, t2))
+    return near <= far
 
 
 def _rays_near_sphere(o: np.ndarray, d: np.ndarray, centre: np.ndarray, radius: float,
