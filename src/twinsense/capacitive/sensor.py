@@ -254,19 +254,10 @@ class CapacitiveSensor:
     @property
     def system(self) -> ElectrostaticSystem:
         if self._system is None:
-            lm = self.layout_mesh
-            self._system = ElectrostaticSystem(
-                lm.mesh,
-                lm.terminal_nodes,
-                names=self.config.layout.terminal_names,
-                grounded=lm.ground_nodes,
-                permittivity=lm.permittivity,
-                outer_boundary=self.config.outer_boundary,
-                center=_center(self.config.layout),
-            )
+            self._system = self._new_system()
             active = None
             if self.config.active_boxes:
-                active = active_cells_in_boxes(lm.mesh, self.config.active_boxes)
+                active = active_cells_in_boxes(self.layout_mesh.mesh, self.config.active_boxes)
             self._solver = MaxwellSolver(self._system, self.config.solver, active)
         return self._system
 
@@ -307,19 +298,17 @@ class CapacitiveSensor:
             incs = [i for i in incs if i.name != self.mount.parent]
         return incs
 
+    def _new_system(self) -> ElectrostaticSystem:
+        """A fresh electrostatic system of the empty sensing volume."""
+        lm = self.layout_mesh
+        return ElectrostaticSystem(lm.mesh, lm.terminal_nodes, names=self.config.layout.terminal_names,
+                                   grounded=lm.ground_nodes, permittivity=lm.permittivity,
+                                   outer_boundary=self.config.outer_boundary, center=_center(self.config.layout))
+
     def baseline(self) -> MaxwellResult:
         """Capacitances with an empty scene (computed once)."""
         if self._baseline is None:
-            lm = self.layout_mesh
-            empty = ElectrostaticSystem(
-                lm.mesh,
-                lm.terminal_nodes,
-                names=self.config.layout.terminal_names,
-                grounded=lm.ground_nodes,
-                permittivity=lm.permittivity,
-                outer_boundary=self.config.outer_boundary,
-                center=_center(self.config.layout),
-            )
+            empty = self._new_system()
             # The empty scene is one solve: no condensation.
             tight = replace(self.config.solver, rtol=min(self.config.solver.rtol, 1e-8), condense=False)
             self._baseline = MaxwellSolver(empty, tight).solve()

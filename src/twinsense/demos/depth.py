@@ -16,7 +16,6 @@ from twinsense.simulate import simulate
 
 def run_depth_demo(out_dir, duration: float = 1.0, progress: bool = False) -> dict[str, Path]:
     """Render the office's depth over ``duration`` [s] at 10 fps; write a PNG and a recording."""
-    plt = pyplot()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     scene = build_office_scene()
@@ -24,11 +23,17 @@ def run_depth_demo(out_dir, duration: float = 1.0, progress: bool = False) -> di
                       Mount(sensor_pose()))
     res = simulate(scene, [cam], duration, out=out / "depth_recording.h5", progress=progress, keep_frames=True)
     frame = res.frames["depth_camera"][-1]
+    png = depth_figure(frame, out / "depth.png", "office, ideal depth camera")
+    return {"depth_png": png, "recording": res.path}
+
+
+def depth_figure(frame, path: Path, title: str) -> Path:
+    """PNG of a DepthFrame's z-depth (blank where nothing was hit)."""
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 5.0))
     im = ax.imshow(np.where(frame.depth > 0, frame.depth, np.nan), cmap="viridis")
     fig.colorbar(im, ax=ax, label="z-depth [m]")
-    ax.set_title(f"office, ideal depth camera, t = {frame.t:.2f} s")
+    ax.set_title(f"{title}, t = {frame.t:.2f} s")
     ax.set_xlabel("column [px]")
     ax.set_ylabel("row [px]")
-    png = save_figure(fig, out / "depth.png")
-    return {"depth_png": png, "recording": res.path}
+    return save_figure(fig, path)

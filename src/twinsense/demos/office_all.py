@@ -16,11 +16,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
+from twinsense.demos.depth import depth_figure
 from twinsense.demos.office import build_office_scene, sensor_pose
 from twinsense.depthcam import DepthCamera, DepthCameraConfig
-from twinsense.plotting import pyplot, save_figure
 from twinsense.render import PinholeCamera
 from twinsense.scene import Mount
 from twinsense.simulate import simulate
@@ -50,16 +48,6 @@ def run_office_demo(out_dir, duration: float = 1.0, progress: bool = False) -> d
     files.update(radar_demos.doppler_tracking_figure(out))
     if radar_demos.REAL_BGT60_RECORDING.exists():
         files.update(radar_demos.noise_floor_figure(out))
-    files["ground_truth_depth_png"] = _depth_png(res.frames["depth"][-1], out / "ground_truth_depth.png")
+    files["ground_truth_depth_png"] = depth_figure(res.frames["depth"][-1], out / "ground_truth_depth.png",
+                                                   "office, ideal depth camera (ground truth)")
     return files
-
-
-def _depth_png(frame, path: Path) -> Path:
-    plt = pyplot()
-    fig, ax = plt.subplots(figsize=(6.4, 5.0))
-    im = ax.imshow(np.where(frame.depth > 0, frame.depth, np.nan), cmap="viridis")
-    fig.colorbar(im, ax=ax, label="z-depth [m]")
-    ax.set_title(f"office, ideal depth camera (ground truth), t = {frame.t:.2f} s")
-    ax.set_xlabel("column [px]")
-    ax.set_ylabel("row [px]")
-    return save_figure(fig, path)
