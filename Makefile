@@ -20,10 +20,10 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/python -m pytest -q
-	$(BIN)/ruff check src tests benchmarks examples
+	$(BIN)/ruff check --no-cache src tests benchmarks examples
 
 lint: $(STAMP)
-	$(BIN)/ruff check src tests benchmarks examples
+	$(BIN)/ruff check --no-cache src tests benchmarks examples
 
 bench: $(STAMP)
 	for f in benchmarks/bench_*.py; do echo "== $$f"; $(BIN)/python $$f || exit 1; done
