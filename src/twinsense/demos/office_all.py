@@ -4,7 +4,7 @@ ground-truth depth camera at once, on one clock, into one recording.
 Writes under ``out_dir``:
 
 - ``office_recording.h5``: every frame of the three sensors (see docs/recording-format.md);
-- ``tof_depth.png``, ``tof_amplitude.png``, ``tof_confidence.png``, ``tof_pointcloud.png``:
+- ``tof_depth.png``, ``tof_amplitude.png``, ``tof_confidence.png``, ``tof_pointcloud.png`` (Royale mode MODE_9_5FPS_2000):
   the pico flexx's last frame (the IR reflector saturates: depth 0);
 - ``radar_range_spectrum.png`` and ``radar_range_angle.png`` (paper Fig. 4-5),
   ``radar_doppler_tracking.png`` (Fig. 6) and, when the real BGT60TR13C
@@ -35,7 +35,7 @@ def run_office_demo(out_dir, duration: float = 1.0, progress: bool = False) -> d
     out.mkdir(parents=True, exist_ok=True)
     scene = build_office_scene()
     mount = Mount(sensor_pose())
-    tof = ToFCamera.preset("pmd_pico_flexx", mount=mount, name="tof")
+    tof = ToFCamera.preset("pmd_pico_flexx", mode="MODE_9_5FPS_2000", mount=mount, name="tof")
     radar = FMCWRadar.preset("paper_bgt60tr13c", mount=mount, name="radar")
     depth = DepthCamera("depth", DepthCameraConfig(PinholeCamera.from_fov(224, 171, 72.0, 45.0), frame_rate=10.0),
                         mount)
