@@ -15,22 +15,14 @@ from __future__ import annotations
 
 import os
 import platform
-import time
 
 import numpy as np
+from _timing import best_and_median
 
 from twinsense.demos.office import build_office_scene, sensor_pose, triangle_count
 from twinsense.render import PinholeCamera, Rays, cast, caster_for
 
-
-def best_of(fn, repeats=7):
-    fn()
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times), float(np.median(times))
+best_of = best_and_median
 
 
 LEAN = ("distance", "cos_incidence", "object_id", "material_id", "velocity")  # what a radar asks

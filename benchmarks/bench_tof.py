@@ -18,9 +18,9 @@ from __future__ import annotations
 import itertools
 import os
 import platform
-import time
 
 import numpy as np
+from _timing import best_and_median
 
 from twinsense.demos.office import SENSOR_EYE, SENSOR_TARGET, build_office_scene, sensor_pose, triangle_count
 from twinsense.linalg import rotate_rows
@@ -35,15 +35,7 @@ from twinsense.tof.signal import pixel_phasors
 PERIOD_FRAMES = 270  # the person walks 1.5 m at 0.5 m/s and back: 6 s at 45 fps
 
 
-def timed(fn, repeats: int) -> tuple[float, float]:
-    """(best, median) seconds of ``fn()`` over ``repeats`` calls after one warm-up."""
-    fn()
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times), float(np.median(times))
+timed = best_and_median
 
 
 def report(label: str, best: float, median: float) -> None:

@@ -230,22 +230,14 @@ class ScenarioSpec(_Model):
     sensors: list[SensorSpec] = []
     outputs: OutputsSpec = OutputsSpec()
 
-    @field_validator("objects")
+    @field_validator("objects", "sensors", "materials")
     @classmethod
-    def _unique_objects(cls, v):
+    def _unique_names(cls, v, info):
         names = [o.name for o in v]
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
-            raise ValueError(f"object names must be unique; repeated: {', '.join(dup)}")
-        return v
-
-    @field_validator("sensors")
-    @classmethod
-    def _unique_sensors(cls, v):
-        names = [o.name for o in v]
-        dup = sorted({n for n in names if names.count(n) > 1})
-        if dup:
-            raise ValueError(f"sensor names must be unique; repeated: {', '.join(dup)}")
+            what = info.field_name.rstrip("s")
+            raise ValueError(f"{what} names must be unique; repeated: {', '.join(dup)}")
         return v
 
 
