@@ -266,6 +266,16 @@ class ScatterRenderer:
         self._dirs_cols = np.ascontiguousarray(d.T)
         # Pixel solid angle of a pinhole: (1 / (fx fy)) cos^3(angle off axis).
         self._solid_angle = d[:, 2] ** 3 / (self.camera.fx * self.camera.fy)
+        # The radar equation's per-pixel factor 2 P_t G_t G_r lambda^2 / (4 pi)^3:
+        # a direct scatterer lies on its pixel's ray, so the element gains
+        # towards it are those of the pixel direction, computed once here
+        # instead of per scatterer and frame (see :meth:`amplitude`).
+        ant = config.antennas
+        g = ant.tx_pattern.gain(d)
+        g = g * g if ant.tx_pattern == ant.rx_pattern else g * ant.rx_pattern.gain(d)
+        g *= 2.0 * config.tx_power * config.chirp.wavelength**2 / (4 * math.pi) ** 3
+        self._power_per_rcs = g
+        self._last: tuple[Scatterers, np.ndarray] | None = None
         self._rays_key: bytes | None = None
         self._rays: Rays | None = None
         self._snap: _Snapshot | None = None
@@ -327,11 +337,31 @@ class ScatterRenderer:
                               math.radians(self.config.specular_lobe_deg))
         direct = Scatterers(points, velocities, rcs, obj_hit)
         if not self.config.multipath:
+            self._last = (direct, self._direct_amplitude(take(self._power_per_rcs), rcs, dist))
             return direct
         idx = np.arange(len(hit)) if idx is None else idx
         second = self._second_bounce(scene, sensor_state, t, hits, idx,
                                      np.take(rays.directions, idx, axis=0), refl, spec)
         return Scatterers.concatenate([direct, second]) if len(second) else direct
+
+    def amplitude(self, scatterers: Scatterers) -> np.ndarray | None:
+        """(n,) peak IF amplitudes [sqrt(W)] of the scatterers of the last :meth:`render`,
+        as :func:`received_amplitude` gives them; None for any other scatterers."""
+        last = self._last
+        return last[1] if last is not None and last[0] is scatterers else None
+
+    @staticmethod
+    def _direct_amplitude(power_per_rcs: np.ndarray, rcs: np.ndarray,
+                          distance: np.ndarray) -> np.ndarray:
+        """sqrt(2 P_r) of direct scatterers from the pixels' radar-equation factors (n,),
+        their RCS (n,) [m^2] and ranges (n,) [m]: P_r = factor sigma / R^4."""
+        amp = power_per_rcs * rcs
+        np.sqrt(amp, out=amp)
+        r2 = distance * distance
+        # No return from a point at the origin (as in received_amplitude).
+        np.divide(amp, r2, out=amp, where=r2 > 0)
+        amp[r2 <= 0] = 0.0
+        return amp
 
     def _static_snapshot(self, scene, rays: Rays) -> _Snapshot | None:
         """Scatterer arrays of the static objects alone, seen along ``rays`` (kept per

@@ -197,7 +197,10 @@ class FMCWRadar:
 
     def _weights(self, s: Scatterers) -> np.ndarray:
         """(n,) complex tone weights: radar-equation amplitudes times the IF filters."""
-        amp = received_amplitude(s, self.config)
+        # A fresh render knows its amplitudes already (per-pixel antenna gains).
+        amp = None if self._renderer is None else self._renderer.amplitude(s)
+        if amp is None:
+            amp = received_amplitude(s, self.config)
         return effects.filtered_weights(amp, s.points, s.velocities, self.config, s.points_rx,
                                         s.velocities_rx)
 
