@@ -37,9 +37,15 @@ class Intersector:
         self._face_prim = np.append(np.arange(len(self._planes) - 1, dtype=np.int64)
                                     - np.repeat(offsets[1:], counts), -1).astype(np.int32)
         self._offsets = offsets
+        self._offset_table: tuple[tuple[float, float, float], np.ndarray] | None = None
 
     def intersect(self, origins: np.ndarray, directions: np.ndarray, threads: int | None = None):
-        """Closest hits.
+        """Closest hits (see :meth:`intersect_dot`, without the last array)."""
+        return self.intersect_dot(origins, directions, threads)[:4]
+
+    def intersect_dot(self, origins: np.ndarray, directions: np.ndarray,
+                      threads: int | None = None):
+        """Closest hits, and the dot product of each hit's normal with its ray.
 
         Parameters
         ----------
@@ -57,27 +63,46 @@ class Intersector:
         prim_id : (n,) int32, -1 on a miss
         normal : (n, 3) float64, unit geometric normal of the hit triangle
             (as wound in the mesh), zeros on a miss
+        normal_dot_direction : (n,) float64, ``normal . direction`` (0 on a miss)
         """
         raise NotImplementedError
 
     def _finish(self, origins, directions, face, t=None):
-        """From global triangle ids (-1 = miss): distances in float64 from the plane, ids, normals."""
+        """From global triangle ids (-1 = miss): distances in float64 from the plane, ids,
+        normals and normal . direction (which the distance needs anyway)."""
         # np.take is several times faster than fancy indexing for row gathers;
         # the dot products are written per component (einsum is slow on (n, 3)).
         plane = np.take(self._planes, face, axis=0)
         normal = plane[:, :3]
         geom = np.take(self._face_geom, face)
         prim = np.take(self._face_prim, face)
+        den = _dot3(directions, normal)
         if t is None:
-            den = _dot3(directions, normal)
             if origins.strides[0] == 0:  # one shared origin (a camera)
-                o = origins[0]
-                num = plane[:, 3] - (plane[:, 0] * o[0] + plane[:, 1] * o[1] + plane[:, 2] * o[2])
+                num = self._plane_offsets(origins[0], face)
             else:
                 num = plane[:, 3] - _dot3(origins, normal)
             t = np.full(len(face), np.inf)
             np.divide(num, den, out=t, where=(face >= 0) & (den != 0))
-        return t, geom, prim, normal
+        return t, geom, prim, normal, den
+
+    def _plane_offsets(self, o: np.ndarray, face: np.ndarray) -> np.ndarray:
+        """(n,) n . v0 - n . o of the triangles ``face`` for one origin ``o`` (3,).
+
+        A bundle with more rays than triangles gathers these from a table over
+        all triangles, kept for the last origin (a camera casts its chunks from
+        one point); the same float operations per triangle, so the same bits.
+        """
+        pl = self._planes
+        if len(face) < len(pl):
+            sel = np.take(pl, face, axis=0)
+            return sel[:, 3] - (sel[:, 0] * o[0] + sel[:, 1] * o[1] + sel[:, 2] * o[2])
+        key = (float(o[0]), float(o[1]), float(o[2]))
+        cached = self._offset_table
+        if cached is None or cached[0] != key:
+            cached = (key, pl[:, 3] - (pl[:, 0] * key[0] + pl[:, 1] * key[1] + pl[:, 2] * key[2]))
+            self._offset_table = cached  # one assignment: safe with threads sharing it
+        return np.take(cached[1], face)
 
 
 def _dot3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -133,7 +158,7 @@ class EmbreeIntersector(Intersector):
     def _run(self, o32, d32):
         return self._scene.run(o32, d32)  # closest-hit triangle id, -1 on a miss
 
-    def intersect(self, origins, directions, threads=None):
+    def intersect_dot(self, origins, directions, threads=None):
         o = np.asarray(origins, dtype=float)
         d = np.asarray(directions, dtype=float)
         n = len(d)
@@ -142,8 +167,9 @@ class EmbreeIntersector(Intersector):
             return self._finish(o, d, np.full(n, -1, np.int64), np.full(n, np.inf))
         d32 = np.ascontiguousarray(d, dtype=np.float32)
         if o.strides[0] == 0:
-            o32 = np.empty((n, 3), np.float32)
-            o32[:] = o[0]
+            # One shared origin: embreex reads strided arrays, so it stays a
+            # broadcast view (no (n, 3) copy to fill).
+            o32 = np.broadcast_to(o[0].astype(np.float32), (n, 3))
         else:
             o32 = np.ascontiguousarray(o, dtype=np.float32)
         if n >= 20000 and threads > 1:
@@ -168,7 +194,7 @@ class NumpyIntersector(Intersector):
         self._tri = np.concatenate(tris) if tris else np.zeros((0, 3, 3))
         self._chunk = chunk
 
-    def intersect(self, origins, directions, threads=None):
+    def intersect_dot(self, origins, directions, threads=None):
         o = np.asarray(origins, dtype=float)
         d = np.asarray(directions, dtype=float)
         n = len(o)

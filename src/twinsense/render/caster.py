@@ -285,16 +285,12 @@ class SceneCaster:
 
     def _static_chunk(self, o, d, threads=1):
         """Hits of rays on the static objects: distance, object, triangle, normal, normal . d."""
-        n = len(d)
         if self._static_bvh is not None:
-            dist, g, tri, normal = self._static_bvh.intersect(o, d, threads=threads)
-            obj = np.take(self._static_lut, g + 1)
-        else:
-            dist = np.full(n, np.inf)
-            obj = np.full(n, -1, dtype=np.int32)
-            tri = np.full(n, -1, dtype=np.int32)
-            normal = np.zeros((n, 3))
-        return dist, obj, tri, normal, _dot_rows(normal, d)
+            dist, g, tri, normal, dn = self._static_bvh.intersect_dot(o, d, threads=threads)
+            return dist, np.take(self._static_lut, g + 1), tri, normal, dn
+        n = len(d)
+        return (np.full(n, np.inf), np.full(n, -1, dtype=np.int32),
+                np.full(n, -1, dtype=np.int32), np.zeros((n, 3)), np.zeros(n))
 
 
 _MEMOS = 4  # ray bundles whose static hits are kept
