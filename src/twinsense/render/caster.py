@@ -8,8 +8,9 @@ Structures are cached per (scene, sensor kind, backend).
 
 Speed: large bundles are cast in chunks on worker threads (Embree and NumPy
 release the GIL). A fixed sensor casts the same rays every frame; if its
-ray arrays are read-only, the hits on static objects are kept (for the last
-few bundles) and only rays near moving objects are traced again.
+ray arrays are read-only, the hits on static objects are kept from its
+second cast of them on (for the last few bundles), and only rays near
+moving objects are traced again.
 :meth:`SceneCaster.cast_static` and :meth:`SceneCaster.cast_moving` give the
 two parts separately, for callers that keep what they derive from the
 static hits.
@@ -69,6 +70,7 @@ class SceneCaster:
         # Static hits of the last few read-only ray bundles (one per fixed
         # sensor): [origins, directions, arrays, complete], newest last.
         self._memos: list[list] = []
+        self._seen: list[tuple[np.ndarray, np.ndarray]] = []  # read-only bundles cast once
 
     def cast(self, rays: Rays, t: float = 0.0, fields: Iterable[str] | None = None,
              workers: int | None = None, *, moving: bool = True) -> Hits:
@@ -83,8 +85,9 @@ class SceneCaster:
 
         A sensor that does not move casts the same rays every frame: when
         both ray arrays are read-only (and everything they view is), the
-        hits on the static objects are kept and reused while the same
-        arrays are cast again; only the moving objects are traced anew.
+        hits on the static objects are kept from the second cast of the same
+        arrays on and reused while they are cast again; only the moving
+        objects are traced anew.
         """
         if self.scene.version != self._version:
             raise ConfigError("scene", "changed after the caster was built", "a new SceneCaster (use cast())")
@@ -224,6 +227,12 @@ class SceneCaster:
         for entry in self._memos:
             if entry[0] is o and entry[1] is d:
                 return entry[2], entry[3]
+        # A bundle cast for the first time is only noted: a sensor that moves
+        # casts each bundle once, and keeping its hits would cost copies of
+        # every static hit for nothing. From its second cast on it is kept.
+        if not any(a is o and b is d for a, b in self._seen):
+            self._seen = [*self._seen[-(_MEMOS - 1):], (o, d)]
+            return None, False
         n = len(d)
         memo = (np.empty(n), np.empty(n, np.int32), np.empty(n, np.int32), np.empty((n, 3)),
                 np.empty(n))
