@@ -275,7 +275,8 @@ class ScatterRenderer:
         g = g * g if ant.tx_pattern == ant.rx_pattern else g * ant.rx_pattern.gain(d)
         g *= 2.0 * config.tx_power * config.chirp.wavelength**2 / (4 * math.pi) ** 3
         self._power_per_rcs = g
-        self._last: tuple[Scatterers, np.ndarray] | None = None
+        # (weak reference to the last render's scatterers, their amplitudes)
+        self._last: tuple[weakref.ref, np.ndarray] | None = None
         self._rays_key: bytes | None = None
         self._rays: Rays | None = None
         self._snap: _Snapshot | None = None
@@ -337,7 +338,8 @@ class ScatterRenderer:
                               math.radians(self.config.specular_lobe_deg))
         direct = Scatterers(points, velocities, rcs, obj_hit)
         if not self.config.multipath:
-            self._last = (direct, self._direct_amplitude(take(self._power_per_rcs), rcs, dist))
+            amp = self._direct_amplitude(take(self._power_per_rcs), rcs, dist)
+            self._last = (weakref.ref(direct), amp)
             return direct
         idx = np.arange(len(hit)) if idx is None else idx
         second = self._second_bounce(scene, sensor_state, t, hits, idx,
@@ -348,7 +350,7 @@ class ScatterRenderer:
         """(n,) peak IF amplitudes [sqrt(W)] of the scatterers of the last :meth:`render`,
         as :func:`received_amplitude` gives them; None for any other scatterers."""
         last = self._last
-        return last[1] if last is not None and last[0] is scatterers else None
+        return last[1] if last is not None and last[0]() is scatterers else None
 
     @staticmethod
     def _direct_amplitude(power_per_rcs: np.ndarray, rcs: np.ndarray,
