@@ -4,8 +4,8 @@ ground-truth depth camera at once, on one clock, into one recording.
 Writes under ``out_dir``:
 
 - ``office_recording.h5``: every frame of the three sensors (see docs/recording-format.md);
-- ``tof_depth.png``, ``tof_amplitude.png``, ``tof_confidence.png``, ``tof_pointcloud.png`` (Royale mode MODE_9_5FPS_2000):
-  the pico flexx's last frame (the IR reflector saturates: depth 0);
+- ``tof_depth.png``, ``tof_amplitude.png``, ``tof_confidence.png``, ``tof_pointcloud.png``:
+  the pico flexx's last frame (Royale mode MODE_9_5FPS_2000) (the IR reflector saturates: depth 0);
 - ``radar_range_spectrum.png`` and ``radar_range_angle.png`` (paper Fig. 4-5),
   ``radar_doppler_tracking.png`` (Fig. 6) and, when the real BGT60TR13C
   recording is available, ``radar_noise_floor.png``;
