@@ -30,7 +30,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from twinsense.capacitive.demo import PATHS, TOOL_CLEARANCE, TOOL_HEIGHT, printer_scene
+from twinsense.capacitive.demo import PATHS, TOOL_CLEARANCE, TOOL_HEIGHT, demo_mesh_settings, printer_scene
 from twinsense.capacitive.mesh import MeshSettings
 from twinsense.capacitive.presets import make_capacitive
 from twinsense.capacitive.solver import SolverConfig
@@ -156,19 +156,8 @@ def run_gmsh(frames: int) -> None:
     """Printer bed on a gmsh mesh of about the target size: meshing and update times."""
     from twinsense.capacitive.gmsh_mesher import gmsh_version
 
-    z_top = TOOL_CLEARANCE + TOOL_HEIGHT
-    mesh = MeshSettings(
-        margin=0.02,
-        height=0.06,
-        depth=0.01,
-        h_min=2.5e-3,
-        h_max=0.025,
-        growth=1.5,
-        refine=((-0.1, 0.1, -0.1, 0.1, 0.0, z_top),),
-        h_refine=0.01,
-        use_cache=False,
-        mesher="gmsh",
-    )
+    # The demo's mesh, finer at the stripe edges, meshed by gmsh.
+    mesh = replace(demo_mesh_settings(), h_min=2.5e-3, growth=1.5, h_refine=0.01, use_cache=False, mesher="gmsh")
     sensor = sensor_with(mesh)
     t0 = time.perf_counter()
     lm = sensor.layout_mesh

@@ -20,6 +20,7 @@ import numpy as np
 
 from twinsense.capacitive.mesh import SimplexMesh
 from twinsense.errors import ConfigError
+from twinsense.scene.materials import CONDUCTOR_KINDS
 
 __all__ = [
     "CONDUCTOR_KINDS",
@@ -30,7 +31,6 @@ __all__ = [
     "map_inclusions",
 ]
 
-CONDUCTOR_KINDS = ("none", "grounded", "floating")
 
 
 @dataclass(frozen=True, eq=False)
