@@ -9,6 +9,7 @@ from twinsense.depthcam import DepthCamera, DepthCameraConfig
 from twinsense.errors import ConfigError, GeometryError, RecordingError, TwinsenseError
 from twinsense.io.recording import open_recording
 from twinsense.render import OrthographicCamera, PinholeCamera, Rays, cast
+from twinsense.scenario import ScenarioError, load_scenario
 from twinsense.scene import (
     Box,
     Capsule,
@@ -30,7 +31,6 @@ from twinsense.scene import (
     get_material,
     register_material,
 )
-from twinsense.scene.scenario import ScenarioError, load_scenario
 from twinsense.simulate import SimulationResult, simulate
 
 __all__ = [

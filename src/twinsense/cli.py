@@ -27,7 +27,7 @@ def run(scenario: Path = typer.Argument(..., help="scenario YAML file"),
         out: Path = typer.Option(Path("out"), "-o", "--out", help="output directory"),
         progress: bool = typer.Option(True, help="show a progress bar")) -> None:
     """Simulate a scenario and write its recording under OUT."""
-    from twinsense.scene.scenario import load_scenario
+    from twinsense.scenario import load_scenario
 
     try:
         sc = load_scenario(scenario)
@@ -41,7 +41,7 @@ def run(scenario: Path = typer.Argument(..., help="scenario YAML file"),
 @app.command()
 def validate(scenario: Path = typer.Argument(..., help="scenario YAML file")) -> None:
     """Check a scenario file and report every problem with its field path."""
-    from twinsense.scene.scenario import load_scenario
+    from twinsense.scenario import load_scenario
 
     try:
         sc = load_scenario(scenario)

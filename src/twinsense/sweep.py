@@ -26,7 +26,7 @@ from typing import Any
 import yaml
 
 from twinsense.errors import ConfigError, UnknownNameError
-from twinsense.scene.scenario import ScenarioError, scenario_from_dict
+from twinsense.scenario import ScenarioError, scenario_from_dict
 
 BACKENDS = ("serial", "process", "ray")
 _TOKEN = re.compile(r"([^.\[\]]+)|\[(\d+)\]")

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from scipy.special import ellipk
 
-from twinsense.capacitive.fem import EPS0, ElectrostaticSystem
+from twinsense.capacitive.fem import ElectrostaticSystem
 from twinsense.capacitive.mesh import (
     SimplexMesh,
     extruded_mesh,
@@ -23,6 +23,7 @@ from twinsense.capacitive.mesh import (
     tensor_tet_mesh,
 )
 from twinsense.capacitive.solver import MaxwellSolver, SolverConfig
+from twinsense.constants import EPS0
 
 TIGHT = SolverConfig(rtol=1e-10, energy_tol=0.0)
 A_RADIUS = 0.01  # [m]

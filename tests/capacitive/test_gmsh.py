@@ -11,12 +11,13 @@ import pytest
 
 from conftest import two_pad_config
 from twinsense.capacitive import layouts as L
-from twinsense.capacitive.fem import EPS0, ElectrostaticSystem
+from twinsense.capacitive.fem import ElectrostaticSystem
 from twinsense.capacitive.gmsh_mesher import _cache_key
 from twinsense.capacitive.layouts import polygon_loops
 from twinsense.capacitive.mesh import MeshSettings, mesh_layout
 from twinsense.capacitive.sensor import CapacitiveSensor
 from twinsense.capacitive.solver import MaxwellSolver, SolverConfig
+from twinsense.constants import EPS0
 from twinsense.errors import ConfigError
 from twinsense.scene import Material, Pose, Scene, SceneObject, Sphere
 

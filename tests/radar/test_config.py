@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
+from twinsense.constants import SPEED_OF_LIGHT
 from twinsense.errors import ConfigError, UnknownNameError
 from twinsense.presets import list_presets, make_sensor
 from twinsense.radar import (
-    SPEED_OF_LIGHT,
     AntennaArray,
     ChirpConfig,
     ElementPattern,

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from scipy import signal
 
+from twinsense.constants import SPEED_OF_LIGHT
 from twinsense.radar import (
-    SPEED_OF_LIGHT,
     AntennaArray,
     ChirpConfig,
     ElementPattern,

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from twinsense.data import real_recording
 from twinsense.errors import ConfigError
 from twinsense.radar import (
     FMCWRadar,
@@ -20,10 +20,8 @@ from twinsense.radar import (
     write_infineon_recording,
 )
 
-REAL = Path("/work/shared/data/real")
-IFX_DIR = (REAL / "infineon-bgt60tr13c-napas" / "BGT60TR13C_record_napaszhar_220260106-151615"
-           / "RadarIfxAvian_00")
-TI_CFG = REAL / "ti-iwr1843-dca1000-oneframe" / "xwr18xx_profile_2023_01_01T00_00_00_000.cfg"
+IFX_DIR = real_recording("bgt60tr13c_napas") / "RadarIfxAvian_00"
+TI_CFG = real_recording("iwr1843_dca1000") / "xwr18xx_profile_2023_01_01T00_00_00_000.cfg"
 
 
 def test_real_infineon_config_loads_with_its_values():

@@ -1,4 +1,4 @@
-"""Real recordings (shared/data/real) load and go through the processing chain.
+"""Real recordings shipped in twinsense.data load and go through the processing chain.
 
 The scenes are not documented by their sources; the expected ranges are the
 ones the data READMEs report from their own, independent analysis.
@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from twinsense.data import real_recording
 from twinsense.errors import ConfigError, RecordingError
 from twinsense.radar.formats import read_ti_cfg
 from twinsense.radar.processing import ProcessingSettings, process_cube
@@ -22,16 +23,13 @@ from twinsense.radar.recordings import (
 )
 
 C = 299_792_458.0
-SHARED = Path(__file__).resolve().parents[2].parent / "shared"
-REAL = SHARED / "data" / "real"
-INFINEON = REAL / "infineon-bgt60tr13c-napas" / "BGT60TR13C_record_napaszhar_220260106-151615"
-TI_DIR = REAL / "ti-iwr1843-dca1000-oneframe"
+INFINEON = real_recording("bgt60tr13c_napas")
+TI_DIR = real_recording("iwr1843_dca1000")
 
 
 def _require(path: Path) -> Path:
     if not path.exists():
-        pytest.fail(f"real radar data missing: {path} (shared/ must sit beside the checkout, "
-                    f"at {SHARED})")
+        pytest.fail(f"real radar data missing from the package: {path}")
     return path
 
 

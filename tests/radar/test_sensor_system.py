@@ -3,17 +3,16 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from twinsense.data import bgt60_radar_npy
 from twinsense.radar import FMCWRadar, ProcessingSettings, RadarFrame, Scatterers
 from twinsense.scene import ConstantVelocity, Mount, Pose, Scene, SceneObject, Sphere
 
 LOOK_Y = Pose.look_at((0.0, 0.0, 0.0), (0.0, 1.0, 0.0))
-REAL_NPY = Path("/work/shared/data/real/infineon-bgt60tr13c-napas/"
-                "BGT60TR13C_record_napaszhar_220260106-151615/RadarIfxAvian_00/radar.npy")
+REAL_NPY = bgt60_radar_npy()
 
 
 def _strongest(cloud):

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
+from twinsense.constants import SPEED_OF_LIGHT
 from twinsense.radar import (
-    SPEED_OF_LIGHT,
     AntennaArray,
     ChirpConfig,
     IFChain,

@@ -7,11 +7,12 @@ import math
 import numpy as np
 import pytest
 
+from twinsense.constants import PLANCK as H_PLANCK
+from twinsense.constants import SPEED_OF_LIGHT as C_LIGHT
 from twinsense.render import cast
 from twinsense.render.caster import _frozen
 from twinsense.scene import Box, ConstantVelocity, Material, Pose, Scene
 from twinsense.tof import InvalidReason, ToFCamera
-from twinsense.tof.config import C_LIGHT, H_PLANCK
 from twinsense.tof.effects import crosstalk
 from twinsense.tof.pipeline import expected_raw, finish_geometry, run_chain
 from twinsense.tof.signal import beam_profile, pixel_phasors

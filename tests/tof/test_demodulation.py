@@ -11,8 +11,8 @@ import math
 import numpy as np
 import pytest
 
+from twinsense.constants import SPEED_OF_LIGHT as C_LIGHT
 from twinsense.tof import ToFConfig
-from twinsense.tof.config import C_LIGHT
 from twinsense.tof.demodulation import phase_amplitude, unwrap_two_frequencies
 from twinsense.tof.pipeline import run_chain
 from twinsense.tof.signal import Radiometry, SurfaceSamples, pixel_phasors

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from twinsense.tof.config import C_LIGHT, H_PLANCK
+from twinsense.constants import PLANCK as H_PLANCK
+from twinsense.constants import SPEED_OF_LIGHT as C_LIGHT
 from twinsense.tof.effects import crosstalk
 from twinsense.tof.signal import (
     PixelPhasors,

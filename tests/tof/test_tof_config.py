@@ -6,9 +6,9 @@ import math
 
 import pytest
 
+from twinsense.constants import SPEED_OF_LIGHT as C_LIGHT
 from twinsense.errors import ConfigError, UnknownNameError
 from twinsense.tof import PICO_FLEXX_MODES, ToFCamera, ToFConfig, tof_preset
-from twinsense.tof.config import C_LIGHT
 
 
 @pytest.mark.parametrize(("changes", "match"), [

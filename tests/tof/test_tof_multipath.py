@@ -6,9 +6,9 @@ import math
 
 import numpy as np
 
+from twinsense.constants import SPEED_OF_LIGHT as C_LIGHT
 from twinsense.scene import Box, Pose, Scene
 from twinsense.tof import ToFCamera
-from twinsense.tof.config import C_LIGHT
 from twinsense.tof.multipath import indirect_phasors
 from twinsense.tof.signal import beam_profile
 

@@ -30,6 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from twinsense.capacitive.mesh import SimplexMesh
+from twinsense.constants import EPS0
 from twinsense.errors import ConfigError, UnknownNameError
 
 __all__ = [
@@ -42,7 +43,6 @@ __all__ = [
     "robin_matrix",
 ]
 
-EPS0 = 8.8541878128e-12
 """Vacuum permittivity [F/m] (CODATA 2018)."""
 
 OUTER_BOUNDARIES = ("open", "grounded", "neumann")

@@ -26,10 +26,10 @@ from twinsense.simulate import simulate
 
 def run_office_demo(out_dir, duration: float = 1.0, progress: bool = False) -> dict[str, Path]:
     """Simulate the office for ``duration`` [s] with all sensors and write plots and the recording."""
+    from twinsense.demos import radar as radar_demos
+    from twinsense.demos.tof import write_tof_figures
     from twinsense.radar import FMCWRadar
-    from twinsense.radar import demos as radar_demos
     from twinsense.tof import ToFCamera
-    from twinsense.tof.demo import write_tof_figures
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -46,8 +46,7 @@ def run_office_demo(out_dir, duration: float = 1.0, progress: bool = False) -> d
     t_last = res.frames["radar"][-1].t
     files.update(radar_demos.office_spectrum_figures(out, t=t_last))
     files.update(radar_demos.doppler_tracking_figure(out))
-    if radar_demos.REAL_BGT60_RECORDING.exists():
-        files.update(radar_demos.noise_floor_figure(out))
+    files.update(radar_demos.noise_floor_figure(out))
     files["ground_truth_depth_png"] = depth_figure(res.frames["depth"][-1], out / "ground_truth_depth.png",
                                                    "office, ideal depth camera (ground truth)")
     return files

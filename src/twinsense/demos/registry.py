@@ -15,11 +15,11 @@ from twinsense.errors import UnknownNameError
 DEMOS: dict[str, tuple[str, str, str]] = {
     "office": ("twinsense.demos.office_all", "run_office_demo",
                "the seed paper's office: ToF camera + radar + depth camera on one clock (make demo)"),
-    "tof-office": ("twinsense.tof.demo", "run_tof_office_demo",
+    "tof-office": ("twinsense.demos.tof", "run_tof_office_demo",
                    "pico flexx in the office (paper Fig. 2-3): depth, amplitude, confidence, point cloud"),
-    "radar": ("twinsense.radar.demos", "run_radar_demo",
+    "radar": ("twinsense.demos.radar", "run_radar_demo",
               "BGT60TR13C: office range spectrum and range-angle map, Doppler tracking, real noise floor"),
-    "capacitive-printer": ("twinsense.capacitive.demo", "run_capacitive_printer_demo",
+    "capacitive-printer": ("twinsense.demos.capacitive", "run_capacitive_printer_demo",
                            "CapSense Fig. 10: grounded cylinder over 6 bed stripes, capacitance change per "
                            "electrode"),
     "depth": ("twinsense.demos.depth", "run_depth_demo",

@@ -7,7 +7,6 @@ Raw cube axis order follows the Infineon Radar SDK: ``(rx, chirp, sample)``.
 
 from twinsense.radar import presets as _presets  # noqa: F401  (registers the presets)
 from twinsense.radar.antennas import (
-    SPEED_OF_LIGHT,
     AntennaArray,
     ElementPattern,
     l_shaped_positions,
@@ -33,7 +32,6 @@ from twinsense.radar.synthesis import synthesize, synthesize_exact
 
 __all__ = [
     "PRESET_CONFIGS",
-    "SPEED_OF_LIGHT",
     "AntennaArray",
     "ChirpConfig",
     "ElementPattern",

@@ -20,7 +20,6 @@ import numpy as np
 from twinsense import validation as V
 from twinsense.errors import ConfigError
 
-SPEED_OF_LIGHT = 299_792_458.0
 """Speed of light in vacuum [m/s]."""
 
 

@@ -19,10 +19,10 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from twinsense import validation as V
+from twinsense.constants import BOLTZMANN, SPEED_OF_LIGHT, T0_NOISE
 from twinsense.errors import ConfigError
-from twinsense.radar.antennas import SPEED_OF_LIGHT, AntennaArray
+from twinsense.radar.antennas import AntennaArray
 
-BOLTZMANN = 1.380649e-23
 """Boltzmann constant [J/K]."""
 
 
@@ -271,7 +271,7 @@ class NoiseConfig:
 
     mode: str = "thermal"
     noise_figure_db: float = 12.0
-    temperature: float = 290.0
+    temperature: float = T0_NOISE
     variance: float = 0.0
 
     def __post_init__(self) -> None:

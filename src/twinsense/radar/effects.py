@@ -21,7 +21,7 @@ from dataclasses import replace
 import numpy as np
 from scipy import signal
 
-from twinsense.radar.antennas import SPEED_OF_LIGHT
+from twinsense.constants import SPEED_OF_LIGHT
 from twinsense.radar.config import IFChain, RadarConfig
 
 
@@ -131,7 +131,7 @@ def shape_noise(noise: np.ndarray, config: RadarConfig) -> np.ndarray:
 
     The high-pass sits between mixer and IF amplifier; the noise that
     dominates after the gain is the amplifier's own, which only the
-    anti-alias filter shapes. The BGT60TR13C recording in shared/data/real
+    anti-alias filter shapes. The BGT60TR13C recording shipped in twinsense.data
     shows exactly that: a flat floor down to the lowest bins, no dip below
     the 80 kHz high-pass corner, and a gentle roll-off towards fs/2.
     """

@@ -23,9 +23,9 @@ from typing import Any
 import numpy as np
 
 from twinsense import validation as V
+from twinsense.constants import SPEED_OF_LIGHT
 from twinsense.errors import ConfigError
 from twinsense.radar.antennas import (
-    SPEED_OF_LIGHT,
     AntennaArray,
     l_shaped_positions,
     ula_positions,

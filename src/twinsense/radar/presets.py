@@ -1,6 +1,6 @@
 """Named radar presets, registered with :mod:`twinsense.presets` under kind "radar".
 
-- ``infineon_bgt60tr13c``: the device as it recorded shared/data/real
+- ``infineon_bgt60tr13c``: the device as it recorded the real recording in twinsense.data
   (58-63.5 GHz, 64 samples at 2 MHz, 8 chirps, 1 Tx, 3 Rx in an L, real IF,
   12-bit ADC, IF gain 23 dB, HP 80 kHz, AAF 500 kHz). Receiver gain, ADC span,
   DC offset and leakage are set so that the simulated noise floor and ADC
@@ -25,9 +25,9 @@ from typing import Any
 import numpy as np
 
 from twinsense import validation
+from twinsense.constants import SPEED_OF_LIGHT
 from twinsense.errors import ConfigError, UnknownNameError
 from twinsense.radar.antennas import (
-    SPEED_OF_LIGHT,
     AntennaArray,
     ElementPattern,
     l_shaped_positions,

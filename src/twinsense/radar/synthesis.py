@@ -55,7 +55,7 @@ import threading
 import finufft
 import numpy as np
 
-from twinsense.radar.antennas import SPEED_OF_LIGHT
+from twinsense.constants import SPEED_OF_LIGHT
 from twinsense.radar.config import RadarConfig
 from twinsense.render.parallel import map_ordered
 

@@ -14,10 +14,8 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 
 from twinsense import validation as V
+from twinsense.constants import SPEED_OF_LIGHT
 from twinsense.errors import ConfigError
-
-C_LIGHT = 299_792_458.0  # speed of light [m/s]
-H_PLANCK = 6.626_070_15e-34  # Planck constant [J s]
 
 #: Number of phase steps per modulation frequency (tau_i = i * pi / 2).
 PHASE_STEPS = 4
@@ -329,7 +327,7 @@ class ToFConfig:
         """Largest distance measured without wrapping [m]: c / (2 gcd(f))."""
         f = self.modulation_frequencies
         g = f[0] if len(f) == 1 else float(_gcd_hz(*f))
-        return C_LIGHT / (2.0 * g)
+        return SPEED_OF_LIGHT / (2.0 * g)
 
     @property
     def camera_intrinsics(self) -> tuple[float, float, float, float]:

@@ -19,7 +19,8 @@ import math
 
 import numpy as np
 
-from twinsense.tof.config import C_LIGHT, ToFConfig, _gcd_hz
+from twinsense.constants import SPEED_OF_LIGHT
+from twinsense.tof.config import ToFConfig, _gcd_hz
 
 TWO_PI = 2.0 * math.pi
 
@@ -49,7 +50,7 @@ def phase_amplitude(difference: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def phase_to_distance(phase: np.ndarray, frequency: float) -> np.ndarray:
     """Wrapped radial distance c phi / (4 pi f) [m] for phase ``phase`` [rad] at ``frequency`` [Hz]."""
-    return phase * np.float32(C_LIGHT / (2.0 * TWO_PI * frequency))
+    return phase * np.float32(SPEED_OF_LIGHT / (2.0 * TWO_PI * frequency))
 
 
 def unwrap_weights(frequencies: tuple[float, ...]) -> np.ndarray:
@@ -85,7 +86,7 @@ def unwrap_two_frequencies(d1: np.ndarray, d2: np.ndarray, f1: float, f2: float)
     """
     g = _gcd_hz(f1, f2)
     k1, k2 = round(f1) // g, round(f2) // g
-    rng = C_LIGHT / (2.0 * g)
+    rng = SPEED_OF_LIGHT / (2.0 * g)
     r1, r2 = np.float32(rng / k1), np.float32(rng / k2)
     w2 = np.float32(unwrap_weights((f1, f2))[1])
     d1 = np.asarray(d1, dtype=np.float32)
@@ -141,6 +142,6 @@ def depth_noise(amplitude_dn: np.ndarray, tap_sum_e: np.ndarray, config: ToFConf
     with np.errstate(divide="ignore"):
         for k, fk in enumerate(f):
             sigma_phi = sigma_d / (np.float32(math.sqrt(2.0)) * amplitude_dn[k])
-            sd = sigma_phi * np.float32(C_LIGHT / (2.0 * TWO_PI * fk))
+            sd = sigma_phi * np.float32(SPEED_OF_LIGHT / (2.0 * TWO_PI * fk))
             total += np.float32(w[k] ** 2) * sd * sd
     return np.sqrt(total)

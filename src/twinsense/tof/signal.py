@@ -32,7 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from twinsense.tof.config import C_LIGHT, H_PLANCK, PHASE_STEPS, ToFConfig
+from twinsense.constants import PLANCK, SPEED_OF_LIGHT
+from twinsense.tof.config import PHASE_STEPS, ToFConfig
 
 
 @dataclass(frozen=True, eq=False)
@@ -188,7 +189,7 @@ class Radiometry:
         cos_axis = np.clip(directions[..., 2], 0.0, 1.0)
         # Light-sensitive area of one sub-pixel [m^2].
         sub_area = cfg.pixel_pitch ** 2 * cfg.fill_factor / (n * n)
-        photons_per_joule = cfg.wavelength / (H_PLANCK * C_LIGHT)
+        photons_per_joule = cfg.wavelength / (PLANCK * SPEED_OF_LIGHT)
         # Image irradiance = R E T cos^4 / (4 N^2) (camera equation, Lambertian L = R E / pi).
         cam = (cfg.lens_transmission * cos_axis ** 4 / (4.0 * cfg.f_number ** 2) * sub_area
                * photons_per_joule * cfg.quantum_efficiency * cfg.exposure_time)
@@ -197,7 +198,7 @@ class Radiometry:
         self.signal_gain = (cfg.illumination_power * self.beam * cam).astype(np.float32)
         self.ambient_gain = (cfg.ambient_irradiance * cam).astype(np.float32)
         self.dark_electrons = cfg.dark_current * cfg.exposure_time
-        self.wavenumbers = np.array([4.0 * math.pi * f / C_LIGHT for f in cfg.modulation_frequencies])
+        self.wavenumbers = np.array([4.0 * math.pi * f / SPEED_OF_LIGHT for f in cfg.modulation_frequencies])
 
     def band(self, r0: int, r1: int) -> Radiometry:
         """The same constants restricted to pixel rows [r0, r1) (sub-pixel rows r0*N .. r1*N)."""

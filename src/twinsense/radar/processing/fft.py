@@ -27,11 +27,11 @@ from __future__ import annotations
 import numpy as np
 
 from twinsense import validation as V
+from twinsense.constants import SPEED_OF_LIGHT
 from twinsense.errors import ConfigError
 from twinsense.radar.processing import windows
 
 #: Speed of light in vacuum [m/s].
-C = 299_792_458.0
 
 MTI_METHODS = ("none", "mean", "two_pulse")
 
@@ -141,7 +141,7 @@ def range_bin_spacing(sample_rate: float, slope: float, n_fft: int) -> float:
     """
     fs = V.positive("sample_rate", sample_rate, "Hz")
     s = V.positive("slope", slope, "Hz/s")
-    return C * fs / (2.0 * s * V.integer("n_fft", n_fft, lo=1))
+    return SPEED_OF_LIGHT * fs / (2.0 * s * V.integer("n_fft", n_fft, lo=1))
 
 
 def range_axis(n_bins: int, *, sample_rate: float, slope: float, n_fft: int) -> np.ndarray:
@@ -159,12 +159,12 @@ def max_range(*, sample_rate: float, slope: float, real_if: bool) -> float:
     fs = V.positive("sample_rate", sample_rate, "Hz")
     s = V.positive("slope", slope, "Hz/s")
     f_max = fs / 2 if real_if else fs
-    return C * f_max / (2.0 * s)
+    return SPEED_OF_LIGHT * f_max / (2.0 * s)
 
 
 def wavelength(carrier_frequency: float) -> float:
     """Carrier wavelength [m] for ``carrier_frequency`` [Hz]."""
-    return C / V.positive("carrier_frequency", carrier_frequency, "Hz")
+    return SPEED_OF_LIGHT / V.positive("carrier_frequency", carrier_frequency, "Hz")
 
 
 def velocity_axis(n_fft: int, *, chirp_repetition_time: float,

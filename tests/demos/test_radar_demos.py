@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from twinsense.radar.demos import doppler_tracking, noise_floor_figure, office_spectrum_figures
+from twinsense.demos.radar import doppler_tracking, noise_floor_figure, office_spectrum_figures
 
 
 def test_doppler_track_follows_the_true_radial_velocity():

@@ -21,7 +21,7 @@ from twinsense import (
     get_material,
     load_scenario,
 )
-from twinsense.scene.scenario import scenario_from_dict
+from twinsense.scenario import scenario_from_dict
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "office_depth.yaml"
 

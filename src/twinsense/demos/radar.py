@@ -8,7 +8,7 @@ Each function takes an output folder, writes PNGs and returns ``{name: path}``:
   of the radar, 16 chirps per frame; Doppler velocity of the strongest
   detection against the true radial velocity over time (Fig. 6).
 - :func:`noise_floor_figure`: range spectra of the real BGT60TR13C recording
-  in shared/data/real against a simulated empty scene with the
+  shipped with twinsense (:mod:`twinsense.data`) against a simulated empty scene with the
   ``infineon_bgt60tr13c`` preset.
 - :func:`run_radar_demo`: all of them.
 """
@@ -20,14 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
+from twinsense.data import bgt60_radar_npy
 from twinsense.radar.processing import ProcessingSettings, range_axis, range_fft, remove_dc
 from twinsense.radar.processing.doa import spectrum
 from twinsense.radar.sensor import FMCWRadar
 from twinsense.scene import Box, Mount, Pose, Scene, SceneObject, Waypoints
-
-REAL_BGT60_RECORDING = Path(
-    "/work/shared/data/real/infineon-bgt60tr13c-napas/"
-    "BGT60TR13C_record_napaszhar_220260106-151615/RadarIfxAvian_00/radar.npy")
 
 
 def _plt():
@@ -155,13 +152,17 @@ def doppler_tracking_figure(out_dir, duration: float = 6.0, step: float = 0.1,
     return {"radar_doppler_tracking": path}
 
 
-def noise_floor_figure(out_dir, recording: Path = REAL_BGT60_RECORDING, frames: int = 64,
+def noise_floor_figure(out_dir, recording: Path | None = None, frames: int = 64,
                        seed: int = 0) -> dict[str, Path]:
     """Range spectra (after static-clutter removal and without) of the real BGT60TR13C
-    recording against a simulated empty scene, in ADC codes."""
+    recording (default: the one shipped in :mod:`twinsense.data`) against a simulated
+    empty scene, in ADC codes."""
     plt = _plt()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    recording = bgt60_radar_npy() if recording is None else Path(recording)
+    if not recording.is_file():
+        raise FileNotFoundError(f"noise_floor_figure: recording {recording} does not exist")
     real = np.asarray(np.load(recording, mmap_mode="r")[:frames], dtype=float)
     radar = FMCWRadar.preset("infineon_bgt60tr13c", process=False)
     rng = np.random.default_rng(seed)
@@ -201,9 +202,7 @@ def noise_floor_figure(out_dir, recording: Path = REAL_BGT60_RECORDING, frames: 
 def run_radar_demo(out_dir, progress: bool = False) -> dict[str, Path]:
     """All radar figures into ``out_dir``."""
     files: dict[str, Path] = {}
-    steps = [office_spectrum_figures, doppler_tracking_figure]
-    if REAL_BGT60_RECORDING.exists():
-        steps.append(noise_floor_figure)
+    steps = [office_spectrum_figures, doppler_tracking_figure, noise_floor_figure]
     for fn in steps:
         if progress:
             print(f"radar demo: {fn.__name__}")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import h5py
 import numpy as np
 
-from twinsense.tof.demo import office_camera, run_tof_office_demo
+from twinsense.demos.tof import office_camera, run_tof_office_demo
 from twinsense.tof.frame import InvalidReason
 
 

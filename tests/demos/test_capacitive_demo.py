@@ -5,8 +5,8 @@ from __future__ import annotations
 import h5py
 import numpy as np
 
-from twinsense.capacitive.demo import run_capacitive_printer_demo, simulate_printer
 from twinsense.capacitive.mesh import MeshSettings
+from twinsense.demos.capacitive import run_capacitive_printer_demo, simulate_printer
 
 
 def test_printer_demo_small(tmp_path):
