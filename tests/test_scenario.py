@@ -23,7 +23,7 @@ from twinsense import (
 )
 from twinsense.scenario import scenario_from_dict
 
-EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "office_depth.yaml"
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "office_depth.yaml"
 
 
 def python_scene():
