@@ -26,11 +26,10 @@ scatterers, so its time is scaled to the full count).
 from __future__ import annotations
 
 import argparse
-import os
-import platform
 import time
 
 import numpy as np
+from _timing import embree_anchor, print_anchor, print_load_at_end, print_machine
 
 from twinsense.demos.office import build_office_scene, sensor_pose
 from twinsense.radar import (
@@ -40,6 +39,7 @@ from twinsense.radar import (
     synthesize,
     synthesize_exact,
 )
+from twinsense.render import PinholeCamera
 from twinsense.scene import Mount
 
 
@@ -112,13 +112,17 @@ def main() -> None:
     ap.add_argument("--exact-subset", type=int, default=400)
     args = ap.parse_args()
 
-    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-          f"Python {platform.python_version()}, load average {os.getloadavg()[0]:.2f}")
+    print_machine()
     scene = build_office_scene()
     scenes = {"static": lambda k: 0.0, "walking": lambda k: 1.0 + k / 30.0}
     n = args.frames
     for label, t_of in scenes.items():
         print(f"\n== {label} ({'t = 0 s' if label == 'static' else 't = 1 s + k/30 s'})")
+        # Same-run anchor: a bare single-thread Embree cast of the radar's
+        # 1000 x 342 render rays (120 x 60 deg) against the scene at one time.
+        rays = PinholeCamera.from_fov(1000, 342, 120.0, 60.0).rays(sensor_pose())
+        _, anchor = embree_anchor(scene, "radar", t_of(2), rays.origins, rays.directions, repeats=15)
+        print(f"  anchor: bare embreex cast of the same {len(rays)} rays, 1 thread: {anchor * 1e3:.1f} ms median")
         for mode in ("cold", "warm"):
             radar = FMCWRadar.preset("paper_bgt60tr13c", mount=Mount(sensor_pose()),
                                      workers=args.workers, reuse_static=mode == "warm")
@@ -129,6 +133,7 @@ def main() -> None:
             print(f"  {mode}: full frame {1e3 * best:6.1f} ms best, {1e3 * med:6.1f} ms median "
                   f"(CPU {1e3 * cpu:5.1f} ms) -> {1 / best:5.1f} frames/s best, "
                   f"{1 / med:5.1f} median  [{radar.workers} threads]")
+            print_anchor("bare embreex cast, same rays", anchor, med)
             stages = _stages(radar, scene, [t_of(k + 2) for k in range(min(n, 10))])
             for name, ms in stages.items():
                 print(f"      {name:45s} {ms:6.1f} ms (median)")
@@ -139,6 +144,7 @@ def main() -> None:
         print(f"  synthesis of all {count} scatterers ({moving} moving): fast {1e3 * t_fast:.1f} ms, "
               f"exact {t_exact:.0f} s (timed on {sub}, scaled) -> {t_exact / t_fast:.0f} x; "
               f"fast vs exact rel. error {err:.1e} (whole cube of the subset)")
+    print_load_at_end()
 
 
 if __name__ == "__main__":
