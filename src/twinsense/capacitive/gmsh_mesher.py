@@ -196,7 +196,7 @@ def _size_fields(gmsh, s, curves: list[int], solids: list[np.ndarray]) -> None:
         field.setNumber(thr, "DistMin", 0.0)
         field.setNumber(thr, "DistMax", (s.h_max - s.h_min) * ramp)
         fields.append(thr)
-    boxes = [(b, s.h_refine) for b in s.refine]
+    boxes = [(b, min(h)) for b, h in s.refine_zones()]  # isotropic cells: the finest of a box's sizes
     boxes += [((b[0, 0], b[1, 0], b[0, 1], b[1, 1], b[0, 2], b[1, 2]), s.h_min) for b in solids]
     for b, h in boxes:
         f = field.add("Box")

@@ -437,11 +437,21 @@ class MeshSettings:
         Largest cell size [m].
     growth : float
         Size ratio of neighbouring cells away from features (> 1).
-    refine : tuple of (6,) tuples
+    refine : tuple of (6,), (7,) or (9,) tuples
         Boxes (x_min, x_max, y_min, y_max, z_min, z_max) [m] meshed at
-        ``h_refine`` (where objects move, to resolve them).
+        ``h_refine``, or at their own cell size given as a 7th value (h) or
+        as 7th to 9th values (h_x, h_y, h_z, per mesh axis) [m].
+        :meth:`CapacitiveSensor.prepare` adds the boxes that resolve the
+        scene's objects (see ``object_cells``).
     h_refine : float
-        Cell size inside the refine boxes [m].
+        Cell size inside the refine boxes that give none of their own [m].
+    object_cells : float
+        Cells across each scene object where a prepared run places it: the
+        cell size along mesh axis k is min over the object's own axes j of
+        extent_j / object_cells / abs(cos(angle(k, j))), at most ``h_max``.
+        0 turns the automatic refinement off. 6 puts ~6 cells across a
+        sphere's diameter (the self-capacitance rise of docs/capacitive-accuracy.md
+        to ~25 % of itself); 12 halves that error.
     region : (6,) tuple or None
         Explicit mesh box (x_min, x_max, y_min, y_max, z_min, z_max) [m];
         overrides margin, height and depth.
@@ -465,6 +475,7 @@ class MeshSettings:
     region: tuple | None = None
     use_cache: bool = True
     mesher: str = "grid"
+    object_cells: float = 6.0
 
     def __post_init__(self) -> None:
         from twinsense import validation as v
@@ -478,11 +489,18 @@ class MeshSettings:
         v.number("MeshSettings.h_max", self.h_max, lo=self.h_min, unit="m (>= h_min)")
         v.number("MeshSettings.growth", self.growth, lo=1.0, lo_open=True)
         v.positive("MeshSettings.h_refine", self.h_refine, "m")
+        v.non_negative("MeshSettings.object_cells", self.object_cells, "cells across an object (0: off)")
         boxes = []
         for i, b in enumerate(self.refine):
-            arr = v.vector(f"MeshSettings.refine[{i}]", b, 6, "m")
+            field_name = f"MeshSettings.refine[{i}]"
+            n = len(b) if isinstance(b, (tuple, list, np.ndarray)) else 0
+            if n not in (6, 7, 9):
+                raise ConfigError(field_name, b, "6 box bounds [m], optionally followed by h or (h_x, h_y, h_z) [m]")
+            arr = v.vector(field_name, b, n, "m")
             if not (arr[1] > arr[0] and arr[3] > arr[2] and arr[5] > arr[4]):
-                raise ConfigError(f"MeshSettings.refine[{i}]", b, "a box with min < max on every axis")
+                raise ConfigError(field_name, b, "a box with min < max on every axis")
+            if np.any(arr[6:] <= 0):
+                raise ConfigError(field_name, b, "cell sizes > 0 [m] after the 6 box bounds")
             boxes.append(tuple(float(x) for x in arr))
         object.__setattr__(self, "refine", tuple(boxes))
         if self.region is not None:
@@ -490,6 +508,14 @@ class MeshSettings:
             if not (r[1] > r[0] and r[3] > r[2] and r[5] > r[4]):
                 raise ConfigError("MeshSettings.region", self.region, "a box with min < max on every axis")
             object.__setattr__(self, "region", tuple(float(x) for x in r))
+
+    def refine_zones(self) -> tuple:
+        """The refine boxes with their cell sizes: ((box (6,), (h_x, h_y, h_z)), ...) [m]."""
+        out = []
+        for b in self.refine:
+            sizes = b[6:] if len(b) == 9 else (b[6],) * 3 if len(b) == 7 else (self.h_refine,) * 3
+            out.append((b[:6], tuple(sizes)))
+        return tuple(out)
 
 
 @dataclass(frozen=True, eq=False)
@@ -565,7 +591,7 @@ def layout_axes(layout, settings: MeshSettings) -> tuple[np.ndarray, np.ndarray,
     axes = []
     for k in range(3):
         lo, hi = region[2 * k], region[2 * k + 1]
-        zones = [(r[2 * k], r[2 * k + 1], s.h_refine) for r in s.refine]
+        zones = [(b[2 * k], b[2 * k + 1], h[k]) for b, h in s.refine_zones()]
         axes.append(graded_axis(lo, hi, feats[k], s.h_min, s.h_max, s.growth, fine_intervals=fine[k], zones=zones))
     return axes[0], axes[1], axes[2], tuple(float(x) for x in region)
 
