@@ -76,7 +76,7 @@ def test_open_mesh_inside_test_is_refused():
 
 
 @pytest.mark.parametrize("make, match", [
-    (lambda: Box((1, -1, 1)), r"box.size .* > 0"),
+    (lambda: Box((1, -1, 1)), r"box.size .* each in \[1e-06, 10000\] \[m\]"),
     (lambda: Sphere(float("nan")), "sphere.radius"),
     (lambda: Cylinder(1.0, 0.0), "cylinder.height"),
     (lambda: Plane((1,)), "plane.size"),

@@ -3,6 +3,10 @@
 Primitives carry exact inside tests (the capacitive coupling needs them) and a
 triangle mesh for ray casting. Mesh files are read through trimesh with an
 explicit length unit, so a model in millimetres never silently becomes metres.
+
+Every size (box edges, radii, heights, plane sides, the largest extent of a
+mesh) lies in [1 um, 10 km] (``validation.LENGTH_MIN`` .. ``LENGTH_MAX``);
+outside it trimesh's builders return NaN vertices or lose every triangle.
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ from twinsense import validation as V
 from twinsense.errors import ConfigError, GeometryError
 
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
+MAX_SECTIONS = 4096  # cylinder facets: beyond this the mesh only costs memory
 MESH_SUFFIXES = (".obj", ".stl", ".ply", ".gltf", ".glb", ".off")
 
 
@@ -48,6 +53,39 @@ class Geometry:
         raise NotImplementedError
 
 
+def _sizes(field_name: str, value, n: int) -> np.ndarray:
+    """``n`` edge lengths, each within [LENGTH_MIN, LENGTH_MAX] [m]."""
+    allowed = f"{n} edge lengths, each in [{V.LENGTH_MIN:g}, {V.LENGTH_MAX:g}] [m]"
+    s = V.vector(field_name, value, n, "m")
+    if np.any(s < V.LENGTH_MIN) or np.any(s > V.LENGTH_MAX):
+        raise ConfigError(field_name, s.tolist(), allowed)
+    return s
+
+
+def _check_extent(field_name: str, vertices: np.ndarray, unit_note: str = "") -> None:
+    """Refuse a mesh whose largest bounding-box edge lies outside [LENGTH_MIN, LENGTH_MAX]."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        extent = float(np.max(np.ptp(vertices, axis=0))) if len(vertices) else 0.0
+    if not (V.LENGTH_MIN <= extent <= V.LENGTH_MAX):
+        raise GeometryError(f"{field_name}: largest extent {extent:.6g} m{unit_note} is outside the allowed "
+                            f"[{V.LENGTH_MIN:g}, {V.LENGTH_MAX:g}] m (check the unit)")
+
+
+def _faces(field_name: str, value) -> np.ndarray:
+    """Face indices as int64; integral floats pass, fractions, NaN, text and huge ints do not."""
+    allowed = "an integer array (m, 3) of vertex indices"
+    try:
+        raw = np.asarray(value)
+        if raw.dtype.kind == "f":
+            if not np.all(np.isfinite(raw)) or np.any(raw != np.round(raw)) or np.any(np.abs(raw) > 2**53):
+                raise ValueError
+        elif raw.dtype.kind not in "iu":
+            raise TypeError
+        return raw.astype(np.int64)
+    except (TypeError, ValueError, OverflowError):
+        raise ConfigError(field_name, value, allowed) from None
+
+
 def _pts(points) -> np.ndarray:
     p = np.asarray(points, dtype=float)
     return p.reshape(-1, 3)
@@ -61,9 +99,7 @@ class Box(Geometry):
     kind = "box"
 
     def __post_init__(self) -> None:
-        s = V.vector("box.size", self.size, 3, "m")
-        if np.any(s <= 0):
-            raise ConfigError("box.size", list(self.size), "three edge lengths > 0 [m]")
+        s = _sizes("box.size", self.size, 3)
         object.__setattr__(self, "size", tuple(float(x) for x in s))
 
     def _build_mesh(self):
@@ -86,7 +122,7 @@ class Sphere(Geometry):
     kind = "sphere"
 
     def __post_init__(self) -> None:
-        V.positive("sphere.radius", self.radius, "m")
+        V.length("sphere.radius", self.radius)
         V.integer("sphere.subdivisions", self.subdivisions, lo=0, hi=7)
 
     def _build_mesh(self):
@@ -110,9 +146,9 @@ class Cylinder(Geometry):
     kind = "cylinder"
 
     def __post_init__(self) -> None:
-        V.positive("cylinder.radius", self.radius, "m")
-        V.positive("cylinder.height", self.height, "m")
-        V.integer("cylinder.sections", self.sections, lo=3)
+        V.length("cylinder.radius", self.radius)
+        V.length("cylinder.height", self.height)
+        V.integer("cylinder.sections", self.sections, lo=3, hi=MAX_SECTIONS)
 
     def _build_mesh(self):
         return trimesh.creation.cylinder(radius=self.radius, height=self.height, sections=self.sections)
@@ -134,8 +170,11 @@ class Capsule(Geometry):
     kind = "capsule"
 
     def __post_init__(self) -> None:
-        V.positive("capsule.radius", self.radius, "m")
-        V.non_negative("capsule.height", self.height, "m")
+        V.length("capsule.radius", self.radius)
+        # height 0 is a sphere; otherwise the cylinder part is a size like any other.
+        if V.non_negative("capsule.height", self.height, "m") != 0.0:
+            V.number("capsule.height", self.height, lo=V.LENGTH_MIN, hi=V.LENGTH_MAX,
+                     unit="m; or 0 for a sphere")
 
     def _build_mesh(self):
         return trimesh.creation.capsule(height=self.height, radius=self.radius, count=[32, 32])
@@ -160,9 +199,7 @@ class Plane(Geometry):
     kind = "plane"
 
     def __post_init__(self) -> None:
-        s = V.vector("plane.size", self.size, 2, "m")
-        if np.any(s <= 0):
-            raise ConfigError("plane.size", list(self.size), "two edge lengths > 0 [m]")
+        s = _sizes("plane.size", self.size, 2)
         object.__setattr__(self, "size", tuple(float(x) for x in s))
 
     def _build_mesh(self):
@@ -189,15 +226,13 @@ class TriangleMesh(Geometry):
 
     def __post_init__(self) -> None:
         v = V.array(f"{self.name}.vertices", self.vertices, (None, 3), "m")
-        try:
-            f = np.asarray(self.faces, dtype=np.int64)
-        except (TypeError, ValueError):
-            raise ConfigError(f"{self.name}.faces", self.faces, "an integer array (m, 3)") from None
+        f = _faces(f"{self.name}.faces", self.faces)
         if f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
             raise GeometryError(f"{self.name}: faces must be a non-empty (m, 3) integer array, got shape {f.shape}")
         if f.min() < 0 or f.max() >= len(v):
             raise GeometryError(f"{self.name}: face indices must lie in 0..{len(v) - 1}, "
                                 f"got {f.min()}..{f.max()}")
+        _check_extent(f"{self.name}.vertices", v[np.unique(f)])
         object.__setattr__(self, "vertices", v)
         object.__setattr__(self, "faces", f)
 
@@ -268,19 +303,32 @@ class MeshFile(TriangleMesh):
             raise ConfigError("mesh.path", str(path), "a mesh file ending in " + ", ".join(MESH_SUFFIXES))
         if not p.is_file():
             raise GeometryError(f"mesh.path: file not found: {str(path)!r}")
+        kind = p.suffix.lower().lstrip(".").upper()
         try:
             loaded = trimesh.load(p, force="mesh", process=True)
-        except Exception as exc:  # trimesh raises many types for broken files
-            raise GeometryError(f"mesh.path: cannot read {str(path)!r} as a mesh: {exc}") from None
+        except ImportError as exc:
+            # trimesh imports some readers lazily (ASCII STL needs charset_normalizer).
+            raise GeometryError(f"mesh.path: cannot read {str(path)!r}: the {kind} reader needs the missing "
+                                f"package {exc.name or exc}; reinstall twinsense with its dependencies") from None
+        except Exception:  # trimesh raises many types (IndexError, KeyError, ...) for damaged files
+            raise GeometryError(f"mesh.path: cannot read {str(path)!r} as a mesh: it is damaged or not "
+                                f"a valid {kind} file") from None
         if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
             raise GeometryError(f"mesh.path: {str(path)!r} holds no triangles")
-        if not np.all(np.isfinite(loaded.vertices)):
+        verts = np.asarray(loaded.vertices, dtype=float)
+        faces = np.asarray(loaded.faces, dtype=np.int64)
+        if not np.all(np.isfinite(verts)):
             raise GeometryError(f"mesh.path: {str(path)!r} has NaN or infinite vertex coordinates")
+        if faces.min() < 0 or faces.max() >= len(verts):
+            raise GeometryError(f"mesh.path: {str(path)!r} has face indices outside its {len(verts)} vertices")
+        with np.errstate(over="ignore", under="ignore"):
+            verts = verts * UNITS[unit]
+        _check_extent(f"mesh.path: {str(path)!r}", verts[np.unique(faces)], f" (read in {unit})")
         object.__setattr__(self, "path", str(path))
         object.__setattr__(self, "unit", unit)
         object.__setattr__(self, "name", p.name)
-        object.__setattr__(self, "vertices", np.asarray(loaded.vertices, dtype=float) * UNITS[unit])
-        object.__setattr__(self, "faces", np.asarray(loaded.faces, dtype=np.int64))
+        object.__setattr__(self, "vertices", verts)
+        object.__setattr__(self, "faces", faces)
 
     def to_dict(self):
         return {"type": "mesh", "path": self.path, "unit": self.unit}

@@ -4,6 +4,11 @@ Every motion answers ``state(t) -> MotionState``: the pose at time t [s] and
 the linear velocity of the frame origin and the angular velocity, both in the
 world frame. Velocities are exact derivatives of the trajectory (radar Doppler
 and ToF motion artefacts depend on them), never finite differences.
+
+``state(t)`` accepts a finite time within +-1e10 s (``validation.TIME_MAX``);
+speeds stay below the speed of light, angular speeds below 1e6 rad/s and
+oscillation frequencies below 1 MHz (see :mod:`twinsense.validation`), so a
+state is finite for every allowed time.
 """
 
 from __future__ import annotations
@@ -15,7 +20,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from twinsense import validation as V
 from twinsense.errors import ConfigError
-from twinsense.scene.pose import Pose
+from twinsense.scene.pose import Pose, _as_rotation_matrix, rotvec_matrix
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,6 +74,24 @@ class Motion:
 
 
 _ZERO = np.zeros(3)
+_ZERO.setflags(write=False)
+
+
+def check_time(t) -> float:
+    """``t`` [s] as a float, or ConfigError if it is not a finite time within +-TIME_MAX."""
+    return V.time("t", t)
+
+
+def _check_pose(field_name: str, pose) -> None:
+    if not isinstance(pose, Pose):
+        raise ConfigError(field_name, pose, "a twinsense Pose")
+
+
+def _pose_at(t: float, position: np.ndarray, rotation: np.ndarray) -> Pose:
+    """The pose at ``t``; a start position near the float limit can overflow where the time is allowed."""
+    if not np.all(np.isfinite(position)):
+        raise ConfigError("t", t, "a time at which the position stays finite (it overflows here)")
+    return Pose(position, rotation)
 
 
 @dataclass(frozen=True, eq=False)
@@ -77,7 +100,11 @@ class Static(Motion):
 
     pose0: Pose = field(default_factory=Pose)
 
+    def __post_init__(self):
+        _check_pose("motion.pose0", self.pose0)
+
     def state(self, t):
+        check_time(t)  # a static object still refuses t = NaN: the caller has a bug
         return MotionState(self.pose0, _ZERO, _ZERO)
 
     @property
@@ -97,15 +124,17 @@ class ConstantVelocity(Motion):
     angular_velocity: tuple = (0.0, 0.0, 0.0)
 
     def __post_init__(self):
-        object.__setattr__(self, "velocity", V.vector("motion.velocity", self.velocity, 3, "m/s"))
-        object.__setattr__(self, "angular_velocity",
-                           V.vector("motion.angular_velocity", self.angular_velocity, 3, "rad/s"))
+        _check_pose("motion.pose0", self.pose0)
+        object.__setattr__(self, "velocity", V.bounded_vector("motion.velocity", self.velocity, V.SPEED_MAX, "m/s"))
+        object.__setattr__(self, "angular_velocity", V.bounded_vector(
+            "motion.angular_velocity", self.angular_velocity, V.ANGULAR_SPEED_MAX, "rad/s"))
 
     def state(self, t):
-        t = float(t)
-        rot = Rotation.from_rotvec(self.angular_velocity * t).as_matrix() @ self.pose0.rotation
-        return MotionState(Pose(self.pose0.position + self.velocity * t, rot),
-                           self.velocity, self.angular_velocity)
+        t = check_time(t)
+        rot = rotvec_matrix("motion.angular_velocity * t", self.angular_velocity * t) @ self.pose0.rotation
+        with np.errstate(over="ignore"):
+            pos = self.pose0.position + self.velocity * t
+        return MotionState(_pose_at(t, pos, rot), self.velocity, self.angular_velocity)
 
     def to_dict(self):
         return {"type": "constant_velocity", "pose": self.pose0.to_dict(),
@@ -135,18 +164,25 @@ class Waypoints(Motion):
         p = V.array("motion.points", self.points, (None, 3), "m")
         if len(p) < 2:
             raise ConfigError("motion.points", self.points, "at least 2 waypoints (n, 3) [m]")
-        V.positive("motion.speed", self.speed, "m/s")
-        V.number("motion.start_time", self.start_time, unit="s")
-        if self.mode not in WAYPOINT_MODES:
+        V.number("motion.speed", self.speed, lo=0.0, lo_open=True, hi=V.SPEED_MAX, unit="m/s")
+        V.time("motion.start_time", self.start_time)
+        if not isinstance(self.mode, str) or self.mode not in WAYPOINT_MODES:
             raise ConfigError("motion.mode", self.mode, "one of: " + ", ".join(WAYPOINT_MODES))
         if self.mode == "loop":
             p = np.vstack([p, p[:1]])
-        seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
+        with np.errstate(over="ignore", invalid="ignore"):
+            diff = np.diff(p, axis=0)
+            # Row norms scaled by their largest entry: squares of 1e200 overflow.
+            big = np.max(np.abs(diff), axis=1, keepdims=True)
+            seg = big[:, 0] * np.linalg.norm(diff / np.where(big > 0, big, 1.0), axis=1)
+            cum = np.concatenate([[0.0], np.cumsum(seg)])
+        if not np.isfinite(cum[-1]):
+            raise ConfigError("motion.points", self.points, "waypoints whose path length is a finite number [m]")
         if np.any(seg <= 0):
             raise ConfigError("motion.points", self.points, "consecutive waypoints that differ")
         object.__setattr__(self, "_path", p)
-        object.__setattr__(self, "_cum", np.concatenate([[0.0], np.cumsum(seg)]))
-        object.__setattr__(self, "_rot", Pose(np.zeros(3), self.rotation).rotation)
+        object.__setattr__(self, "_cum", cum)
+        object.__setattr__(self, "_rot", _as_rotation_matrix("motion.rotation", self.rotation))
 
     @property
     def length(self) -> float:
@@ -155,9 +191,10 @@ class Waypoints(Motion):
 
     def _arc(self, t):
         """Arc length s along the path and ds/dt sign at time t."""
-        s = max(0.0, (float(t) - self.start_time)) * self.speed
+        t = check_time(t)
+        s = max(0.0, (t - self.start_time)) * self.speed
         L = self.length
-        moving = float(t) > self.start_time
+        moving = t > self.start_time
         if self.mode == "once":
             if s >= L:
                 return L, 0.0
@@ -194,20 +231,38 @@ class Keyframes(Motion):
 
     def __post_init__(self):
         t = V.array("motion.times", self.times, (None,), "s")
-        if len(t) < 2 or np.any(np.diff(t) <= 0):
-            raise ConfigError("motion.times", self.times, "at least 2 strictly increasing times [s]")
-        if len(self.poses) != len(t) or not all(isinstance(p, Pose) for p in self.poses):
-            raise ConfigError("motion.poses", f"{len(self.poses)} poses",
-                              f"one Pose per keyframe time ({len(t)})")
+        if len(t) < 2 or np.any(np.diff(t) <= 0) or np.any(np.abs(t) > V.TIME_MAX):
+            raise ConfigError("motion.times", self.times,
+                              f"at least 2 strictly increasing times within +-{V.TIME_MAX:g} [s]")
+        if (not isinstance(self.poses, (tuple, list)) or len(self.poses) != len(t)
+                or not all(isinstance(p, Pose) for p in self.poses)):
+            n = len(self.poses) if isinstance(self.poses, (tuple, list)) else self.poses
+            raise ConfigError("motion.poses", f"{n} poses", f"one Pose per keyframe time ({len(t)})")
         object.__setattr__(self, "times", t)
         pos = np.array([p.position for p in self.poses])
         rots = Rotation.from_matrix(np.array([p.rotation for p in self.poses]))
+        # The segment velocities are those state(t) reports: keyframes too close
+        # in time for their distance would claim faster-than-light motion.
+        with np.errstate(over="ignore", invalid="ignore"):
+            dt = np.diff(t)
+            speed = np.linalg.norm(np.diff(pos, axis=0), axis=1) / dt
+            spin = np.linalg.norm((rots[:-1].inv() * rots[1:]).as_rotvec(), axis=1) / dt
+        if not np.all(speed <= V.SPEED_MAX):
+            i = int(np.argmin(speed <= V.SPEED_MAX))
+            raise ConfigError(f"motion.times[{i + 1}]", float(t[i + 1]),
+                              f"keyframes far enough apart in time that the speed stays <= {V.SPEED_MAX:g} m/s "
+                              f"(here {speed[i]:.3g} m/s)")
+        if not np.all(spin <= V.ANGULAR_SPEED_MAX):
+            i = int(np.argmin(spin <= V.ANGULAR_SPEED_MAX))
+            raise ConfigError(f"motion.times[{i + 1}]", float(t[i + 1]),
+                              f"keyframes far enough apart in time that the angular speed stays <= "
+                              f"{V.ANGULAR_SPEED_MAX:g} rad/s (here {spin[i]:.3g} rad/s)")
         object.__setattr__(self, "_pos", pos)
         object.__setattr__(self, "_rots", rots)
         object.__setattr__(self, "_slerp", Slerp(t, rots))
 
     def state(self, t):
-        t = float(t)
+        t = check_time(t)
         ts = self.times
         if t <= ts[0] or t >= ts[-1]:
             p = self.poses[0] if t <= ts[0] else self.poses[-1]
@@ -244,23 +299,28 @@ class Oscillation(Motion):
     angular_amplitude: tuple = (0.0, 0.0, 0.0)
 
     def __post_init__(self):
-        object.__setattr__(self, "amplitude", V.vector("motion.amplitude", self.amplitude, 3, "m"))
-        object.__setattr__(self, "angular_amplitude",
-                           V.vector("motion.angular_amplitude", self.angular_amplitude, 3, "rad"))
-        V.positive("motion.frequency", self.frequency, "Hz")
+        _check_pose("motion.pose0", self.pose0)
+        f = V.number("motion.frequency", self.frequency, lo=0.0, lo_open=True, hi=V.FREQUENCY_MAX, unit="Hz")
+        w = 2 * np.pi * f
+        # Peak speeds are amplitude * 2 pi f: bound them like every other motion's.
+        object.__setattr__(self, "amplitude", V.bounded_vector(
+            "motion.amplitude", self.amplitude, min(V.LENGTH_MAX, V.SPEED_MAX / w), "m"))
+        object.__setattr__(self, "angular_amplitude", V.bounded_vector(
+            "motion.angular_amplitude", self.angular_amplitude, V.ANGULAR_SPEED_MAX / w, "rad"))
         V.number("motion.phase_deg", self.phase_deg, unit="deg")
 
     def state(self, t):
         w = 2 * np.pi * self.frequency
-        arg = w * float(t) + np.deg2rad(self.phase_deg)
+        arg = w * check_time(t) + np.deg2rad(self.phase_deg)
         s, c = np.sin(arg), np.cos(arg)
-        pos = self.pose0.position + self.amplitude * s
+        with np.errstate(over="ignore"):
+            pos = self.pose0.position + self.amplitude * s
         vel = self.amplitude * w * c
         # Rotation about a fixed axis n by angle theta(t) = |a| sin(arg):
         # omega = n * dtheta/dt (the axis does not change, so this is exact).
-        rot = Rotation.from_rotvec(self.angular_amplitude * s).as_matrix() @ self.pose0.rotation
+        rot = rotvec_matrix("motion.angular_amplitude", self.angular_amplitude * s) @ self.pose0.rotation
         omega = self.angular_amplitude * w * c
-        return MotionState(Pose(pos, rot), vel, omega)
+        return MotionState(_pose_at(t, pos, rot), vel, omega)
 
     def to_dict(self):
         return {"type": "oscillation", "pose": self.pose0.to_dict(), "amplitude": self.amplitude.tolist(),

@@ -20,13 +20,35 @@ from twinsense.linalg import rotate_rows
 
 def _as_rotation_matrix(field_name: str, value: Any) -> np.ndarray:
     r = V.array(field_name, value, (3, 3))
+    # Entries of a rotation lie in [-1, 1]; test that first so that R R^T of a
+    # huge matrix never overflows.
+    if np.max(np.abs(r)) > 1 + 1e-6:
+        raise ConfigError(field_name, r.tolist(), "a proper rotation (R R^T = I, det = +1; entries in [-1, 1])")
     # A rotation matrix must be orthonormal with det +1; accept small float
     # noise (1e-6) but not a scaled or mirrored matrix.
     if not np.allclose(r @ r.T, np.eye(3), atol=1e-6) or np.linalg.det(r) < 0:
-        raise ConfigError(field_name, "non-orthonormal matrix", "a proper rotation (R R^T = I, det = +1)")
+        raise ConfigError(field_name, r.tolist(), "a proper rotation (R R^T = I, det = +1)")
     # Re-orthonormalise so errors do not accumulate under composition.
     u, _, vt = np.linalg.svd(r)
     return u @ vt
+
+
+def rotvec_matrix(field_name: str, rotvec: Any) -> np.ndarray:
+    """(3, 3) rotation matrix of a rotation vector (axis * angle [rad]) of any finite size.
+
+    The angle is reduced modulo 2 pi first: scipy's Rodrigues formula gives NaN
+    for angles near 1e300 rad, though the rotation is well defined.
+    """
+    v = V.vector(field_name, rotvec, 3, "rad")
+    m = float(np.max(np.abs(v)))
+    if m == 0.0:
+        return np.eye(3)
+    axis = v / m
+    n = float(np.linalg.norm(axis))
+    angle = m * n  # <= sqrt(3) * max float: finite unless m is within 2x of the float limit
+    if not np.isfinite(angle):
+        raise ConfigError(field_name, rotvec, "a rotation vector whose length (angle) is a finite number [rad]")
+    return Rotation.from_rotvec(axis / n * np.fmod(angle, 2 * np.pi)).as_matrix()
 
 
 @dataclass(frozen=True, eq=False)
@@ -70,10 +92,13 @@ class Pose:
     def from_quat(cls, position=(0.0, 0.0, 0.0), quat_xyzw=(0.0, 0.0, 0.0, 1.0)) -> Pose:
         """Position [m] and unit quaternion in (x, y, z, w) order (scipy/ROS convention)."""
         q = V.vector("Pose.quat_xyzw", quat_xyzw, 4)
-        n = np.linalg.norm(q)
-        if n < 1e-9:
+        # Scale by the largest entry before normalising: the norm of
+        # (1e200, 1e200, 0, 0) overflows, that of (1e-200, ...) underflows.
+        m = np.max(np.abs(q))
+        if m < 1e-9:
             raise ConfigError("Pose.quat_xyzw", quat_xyzw, "a non-zero quaternion (x, y, z, w)")
-        return cls(position, Rotation.from_quat(q / n).as_matrix())
+        q = q / m
+        return cls(position, Rotation.from_quat(q / np.linalg.norm(q)).as_matrix())
 
     @classmethod
     def from_matrix(cls, matrix) -> Pose:
@@ -86,7 +111,7 @@ class Pose:
     @classmethod
     def from_rotvec(cls, position=(0.0, 0.0, 0.0), rotvec=(0.0, 0.0, 0.0)) -> Pose:
         """Position [m] and rotation vector (axis * angle [rad])."""
-        return cls(position, Rotation.from_rotvec(V.vector("Pose.rotvec", rotvec, 3, "rad")).as_matrix())
+        return cls(position, rotvec_matrix("Pose.rotvec", rotvec))
 
     @classmethod
     def look_at(cls, eye, target, up=(0.0, 0.0, 1.0)) -> Pose:
@@ -98,10 +123,18 @@ class Pose:
         e = V.vector("look_at.eye", eye, 3, "m")
         g = V.vector("look_at.target", target, 3, "m")
         u = V.vector("look_at.up", up, 3)
-        z = g - e
+        with np.errstate(over="ignore"):
+            z = g - e
+        if not np.all(np.isfinite(z)):
+            raise ConfigError("look_at.target", target, "a point whose offset from eye is finite (overflows here)")
         if np.linalg.norm(z) < 1e-12:
             raise ConfigError("look_at.target", target, "a point different from eye")
         z = z / np.linalg.norm(z)
+        # Only the direction of up matters: scale it to a unit-size vector so a
+        # huge or tiny up neither overflows nor looks parallel to z.
+        if not np.any(u):
+            raise ConfigError("look_at.up", up, "a non-zero direction")
+        u = u / np.max(np.abs(u))
         x = np.cross(z, u)
         if np.linalg.norm(x) < 1e-9:
             raise ConfigError("look_at.up", up, "a direction not parallel to the viewing direction")
