@@ -30,7 +30,7 @@ import numpy as np
 from _timing import print_load_at_end, print_machine, skfem_pyamg_anchor
 
 from twinsense.capacitive.mesh import MeshSettings
-from twinsense.capacitive.presets import make_capacitive
+from twinsense.capacitive.sensor import make_capacitive
 from twinsense.capacitive.solver import SolverConfig
 from twinsense.demos.capacitive import PATHS, TOOL_CLEARANCE, TOOL_HEIGHT, demo_mesh_settings, printer_scene
 

@@ -11,7 +11,7 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from twinsense import validation as V
-from twinsense.presets import register_preset
+from twinsense.errors import ConfigError, UnknownNameError
 from twinsense.render import PinholeCamera, cast
 from twinsense.scene.scene import Mount, Scene
 
@@ -66,10 +66,10 @@ class DepthCamera:
 
     @classmethod
     def preset(cls, preset_name: str = "generic", /, **overrides) -> DepthCamera:
-        """Build from a registered preset; ``overrides`` may set ``name``, ``mount`` and config fields."""
-        from twinsense.presets import make_sensor
-
-        return make_sensor("camera", preset_name, **overrides)
+        """Build from a preset in ``SENSOR_PRESETS``; ``overrides`` may set ``name``, ``mount`` and config fields."""
+        if preset_name not in SENSOR_PRESETS:
+            raise UnknownNameError("DepthCamera preset", preset_name, list(SENSOR_PRESETS))
+        return SENSOR_PRESETS[preset_name][0](**overrides)
 
     def capture(self, scene: Scene, t: float, rng: np.random.Generator | None = None) -> DepthFrame:
         cam = self.config.camera
@@ -98,8 +98,6 @@ def _factory(base: DepthCameraConfig):
             if cam_over:
                 cfg = replace(cfg, camera=replace(cfg.camera, **cam_over))
             if overrides:
-                from twinsense.errors import ConfigError
-
                 bad = [k for k in overrides if k not in DepthCameraConfig.__dataclass_fields__]
                 if bad:
                     raise ConfigError("sensor.overrides", bad[0], "one of: " + ", ".join(
@@ -110,7 +108,10 @@ def _factory(base: DepthCameraConfig):
     return make
 
 
-register_preset("camera", "generic", _factory(DepthCameraConfig()),
-                "ideal pinhole depth camera, 224 x 171, 72 x 45 deg, 30 fps")
-register_preset("camera", "vga", _factory(DepthCameraConfig(PinholeCamera.from_fov(640, 480, 70.0))),
-                "ideal pinhole depth camera, 640 x 480, 70 deg horizontal FOV, 30 fps")
+#: Presets of the ideal depth camera (kind "camera"): name -> (factory(**overrides), description).
+SENSOR_PRESETS = {
+    "generic": (_factory(DepthCameraConfig()),
+                "ideal pinhole depth camera, 224 x 171, 72 x 45 deg, 30 fps"),
+    "vga": (_factory(DepthCameraConfig(PinholeCamera.from_fov(640, 480, 70.0))),
+            "ideal pinhole depth camera, 640 x 480, 70 deg horizontal FOV, 30 fps"),
+}

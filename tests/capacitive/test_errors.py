@@ -10,9 +10,8 @@ from twinsense.capacitive import layouts as L
 from twinsense.capacitive.coupling import Inclusion
 from twinsense.capacitive.fem import ElectrostaticSystem
 from twinsense.capacitive.mesh import MeshSettings, mesh_layout, tensor_tet_mesh
-from twinsense.capacitive.presets import make_capacitive
 from twinsense.capacitive.readout import ReadoutConfig
-from twinsense.capacitive.sensor import CapacitiveConfig
+from twinsense.capacitive.sensor import CapacitiveConfig, make_capacitive
 from twinsense.capacitive.solver import SolverConfig
 from twinsense.errors import ConfigError, UnknownNameError
 

@@ -14,6 +14,8 @@ eliminates the cells no object reaches once, so each frame solves a smaller
 system.
 """
 
+from functools import partial
+
 from twinsense.capacitive.coupling import Inclusion, MaterialMap, map_inclusions
 from twinsense.capacitive.fem import EPS0, ElectrostaticSystem
 from twinsense.capacitive.layouts import (
@@ -30,13 +32,14 @@ from twinsense.capacitive.layouts import (
     stripes,
 )
 from twinsense.capacitive.mesh import MeshSettings, SimplexMesh, mesh_layout
-from twinsense.capacitive.presets import make_capacitive
+from twinsense.capacitive.presets import PRESETS
 from twinsense.capacitive.readout import ReadoutConfig
-from twinsense.capacitive.sensor import CapacitiveConfig, CapacitiveFrame, CapacitiveSensor
+from twinsense.capacitive.sensor import CapacitiveConfig, CapacitiveFrame, CapacitiveSensor, make_capacitive
 from twinsense.capacitive.solver import MaxwellResult, MaxwellSolver, SolverConfig
 
 __all__ = [
     "EPS0",
+    "SENSOR_PRESETS",
     "CapacitiveConfig",
     "CapacitiveFrame",
     "CapacitiveSensor",
@@ -64,3 +67,6 @@ __all__ = [
     "ring",
     "stripes",
 ]
+
+#: Presets for the registry (:mod:`twinsense.presets`): name -> (factory(**overrides), description).
+SENSOR_PRESETS = {name: (partial(make_capacitive, name), description) for name, (_, description) in PRESETS.items()}

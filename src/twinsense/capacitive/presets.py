@@ -1,4 +1,4 @@
-"""Named capacitive sensor presets.
+"""Named capacitive sensor configurations (the sensor and the preset registry build on them).
 
 ``printer-bed``: six stripe electrodes (10 mm by 200 mm at 30 mm pitch) on a
 1.6 mm FR-4 sheet on a 3-D printer's build plate, the CapSense Fig. 10
@@ -12,15 +12,11 @@ ground plane, self-capacitance mode.
 
 from __future__ import annotations
 
-from dataclasses import fields
-from typing import Any
-
 from twinsense.capacitive import layouts as L
+from twinsense.capacitive.config import CapacitiveConfig
 from twinsense.capacitive.mesh import MeshSettings
-from twinsense.capacitive.sensor import CapacitiveConfig, CapacitiveSensor
-from twinsense.errors import UnknownNameError
 
-__all__ = ["PRESETS", "make_capacitive"]
+__all__ = ["PRESETS"]
 
 
 def _printer_bed() -> CapacitiveConfig:
@@ -56,37 +52,3 @@ PRESETS = {
     "pad-grid": (_pad_grid, "3x2 pads over a ground plane, self-capacitance"),
     "interdigital": (_interdigital, "Tx/Rx interdigital comb, mutual capacitance"),
 }
-
-
-def make_capacitive(preset: str, /, **overrides: Any) -> CapacitiveSensor:
-    """A CapacitiveSensor from ``preset``; ``overrides`` take ``name``, ``mount``,
-    ``frame_rate`` [Hz] (the readout's sample rate) and any CapacitiveConfig field."""
-    if preset not in PRESETS:
-        raise UnknownNameError("capacitive preset", preset, list(PRESETS))
-    config = PRESETS[preset][0]()
-    sensor_kw = {k: overrides.pop(k) for k in ("name", "mount") if k in overrides}
-    if "frame_rate" in overrides:
-        # The frame rate is the readout's sample rate [Hz].
-        from dataclasses import replace
-
-        config = replace(config, readout=replace(config.readout, sample_rate=overrides.pop("frame_rate")))
-    valid = {f.name for f in fields(CapacitiveConfig)}
-    for key in overrides:
-        if key not in valid:
-            raise UnknownNameError("capacitive preset override", key, sorted(valid | {"name", "mount", "frame_rate"}))
-    if overrides:
-        kw = {f.name: getattr(config, f.name) for f in fields(CapacitiveConfig)}
-        kw.update(overrides)
-        config = CapacitiveConfig(**kw)
-    sensor_kw.setdefault("name", preset)
-    return CapacitiveSensor(config, **sensor_kw)
-
-
-def _register() -> None:
-    from twinsense.presets import register_preset
-
-    for preset, (_, description) in PRESETS.items():
-        register_preset("capacitive", preset, lambda _p=preset, **kw: make_capacitive(_p, **kw), description)
-
-
-_register()

@@ -9,103 +9,41 @@ electrodes lie in its x-y plane and sense towards +z; the mount places it.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+import warnings
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 import numpy as np
 
-from twinsense import validation as v
 from twinsense.capacitive.condensation import active_cells_in_boxes
-from twinsense.capacitive.coupling import bounds_in_mesh_frame, inclusions_from_scene, map_inclusions
-from twinsense.capacitive.fem import ElectrostaticSystem, check_outer
+from twinsense.capacitive.config import MODES, CapacitiveConfig
+from twinsense.capacitive.coupling import (
+    bounds_in_mesh_frame,
+    electrically_relevant,
+    inclusions_from_scene,
+    map_inclusions,
+    object_box_in_mesh_frame,
+    resolution_boxes,
+    resolving_cell_sizes,
+)
+from twinsense.capacitive.fem import ElectrostaticSystem
 from twinsense.capacitive.layouts import Layout
-from twinsense.capacitive.mesh import LayoutMesh, MeshSettings, mesh_layout
-from twinsense.capacitive.readout import ReadoutConfig, read_out
-from twinsense.capacitive.solver import MaxwellResult, MaxwellSolver, SolverConfig
-from twinsense.errors import ConfigError
+from twinsense.capacitive.mesh import LayoutMesh, MeshSettings, layout_region, mesh_layout
+from twinsense.capacitive.presets import PRESETS
+from twinsense.capacitive.readout import read_out
+from twinsense.capacitive.solver import MaxwellResult, MaxwellSolver
+from twinsense.errors import ConfigError, UnknownNameError
 from twinsense.scene.scene import Mount
 
-__all__ = ["MODES", "CapacitiveConfig", "CapacitiveFrame", "CapacitiveSensor"]
+__all__ = ["MODES", "CapacitiveConfig", "CapacitiveFrame", "CapacitiveSensor", "ResolutionWarning", "make_capacitive"]
 
-MODES = ("self", "mutual")
-"""Readout modes: electrode against ground, or Tx -> Rx coupling."""
+RESOLUTION_SLACK = 1.5
+"""A capture warns when an object's cells exceed its resolving size by this factor
+(room for the unstructured gmsh cells, whose extents scatter about the asked size)."""
 
 
-@dataclass(frozen=True, eq=False)
-class CapacitiveConfig:
-    """Configuration of a capacitive sensor.
-
-    Attributes
-    ----------
-    layout : Layout
-        Electrodes and substrate in the sensor frame.
-    mesh : MeshSettings
-    outer_boundary : {"open", "grounded", "neumann"}
-        Far field: open space (Robin), a grounded box, or zero normal field.
-    mode : {"self", "mutual"}
-        Readout channels: one per sense electrode (self-capacitance with any
-        driven shield at the same potential), or one per (tx, rx) pair
-        (mutual capacitance ``-C_tx,rx``).
-    pairs : tuple of (str, str)
-        (tx, rx) electrode names in mutual mode; empty: every pair i < j of
-        sense electrodes.
-    readout : ReadoutConfig
-    solver : SolverConfig
-    active_boxes : tuple of (6,) tuples
-        Boxes (x_min, x_max, y_min, y_max, z_min, z_max) [m] in the sensor
-        frame that hold every scene object during the run. With
-        ``solver.condense`` the cells outside them are condensed once;
-        :meth:`CapacitiveSensor.prepare` adds the boxes swept by a scene.
-    """
-
-    layout: Layout
-    mesh: MeshSettings = field(default_factory=MeshSettings)
-    outer_boundary: str = "open"
-    mode: str = "self"
-    pairs: tuple = ()
-    readout: ReadoutConfig = field(default_factory=ReadoutConfig)
-    solver: SolverConfig = field(default_factory=SolverConfig)
-    active_boxes: tuple = ()
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.layout, Layout):
-            raise ConfigError("CapacitiveConfig.layout", self.layout, "a Layout")
-        if not isinstance(self.mesh, MeshSettings):
-            raise ConfigError("CapacitiveConfig.mesh", self.mesh, "a MeshSettings")
-        check_outer(self.outer_boundary)
-        v.choice("CapacitiveConfig.mode", self.mode, MODES)
-        names = self.layout.sense_names
-        pairs = tuple(tuple(p) for p in self.pairs)
-        for i, p in enumerate(pairs):
-            if len(p) != 2 or p[0] not in names or p[1] not in names or p[0] == p[1]:
-                raise ConfigError(f"CapacitiveConfig.pairs[{i}]", p, f"two different sense electrodes among {names}")
-        if self.mode == "mutual" and not pairs:
-            if len(names) < 2:
-                raise ConfigError("CapacitiveConfig.mode", self.mode, "'self' with one sense electrode")
-            pairs = tuple((names[i], names[j]) for i in range(len(names)) for j in range(i + 1, len(names)))
-        object.__setattr__(self, "pairs", pairs)
-        if not isinstance(self.readout, ReadoutConfig):
-            raise ConfigError("CapacitiveConfig.readout", self.readout, "a ReadoutConfig")
-        if not isinstance(self.solver, SolverConfig):
-            raise ConfigError("CapacitiveConfig.solver", self.solver, "a SolverConfig")
-        boxes = []
-        for i, b in enumerate(self.active_boxes):
-            arr = v.vector(f"CapacitiveConfig.active_boxes[{i}]", b, 6, "m")
-            if not (arr[1] >= arr[0] and arr[3] >= arr[2] and arr[5] >= arr[4]):
-                raise ConfigError(f"CapacitiveConfig.active_boxes[{i}]", b, "a box with min <= max on every axis")
-            boxes.append(tuple(float(x) for x in arr))
-        object.__setattr__(self, "active_boxes", tuple(boxes))
-
-    @property
-    def frame_rate(self) -> float:
-        """Frames per second [Hz] (the readout's sample rate)."""
-        return self.readout.sample_rate
-
-    @property
-    def channel_names(self) -> tuple[str, ...]:
-        if self.mode == "self":
-            return self.layout.sense_names
-        return tuple(f"{tx}->{rx}" for tx, rx in self.pairs)
+class ResolutionWarning(UserWarning):
+    """A scene object sits in mesh cells too coarse to resolve it."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -193,6 +131,12 @@ class CapacitiveSensor:
     frame's potentials between captures: a capture only touches cells whose
     material changed and warm-starts from the last solution. The result does
     not depend on that history beyond the solver tolerance.
+
+    An object is resolved only as finely as the mesh is where it stands.
+    :meth:`prepare` (which :func:`twinsense.simulate` calls) refines the mesh
+    where the scene's objects go during a run (``MeshSettings.object_cells``);
+    a capture without it keeps the layout's mesh and warns once per object
+    (:class:`ResolutionWarning`) that sits in cells too coarse for it.
     """
 
     kind = "capacitive"
@@ -205,6 +149,10 @@ class CapacitiveSensor:
         self.mount = mount or Mount()
         if not isinstance(self.mount, Mount):
             raise ConfigError("CapacitiveSensor.mount", mount, "a twinsense.scene.Mount")
+        self._settings: MeshSettings = config.mesh
+        self._prepared_times: frozenset = frozenset()
+        self._warned: set[str] = set()
+        self._cell_extent: np.ndarray | None = None
         self._mesh: LayoutMesh | None = None
         self._system: ElectrostaticSystem | None = None
         self._solver: MaxwellSolver | None = None
@@ -217,8 +165,6 @@ class CapacitiveSensor:
     @classmethod
     def preset(cls, preset: str, /, **overrides: Any) -> CapacitiveSensor:
         """A sensor from a named preset (see :mod:`twinsense.capacitive.presets`)."""
-        from twinsense.capacitive.presets import make_capacitive
-
         return make_capacitive(preset, **overrides)
 
     def config_dict(self) -> dict[str, Any]:
@@ -245,11 +191,36 @@ class CapacitiveSensor:
 
     # -- model ---------------------------------------------------------------
     @property
+    def mesh_settings(self) -> MeshSettings:
+        """The mesh settings in use: the config's, plus the object boxes of the last :meth:`prepare`."""
+        return self._settings
+
+    @property
     def layout_mesh(self) -> LayoutMesh:
-        """The sensing-volume mesh with the layout mapped onto it (built once)."""
+        """The sensing-volume mesh with the layout mapped onto it (built once per :meth:`prepare`)."""
         if self._mesh is None:
-            self._mesh = mesh_layout(self.config.layout, self.config.mesh)
+            self._mesh = mesh_layout(self.config.layout, self._settings)
         return self._mesh
+
+    def object_refinement(self, scene, times) -> tuple:
+        """Refine boxes that resolve ``scene``'s objects at ``times`` [s] (``MeshSettings.refine`` form).
+
+        See :func:`twinsense.capacitive.coupling.resolution_boxes`; empty when
+        ``MeshSettings.object_cells`` is 0.
+        """
+        s = self.config.mesh
+        if s.object_cells == 0:
+            return ()
+        return resolution_boxes(
+            scene,
+            times,
+            lambda t: self.mount.pose_at(scene, t),
+            layout_region(self.config.layout, s),
+            s.object_cells,
+            s.h_max,
+            self.kind,
+            exclude=() if self.mount.parent is None else (self.mount.parent,),
+        )
 
     @property
     def system(self) -> ElectrostaticSystem:
@@ -262,9 +233,13 @@ class CapacitiveSensor:
         return self._system
 
     def prepare(self, scene, times) -> np.ndarray:
-        """Declare the capture times of a run, for static condensation.
+        """Declare the capture times of a run: resolve its objects, and condense the rest.
 
-        The cells that any scene object can change at these times (those
+        The mesh is refined where the scene's objects are at these times
+        (:meth:`object_refinement`); when that changes the mesh, the sensor
+        drops its mesh, system and empty-scene baseline and builds them anew
+        on the refined mesh (one mesh for the whole run, so every frame and the
+        baseline share one discretisation). The cells that any scene object can change at these times (those
         meeting an object's bounding box, the cells :func:`map_inclusions`
         tests) join the config's ``active_boxes``; with ``solver.condense``
         everything else is condensed once at the next capture. Capturing at
@@ -280,10 +255,16 @@ class CapacitiveSensor:
         -------
         (m,) bool, the active cells.
         """
+        times = np.atleast_1d(np.asarray(times, float))
+        settings = replace(self.config.mesh, refine=self.config.mesh.refine + self.object_refinement(scene, times))
+        if settings != self._settings:
+            self._settings = settings
+            self._mesh = self._system = self._solver = self._baseline = self._cell_extent = None
+        self._prepared_times = frozenset(float(t) for t in times)
         mesh = self.layout_mesh.mesh
         active = active_cells_in_boxes(mesh, self.config.active_boxes)
         cmin, cmax = mesh.cell_bounds
-        for t in np.atleast_1d(np.asarray(times, float)):
+        for t in times:
             pose = self.mount.pose_at(scene, t)
             for inc in self._inclusions(scene, t):
                 b = bounds_in_mesh_frame(inc, pose)
@@ -319,10 +300,43 @@ class CapacitiveSensor:
         system = self.system
         pose = self.mount.pose_at(scene, t)
         incs = self._inclusions(scene, t)
+        if float(t) not in self._prepared_times:
+            self._check_resolution(scene, t, pose)
         mm = map_inclusions(self.layout_mesh.mesh, self.layout_mesh.permittivity, incs, mesh_to_world=pose)
         system.set_permittivity(mm.permittivity)
         system.set_conductors(mm.grounded, mm.floating)
         return self._solver.solve()
+
+    def _check_resolution(self, scene, t: float, pose) -> None:
+        """Warn once per object that sits in cells coarser than its resolving size."""
+        cells = self.config.mesh.object_cells
+        if cells == 0:
+            return
+        mesh = self.layout_mesh.mesh
+        cmin, cmax = mesh.cell_bounds
+        if self._cell_extent is None:
+            self._cell_extent = cmax - cmin
+        for obj in scene.objects:
+            if obj.name in self._warned or obj.name == self.mount.parent or not electrically_relevant(obj, self.kind):
+                continue
+            b, extent, rot = object_box_in_mesh_frame(obj, t, pose)
+            h = np.minimum(resolving_cell_sizes(extent, rot, cells), self._settings.h_max)
+            meet = np.all(cmax >= b[0], axis=1) & np.all(cmin <= b[1], axis=1)
+            if not np.any(meet):
+                continue
+            coarsest = self._cell_extent[meet].max(axis=0)
+            if np.any(coarsest > RESOLUTION_SLACK * h):
+                k = int(np.argmax(coarsest / h))
+                self._warned.add(obj.name)
+                warnings.warn(
+                    f"capacitive sensor {self.name!r}: scene object {obj.name!r} at t = {float(t):g} s sits in "
+                    f"cells {coarsest[k] * 1e3:.3g} mm wide along {'xyz'[k]}, where {cells:g} cells across it "
+                    f"need {h[k] * 1e3:.3g} mm (MeshSettings.object_cells); its capacitance change can be off by "
+                    "tens of percent. Call CapacitiveSensor.prepare(scene, times) with the capture times "
+                    "(twinsense.simulate does) to refine the mesh where the objects go.",
+                    ResolutionWarning,
+                    stacklevel=4,
+                )
 
     def capture(self, scene, t: float, rng: np.random.Generator | None = None) -> CapacitiveFrame:
         """Simulate one sample at time ``t`` [s].
@@ -357,3 +371,25 @@ def _center(layout: Layout) -> np.ndarray:
     c = 0.5 * (b[0] + b[1])
     c[2] = 0.0 if layout.substrate is not None else c[2]
     return c
+
+
+def make_capacitive(preset: str, /, **overrides: Any) -> CapacitiveSensor:
+    """A CapacitiveSensor from ``preset``; ``overrides`` take ``name``, ``mount``,
+    ``frame_rate`` [Hz] (the readout's sample rate) and any CapacitiveConfig field."""
+    if preset not in PRESETS:
+        raise UnknownNameError("capacitive preset", preset, list(PRESETS))
+    config = PRESETS[preset][0]()
+    sensor_kw = {k: overrides.pop(k) for k in ("name", "mount") if k in overrides}
+    if "frame_rate" in overrides:
+        # The frame rate is the readout's sample rate [Hz].
+        config = replace(config, readout=replace(config.readout, sample_rate=overrides.pop("frame_rate")))
+    valid = {f.name for f in fields(CapacitiveConfig)}
+    for key in overrides:
+        if key not in valid:
+            raise UnknownNameError("capacitive preset override", key, sorted(valid | {"name", "mount", "frame_rate"}))
+    if overrides:
+        kw = {f.name: getattr(config, f.name) for f in fields(CapacitiveConfig)}
+        kw.update(overrides)
+        config = CapacitiveConfig(**kw)
+    sensor_kw.setdefault("name", preset)
+    return CapacitiveSensor(config, **sensor_kw)

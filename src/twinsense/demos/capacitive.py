@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from twinsense.capacitive.mesh import MeshSettings
-from twinsense.capacitive.presets import make_capacitive
 from twinsense.capacitive.readout import ReadoutConfig
+from twinsense.capacitive.sensor import make_capacitive
 from twinsense.scene import Cylinder, Material, Scene, SceneObject, Waypoints
 
 __all__ = [

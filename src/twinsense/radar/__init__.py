@@ -5,7 +5,8 @@ processing chain (:mod:`twinsense.radar.processing`).
 Raw cube axis order follows the Infineon Radar SDK: ``(rx, chirp, sample)``.
 """
 
-from twinsense.radar import presets as _presets  # noqa: F401  (registers the presets)
+from functools import partial
+
 from twinsense.radar.antennas import (
     AntennaArray,
     ElementPattern,
@@ -23,11 +24,11 @@ from twinsense.radar.formats import (
     save_infineon_config,
     write_infineon_recording,
 )
-from twinsense.radar.presets import PRESET_CONFIGS, make_radar, preset_config
+from twinsense.radar.presets import PRESET_CONFIGS, preset_config
 from twinsense.radar.processing import *  # noqa: F403
 from twinsense.radar.processing import __all__ as _processing_all
 from twinsense.radar.scatterers import Scatterers, ScatterRenderer, received_amplitude
-from twinsense.radar.sensor import FMCWRadar, RadarFrame
+from twinsense.radar.sensor import FMCWRadar, RadarFrame, make_radar
 from twinsense.radar.synthesis import synthesize, synthesize_exact
 
 __all__ = [
@@ -41,6 +42,7 @@ __all__ = [
     "NoiseConfig",
     "RadarConfig",
     "RadarFrame",
+    "SENSOR_PRESETS",
     "ScatterRenderer",
     "Scatterers",
     "TICfg",
@@ -59,3 +61,7 @@ __all__ = [
     "write_infineon_recording",
     *_processing_all,
 ]
+
+#: Presets for the registry (:mod:`twinsense.presets`): name -> (factory(**overrides), description).
+SENSOR_PRESETS = {name: (partial(make_radar, name), description)
+                  for name, (_, description) in PRESET_CONFIGS.items()}

@@ -1,4 +1,4 @@
-"""Named radar presets, registered with :mod:`twinsense.presets` under kind "radar".
+"""Named radar configurations (the sensor and the preset registry build on them).
 
 - ``infineon_bgt60tr13c``: the device as it recorded the real recording in twinsense.data
   (58-63.5 GHz, 64 samples at 2 MHz, 8 chirps, 1 Tx, 3 Rx in an L, real IF,
@@ -98,10 +98,6 @@ PRESET_CONFIGS: dict[str, tuple[Callable[[], RadarConfig], str]] = {
     "ti_iwr6843": (iwr6843_config, "TI IWR6843: 3 Tx x 4 Rx TDM-MIMO, complex IF"),
 }
 
-_SENSOR_KEYS = ("name", "mount", "processing", "process", "backend", "eps", "workers",
-                "reuse_static")
-
-
 def preset_config(preset: str, /, **overrides: Any) -> RadarConfig:
     """The :class:`RadarConfig` of ``preset`` with ``overrides``.
 
@@ -133,24 +129,3 @@ def preset_config(preset: str, /, **overrides: Any) -> RadarConfig:
                               + ", ".join(valid))
         resolved[f"{owners[0]}__{key}"] = value
     return cfg.with_overrides(**resolved) if resolved else cfg
-
-
-def make_radar(preset: str, /, **overrides: Any):
-    """An :class:`FMCWRadar` from ``preset``; sensor keywords (name, mount,
-    processing, process, backend, eps, workers, reuse_static) go to the sensor, the rest
-    to the config."""
-    from twinsense.radar.sensor import FMCWRadar
-
-    sensor_kw = {k: overrides.pop(k) for k in list(overrides) if k in _SENSOR_KEYS}
-    return FMCWRadar(preset_config(preset, **overrides), **sensor_kw)
-
-
-def _register() -> None:
-    from twinsense.presets import register_preset
-
-    for preset, (_, description) in PRESET_CONFIGS.items():
-        register_preset("radar", preset,
-                        lambda _p=preset, **kw: make_radar(_p, **kw), description)
-
-
-_register()

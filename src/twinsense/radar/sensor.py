@@ -11,6 +11,7 @@ from twinsense import validation as V
 from twinsense.errors import ConfigError
 from twinsense.radar import effects
 from twinsense.radar.config import RadarConfig
+from twinsense.radar.presets import preset_config
 from twinsense.radar.processing import ProcessingResult, ProcessingSettings, process_cube
 from twinsense.radar.scatterers import Scatterers, ScatterRenderer, received_amplitude
 from twinsense.radar.synthesis import synthesize
@@ -154,8 +155,6 @@ class FMCWRadar:
     def preset(cls, preset: str, /, **overrides: Any) -> FMCWRadar:
         """A radar from a named preset (see :mod:`twinsense.radar.presets`); ``overrides``
         take sensor keywords (name, mount, processing, ...) and config fields."""
-        from twinsense.radar.presets import make_radar
-
         return make_radar(preset, **overrides)
 
     def config_dict(self) -> dict[str, Any]:
@@ -269,3 +268,15 @@ class FMCWRadar:
         c = self.config.chirp
         return (f"FMCWRadar(name={self.name!r}, {c.centre_frequency / 1e9:.1f} GHz, "
                 f"{self.config.num_rx} rx, {c.num_chirps} chirps x {c.num_samples} samples)")
+
+
+_SENSOR_KEYS = ("name", "mount", "processing", "process", "backend", "eps", "workers",
+                "reuse_static")
+
+
+def make_radar(preset: str, /, **overrides: Any) -> FMCWRadar:
+    """An :class:`FMCWRadar` from ``preset``; sensor keywords (name, mount,
+    processing, process, backend, eps, workers, reuse_static) go to the sensor, the rest
+    to the config (see :func:`twinsense.radar.presets.preset_config`)."""
+    sensor_kw = {k: overrides.pop(k) for k in list(overrides) if k in _SENSOR_KEYS}
+    return FMCWRadar(preset_config(preset, **overrides), **sensor_kw)

@@ -5,7 +5,7 @@ from twinsense.tof.config import ToFConfig
 from twinsense.tof.frame import InvalidReason, ToFFrame
 from twinsense.tof.presets import PICO_FLEXX_MODES, TOF_PRESETS, tof_preset
 
-__all__ = ["PICO_FLEXX_MODES", "TOF_PRESETS", "InvalidReason", "ToFCamera", "ToFConfig", "ToFFrame",
+__all__ = ["PICO_FLEXX_MODES", "SENSOR_PRESETS", "TOF_PRESETS", "InvalidReason", "ToFCamera", "ToFConfig", "ToFFrame",
            "capture_sequence", "tof_preset"]
 
 _DESCRIPTIONS = {
@@ -15,11 +15,6 @@ _DESCRIPTIONS = {
 }
 
 
-def _register() -> None:
-    from twinsense.presets import register_preset
-
-    for name in TOF_PRESETS:
-        register_preset("tof", name, lambda _p=name, **kw: ToFCamera.preset(_p, **kw), _DESCRIPTIONS[name])
-
-
-_register()
+#: Presets for the registry (:mod:`twinsense.presets`): name -> (factory(**overrides), description).
+SENSOR_PRESETS = {name: (lambda _p=name, **kw: ToFCamera.preset(_p, **kw), _DESCRIPTIONS[name])
+                  for name in TOF_PRESETS}
