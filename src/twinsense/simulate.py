@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import heapq
-from collections.abc import Callable, Mapping, Sequence
+import math
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -12,9 +13,8 @@ import numpy as np
 
 from twinsense import validation as V
 from twinsense.errors import ConfigError
-from twinsense.io.recording import RecordingWriter
+from twinsense.io.recording import RecordingWriter, check_sensor_name
 from twinsense.scene.scene import Scene
-from twinsense.sensors import frame_times
 
 
 @dataclass
@@ -29,11 +29,122 @@ class SimulationResult:
         Frames captured per sensor name.
     frames : dict
         Frames kept in memory per sensor name (only when ``keep_frames``).
+    removed : list of Path
+        Files of earlier runs this run removed: the ``<name>.partial.h5`` that
+        its complete recording supersedes.
+    stale : list of Path
+        Temporary files of killed earlier runs into the same recording name,
+        kept for ``twinsense recover``.
     """
 
     path: Path | None
     frame_counts: dict[str, int]
     frames: dict[str, list] = field(default_factory=dict)
+    removed: list[Path] = field(default_factory=list)
+    stale: list[Path] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class RunLimits:
+    """What one run may ask for before anything is allocated.
+
+    A scenario inside every per-field range can still ask for more than a
+    machine has (``duration: 1e9``, a 100000 x 100000 camera); these limits
+    turn that into an error before the run starts.
+
+    Attributes
+    ----------
+    max_frames : int
+        Frames of all sensors together in one run (10 million: a day at
+        ~115 frames/s).
+    max_frame_bytes : int
+        [B] Estimated working memory of one capture (4 GiB, a sixth of a
+        24 GiB machine).
+    """
+
+    max_frames: int = 10_000_000
+    max_frame_bytes: int = 4 * 2**30
+
+    def __post_init__(self):
+        V.integer("RunLimits.max_frames", self.max_frames, lo=1)
+        V.integer("RunLimits.max_frame_bytes", self.max_frame_bytes, lo=1)
+
+
+# Peak working memory of one capture per rendered pixel [B], measured with
+# tracemalloc on the presets (depth camera 320x240 and 640x480: 133-162 B; ToF
+# 224x171: 452-476 B over 5-9 raw frames, i.e. <= 53 B per pixel and raw frame;
+# radar render 256x128 and larger: 125-148 B) and rounded up.
+_BYTES_PER_PIXEL = {"camera": 170, "tof_raw": 60, "radar": 160}
+# Radar cube: complex128 IF samples plus the range/Doppler working copies.
+_BYTES_PER_CUBE_SAMPLE = 64
+
+
+def frame_memory_estimate(sensor) -> tuple[int, str]:
+    """Estimated peak memory [B] of one ``sensor.capture`` and how it was reckoned.
+
+    Known kinds are estimated from their image and cube sizes; a sensor of
+    another kind (capacitive, user-defined) is estimated at 0 (not limited).
+    """
+    cfg = getattr(sensor, "config", None)
+    kind = getattr(sensor, "kind", "")
+    if kind == "camera" and hasattr(cfg, "camera"):
+        w, h = int(cfg.camera.width), int(cfg.camera.height)
+        return w * h * _BYTES_PER_PIXEL["camera"], f"{w} x {h} pixels x ~{_BYTES_PER_PIXEL['camera']} B"
+    if kind == "tof" and hasattr(cfg, "raw_frame_times"):
+        w, h, n = int(cfg.width), int(cfg.height), len(cfg.raw_frame_times(0.0))
+        return (w * h * n * _BYTES_PER_PIXEL["tof_raw"],
+                f"{w} x {h} pixels x {n} raw frames x ~{_BYTES_PER_PIXEL['tof_raw']} B")
+    if kind == "radar" and hasattr(cfg, "cube_shape"):
+        w, h = int(cfg.render_width), int(cfg.render_height)
+        cube = math.prod(int(x) for x in cfg.cube_shape)
+        return (w * h * _BYTES_PER_PIXEL["radar"] + cube * _BYTES_PER_CUBE_SAMPLE,
+                f"{w} x {h} render pixels x ~{_BYTES_PER_PIXEL['radar']} B + {cube} cube samples x "
+                f"{_BYTES_PER_CUBE_SAMPLE} B")
+    return 0, "not estimated"
+
+
+def frame_count(frame_rate: float, duration: float) -> int:
+    """Frames of a sensor at ``frame_rate`` [Hz] over ``duration`` [s] (at least one).
+
+    The same count as :func:`twinsense.sensors.frame_times`, without the array.
+    """
+    x = duration * frame_rate + 1e-9
+    # Absurd products (1e300 Hz x 1e300 s) are counted as 2**62 frames, over any limit, not an overflow.
+    return max(math.floor(x), 1) if x < 2.0**62 else 2**62
+
+
+def _clock(frame_rate: float, n: int, t0: float, index: int) -> Iterator[tuple[float, int]]:
+    # (t0 + k / rate, sensor index), as frame_times computes the times: sensors
+    # at related rates line up exactly.
+    return ((t0 + k / frame_rate, index) for k in range(n))
+
+
+def run_size_problems(sensors, duration: float, limits: RunLimits | None = None,
+                      fields: Sequence[str] | None = None) -> list[tuple[str, Any, str]]:
+    """Problems ``(field, value, what is allowed)`` of a run too big for ``limits``; empty when it fits.
+
+    ``fields`` names each sensor in messages (default ``sensors[i]``).
+    """
+    limits = limits or RunLimits()
+    fields = list(fields) if fields is not None else [f"sensors[{i}]" for i in range(len(sensors))]
+    problems = []
+    counts = [frame_count(float(s.frame_rate), float(duration)) for s in sensors]
+    total = sum(counts)
+    if total > limits.max_frames:
+        detail = ", ".join(f"{f} {s.name!r} at {float(s.frame_rate):g} Hz: {n:.3g}"
+                           for f, s, n in zip(fields, sensors, counts))
+        problems.append(("duration", duration,
+                         f"a run of at most {limits.max_frames:,} frames (RunLimits.max_frames, "
+                         f"--max-frames); estimated {total:.3g} frames ({detail}); shorten the duration "
+                         "or lower the frame_rate"))
+    for f, s in zip(fields, sensors):
+        nbytes, how = frame_memory_estimate(s)
+        if nbytes > limits.max_frame_bytes:
+            problems.append((f, s.name,
+                             f"a frame of at most {limits.max_frame_bytes / 2**30:.3g} GiB working memory "
+                             f"(RunLimits.max_frame_bytes, --max-frame-bytes); estimated {nbytes / 2**30:.3g} "
+                             f"GiB ({how}); use a smaller image"))
+    return problems
 
 
 def _check_sensors(sensors) -> list:
@@ -44,6 +155,7 @@ def _check_sensors(sensors) -> list:
         for attr in ("name", "kind", "frame_rate", "capture"):
             if not hasattr(s, attr):
                 raise ConfigError(f"sensors[{i}]", s, f"a twinsense sensor (missing {attr!r})")
+        check_sensor_name(f"sensors[{i}].name", s.name)
         if s.name in names:
             raise ConfigError(f"sensors[{i}].name", s.name, "a name not used by another sensor")
         names.add(s.name)
@@ -54,7 +166,8 @@ def _check_sensors(sensors) -> list:
 def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0, t0: float = 0.0,
              progress: bool = False, keep_frames: bool | None = None,
              scenario: Mapping[str, Any] | None = None,
-             on_frame: Callable[[Any, Any], None] | None = None) -> SimulationResult:
+             on_frame: Callable[[Any, Any], None] | None = None,
+             limits: RunLimits | None = None) -> SimulationResult:
     """Run ``sensors`` over ``[t0, t0 + duration)`` on one shared clock.
 
     Parameters
@@ -76,17 +189,31 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
         Keep frames in memory (default: only when ``out`` is None).
     on_frame : callable, optional
         ``on_frame(sensor, frame)`` after each capture (live plots, streams).
+    limits : RunLimits, optional
+        Frames per run and memory per frame allowed (checked before anything
+        is allocated; ConfigError naming the field and the estimate).
     """
     if not isinstance(scene, Scene):
         raise ConfigError("scene", scene, "a twinsense.Scene")
     sensors = _check_sensors(sensors)
     V.positive("duration", duration, "s")
     V.integer("seed", seed, lo=0)
+    if limits is not None and not isinstance(limits, RunLimits):
+        raise ConfigError("limits", limits, "a twinsense.simulate.RunLimits")
+    problems = run_size_problems(sensors, duration, limits)
+    if problems:
+        raise ConfigError(*problems[0])
     keep = (out is None) if keep_frames is None else keep_frames
     rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(len(sensors))]
-    # Merge the sensors' frame times into one ordered clock.
-    events = list(heapq.merge(*[[(float(t), i) for t in frame_times(s.frame_rate, duration, t0)]
-                                for i, s in enumerate(sensors)]))
+    # Merge the sensors' frame times into one ordered clock, lazily: a long
+    # run never holds its frame times in memory.
+    n_frames = [frame_count(s.frame_rate, duration) for s in sensors]
+    events = heapq.merge(*[_clock(s.frame_rate, n, t0, i) for i, (s, n) in enumerate(zip(sensors, n_frames))])
+    for s, n in zip(sensors, n_frames):
+        # A sensor that meshes the scene (capacitive) resolves the objects where they are at its frame
+        # times (the same t0 + k / rate values as the clock's).
+        if callable(getattr(s, "prepare", None)):
+            s.prepare(scene, t0 + np.arange(n) / s.frame_rate)
     writer = None
     path = None
     if out is not None:
@@ -94,12 +221,16 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
         if path.suffix not in (".h5", ".hdf5"):
             path = path / "recording.h5"
         writer = RecordingWriter(path, scenario=scenario)
-        for s in sensors:
-            cfg = s.config_dict() if hasattr(s, "config_dict") else {}
-            writer.add_sensor(s.name, s.kind, s.frame_rate, cfg)
+        try:
+            for s in sensors:
+                cfg = s.config_dict() if hasattr(s, "config_dict") else {}
+                writer.add_sensor(s.name, s.kind, s.frame_rate, cfg)
+        except BaseException:
+            writer.discard()  # no frame yet: leave nothing behind
+            raise
     counts = {s.name: 0 for s in sensors}
     frames: dict[str, list] = {s.name: [] for s in sensors} if keep else {}
-    bar = _progress(len(events)) if progress else None
+    bar = _progress(sum(n_frames)) if progress else None
     try:
         for t, i in events:
             s = sensors[i]
@@ -121,9 +252,12 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
         raise
     if bar is not None:
         bar.stop()
+    removed: list[Path] = []
+    stale: list[Path] = []
     if writer is not None:
         path = writer.close()
-    return SimulationResult(path, counts, frames)
+        removed, stale = writer.removed, writer.stale
+    return SimulationResult(path, counts, frames, removed, stale)
 
 
 class _progress:
