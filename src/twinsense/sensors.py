@@ -1,16 +1,16 @@
-"""What every sensor and frame provides (structural interfaces).
+"""What every frame provides, and the shared clock of sensor frame times.
 
-A sensor reads the scene and returns a frame; it never writes into the scene
-or keeps results. ``simulate`` and the recorder rely only on these members.
+A sensor (``name``, ``kind``, ``frame_rate`` [Hz], ``mount``,
+``capture(scene, t, rng) -> Frame``, ``config_dict()``) reads the scene and
+returns a frame; it never writes into the scene or keeps results.
+``simulate`` and the recorder rely only on these members.
 """
 
 from __future__ import annotations
 
-from typing import Any, Protocol, runtime_checkable
+from typing import Protocol, runtime_checkable
 
 import numpy as np
-
-from twinsense.scene.scene import Mount, Scene
 
 
 @runtime_checkable
@@ -22,18 +22,6 @@ class Frame(Protocol):
     def streams(self) -> dict[str, np.ndarray]:
         """Arrays to record, one dataset per key (stacked over frames)."""
         ...
-
-
-@runtime_checkable
-class Sensor(Protocol):
-    name: str
-    kind: str
-    frame_rate: float  # [Hz]
-    mount: Mount
-
-    def capture(self, scene: Scene, t: float, rng: np.random.Generator | None = None) -> Frame: ...
-
-    def config_dict(self) -> dict[str, Any]: ...
 
 
 def frame_times(frame_rate: float, duration: float, t0: float = 0.0) -> np.ndarray:

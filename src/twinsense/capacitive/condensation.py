@@ -155,7 +155,6 @@ class StaticCondensation:
         Kfr = Kf[:, self.r].tocsc()
         Kfd = Kf[:, self.d]
         self._Kfr = Kfr
-        self._Kfd = Kfd
         self.lu = spla.splu(Kff, permc_spec="MMD_AT_PLUS_A") if len(self.f) else None
         gamma = np.flatnonzero(np.diff(Kfr.indptr) > 0)
         self.gamma = gamma

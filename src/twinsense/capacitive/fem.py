@@ -322,7 +322,6 @@ class ElectrostaticSystem:
             ground[bnodes[terminal_of[bnodes] < 0]] = True
         static_fixed |= ground
         self.static_fixed = static_fixed
-        self.static_ground = ground
         self.terminal_of = terminal_of
 
         self.k_data = EPS0 * self.pattern.assemble(self.local, eps)
@@ -385,11 +384,6 @@ class ElectrostaticSystem:
         self.floating = tuple(fl)
 
     # -- linear system -------------------------------------------------------
-    @property
-    def n_terminals(self) -> int:
-        """Driven terminals plus current floating conductors."""
-        return len(self.terminals) + len(self.floating)
-
     def all_terminals(self) -> tuple[np.ndarray, ...]:
         return self.terminals + self.floating
 

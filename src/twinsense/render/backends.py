@@ -36,7 +36,6 @@ class Intersector:
         self._face_geom = np.append(np.repeat(np.arange(len(self.meshes), dtype=np.int32), counts), -1)
         self._face_prim = np.append(np.arange(len(self._planes) - 1, dtype=np.int64)
                                     - np.repeat(offsets[1:], counts), -1).astype(np.int32)
-        self._offsets = offsets
         self._offset_table: tuple[tuple[float, float, float], np.ndarray] | None = None
 
     def intersect(self, origins: np.ndarray, directions: np.ndarray, threads: int | None = None):

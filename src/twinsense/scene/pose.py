@@ -76,10 +76,6 @@ class Pose:
 
     # ------------------------------------------------------------ builders
     @classmethod
-    def identity(cls) -> Pose:
-        return cls()
-
-    @classmethod
     def from_euler_deg(cls, position=(0.0, 0.0, 0.0), rpy_deg=(0.0, 0.0, 0.0),
                        order: str = "xyz") -> Pose:
         """Position [m] and extrinsic Euler angles [deg] (default roll-pitch-yaw about x, y, z)."""

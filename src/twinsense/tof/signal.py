@@ -200,18 +200,6 @@ class Radiometry:
         self.dark_electrons = cfg.dark_current * cfg.exposure_time
         self.wavenumbers = np.array([4.0 * math.pi * f / SPEED_OF_LIGHT for f in cfg.modulation_frequencies])
 
-    def band(self, r0: int, r1: int) -> Radiometry:
-        """The same constants restricted to pixel rows [r0, r1) (sub-pixel rows r0*N .. r1*N)."""
-        if (r0, r1) == (0, self.config.height):
-            return self
-        n = self.config.supersample
-        rows = slice(r0 * n, r1 * n)
-        out = object.__new__(Radiometry)
-        out.__dict__.update(self.__dict__)
-        for name in ("directions", "camera_gain", "beam", "signal_gain", "ambient_gain"):
-            setattr(out, name, getattr(self, name)[rows])
-        return out
-
 
 def block_sum(a: np.ndarray, n: int) -> np.ndarray:
     """Sum N x N sub-pixel blocks of the last two axes: (..., H*N, W*N) -> (..., H, W)."""

@@ -132,12 +132,6 @@ class RadarPointCloud:
             changes["points_world"] = _ro(self.points_world[index])
         return replace(self, **changes)
 
-    def as_array(self) -> np.ndarray:
-        """(n, 8) float: x, y, z (sensor) [m], range [m], velocity [m/s],
-        azimuth [rad], elevation [rad], snr [dB] — the layout of the ``detections`` stream."""
-        return np.column_stack([self.points_sensor, self.range, self.velocity,
-                                self.azimuth, self.elevation, self.snr_db])
-
 
 #: Alias: the detections of one frame are its point cloud.
 Detections = RadarPointCloud
