@@ -202,7 +202,8 @@ def test_closed_mesh_electrode_on_the_default_grid():
     import trimesh
 
     from twinsense.capacitive import layouts as L
-    from twinsense.capacitive.mesh import MeshSettings, mesh_layout
+    from twinsense.capacitive.layout_mesh import mesh_layout
+    from twinsense.capacitive.mesh import MeshSettings
     from twinsense.scene import Sphere, TriangleMesh
 
     a = A_RADIUS

@@ -9,7 +9,8 @@ from conftest import two_pad_config
 from twinsense.capacitive import layouts as L
 from twinsense.capacitive.coupling import Inclusion
 from twinsense.capacitive.fem import ElectrostaticSystem
-from twinsense.capacitive.mesh import MeshSettings, mesh_layout, tensor_tet_mesh
+from twinsense.capacitive.layout_mesh import mesh_layout
+from twinsense.capacitive.mesh import MeshSettings, tensor_tet_mesh
 from twinsense.capacitive.readout import ReadoutConfig
 from twinsense.capacitive.sensor import CapacitiveConfig, make_capacitive
 from twinsense.capacitive.solver import SolverConfig

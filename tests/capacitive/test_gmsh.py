@@ -13,8 +13,9 @@ from conftest import two_pad_config
 from twinsense.capacitive import layouts as L
 from twinsense.capacitive.fem import ElectrostaticSystem
 from twinsense.capacitive.gmsh_mesher import _cache_key
+from twinsense.capacitive.layout_mesh import mesh_layout
 from twinsense.capacitive.layouts import polygon_loops
-from twinsense.capacitive.mesh import MeshSettings, mesh_layout
+from twinsense.capacitive.mesh import MeshSettings
 from twinsense.capacitive.sensor import CapacitiveSensor
 from twinsense.capacitive.solver import MaxwellSolver, SolverConfig
 from twinsense.constants import EPS0

@@ -7,11 +7,11 @@ import pytest
 
 from twinsense.capacitive import layouts as L
 from twinsense.capacitive.fem import element_stiffness
+from twinsense.capacitive.layout_mesh import mesh_layout
 from twinsense.capacitive.mesh import (
     MeshSettings,
     cached_mesh,
     graded_axis,
-    mesh_layout,
     polar_grid_2d,
     spherical_shell_mesh,
     tensor_tet_mesh,

@@ -1,7 +1,8 @@
 """Capacitive proximity sensors: electrode layouts, FEM electrostatics, readout.
 
 See PHYSICS.md section 3. The pipeline: :mod:`layouts` (electrodes) ->
-:mod:`mesh` (static tetrahedral mesh) -> :mod:`coupling` (scene objects to
+:mod:`mesh` (static tetrahedral mesh) and
+:mod:`layout_mesh` (the layout on it) -> :mod:`coupling` (scene objects to
 per-cell material) -> :mod:`fem` (P1 stiffness, conductors, boundary) ->
 :mod:`solver` (warm-started AMG-PCG, Maxwell matrix) -> :mod:`readout`;
 :class:`CapacitiveSensor` ties them together.
@@ -18,6 +19,7 @@ from functools import partial
 
 from twinsense.capacitive.coupling import Inclusion, MaterialMap, map_inclusions
 from twinsense.capacitive.fem import EPS0, ElectrostaticSystem
+from twinsense.capacitive.layout_mesh import LayoutMesh, mesh_layout
 from twinsense.capacitive.layouts import (
     Electrode,
     Layout,
@@ -31,7 +33,7 @@ from twinsense.capacitive.layouts import (
     ring,
     stripes,
 )
-from twinsense.capacitive.mesh import MeshSettings, SimplexMesh, mesh_layout
+from twinsense.capacitive.mesh import MeshSettings, SimplexMesh
 from twinsense.capacitive.presets import PRESETS
 from twinsense.capacitive.readout import ReadoutConfig
 from twinsense.capacitive.sensor import CapacitiveConfig, CapacitiveFrame, CapacitiveSensor, make_capacitive
@@ -47,6 +49,7 @@ __all__ = [
     "ElectrostaticSystem",
     "Inclusion",
     "Layout",
+    "LayoutMesh",
     "MaterialMap",
     "MaxwellResult",
     "MaxwellSolver",

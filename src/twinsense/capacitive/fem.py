@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from twinsense.capacitive.mesh import SimplexMesh
+from twinsense.capacitive.mesh import SimplexMesh, check_disjoint
 from twinsense.constants import EPS0
 from twinsense.errors import ConfigError, UnknownNameError
 
@@ -227,20 +227,6 @@ def check_outer(value: str) -> str:
     if value not in OUTER_BOUNDARIES:
         raise UnknownNameError("outer_boundary", value, list(OUTER_BOUNDARIES))
     return value
-
-
-def check_disjoint(sets: Sequence[np.ndarray], names: Sequence[str], field: str) -> None:
-    """Raise ConfigError if two terminal node sets share a node (overlapping or touching)."""
-    owner = {}
-    for i, nodes in enumerate(sets):
-        for node in np.asarray(nodes).tolist():
-            k = owner.setdefault(node, i)
-            if k != i:
-                raise ConfigError(
-                    f"{field}[{i}]",
-                    names[i],
-                    f"an electrode that neither overlaps nor touches {names[k]!r}",
-                )
 
 
 class ElectrostaticSystem:

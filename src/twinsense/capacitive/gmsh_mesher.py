@@ -30,6 +30,7 @@ from contextlib import contextmanager
 
 import numpy as np
 
+from twinsense.capacitive.layouts import Electrode
 from twinsense.capacitive.mesh import SimplexMesh, _oriented, cached_mesh
 
 __all__ = ["GMSH_INSTALL_HINT", "gmsh_layout_mesh", "gmsh_version"]
@@ -123,8 +124,6 @@ def gmsh_layout_mesh(layout, settings, region: tuple) -> SimplexMesh:
 
 
 def _build(gmsh, layout, s, region) -> SimplexMesh:
-    from twinsense.capacitive.layouts import Electrode
-
     x0, x1, y0, y1, z0, z1 = (float(v) for v in region)
     with _session(gmsh, {**_OPTIONS, "Mesh.MeshSizeMax": s.h_max}):
         occ = gmsh.model.occ

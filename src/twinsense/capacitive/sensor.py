@@ -27,8 +27,9 @@ from twinsense.capacitive.coupling import (
     resolving_cell_sizes,
 )
 from twinsense.capacitive.fem import ElectrostaticSystem
+from twinsense.capacitive.layout_mesh import LayoutMesh, layout_region, mesh_layout
 from twinsense.capacitive.layouts import Layout
-from twinsense.capacitive.mesh import LayoutMesh, MeshSettings, layout_region, mesh_layout
+from twinsense.capacitive.mesh import MeshSettings
 from twinsense.capacitive.presets import PRESETS
 from twinsense.capacitive.readout import read_out
 from twinsense.capacitive.solver import MaxwellResult, MaxwellSolver
