@@ -13,14 +13,14 @@ import pytest
 
 from twinsense.data import real_recording
 from twinsense.errors import ConfigError, RecordingError
-from twinsense.radar.formats import read_ti_cfg
-from twinsense.radar.processing import ProcessingSettings, process_cube
-from twinsense.radar.recordings import (
+from twinsense.radar.captures import (
     decode_dca1000,
     load_dca1000,
     load_infineon_recording,
     load_ti_capture,
 )
+from twinsense.radar.formats import read_ti_cfg
+from twinsense.radar.processing import ProcessingSettings, process_cube
 
 C = 299_792_458.0
 INFINEON = real_recording("bgt60tr13c_napas")

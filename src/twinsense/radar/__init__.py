@@ -1,5 +1,6 @@
 """FMCW radar: configuration, antennas, scene scatterers, IF synthesis, device
-effects, device formats, presets, the :class:`FMCWRadar` sensor and the
+effects, device configuration files (:mod:`~twinsense.radar.formats`) and raw
+captures (:mod:`~twinsense.radar.captures`), presets, the :class:`FMCWRadar` sensor and the
 processing chain (:mod:`twinsense.radar.processing`).
 
 Raw cube axis order follows the Infineon Radar SDK: ``(rx, chirp, sample)``.
@@ -15,6 +16,13 @@ from twinsense.radar.antennas import (
     ula,
     ula_positions,
 )
+from twinsense.radar.captures import (
+    InfineonRecording,
+    load_dca1000,
+    load_infineon_recording,
+    load_ti_capture,
+    write_infineon_recording,
+)
 from twinsense.radar.config import ChirpConfig, IFChain, NoiseConfig, RadarConfig
 from twinsense.radar.formats import (
     InfineonConfig,
@@ -22,7 +30,6 @@ from twinsense.radar.formats import (
     load_infineon_config,
     read_ti_cfg,
     save_infineon_config,
-    write_infineon_recording,
 )
 from twinsense.radar.presets import PRESET_CONFIGS, preset_config
 from twinsense.radar.processing import *  # noqa: F403
@@ -39,6 +46,7 @@ __all__ = [
     "FMCWRadar",
     "IFChain",
     "InfineonConfig",
+    "InfineonRecording",
     "NoiseConfig",
     "RadarConfig",
     "RadarFrame",
@@ -47,7 +55,10 @@ __all__ = [
     "Scatterers",
     "TICfg",
     "l_shaped_positions",
+    "load_dca1000",
     "load_infineon_config",
+    "load_infineon_recording",
+    "load_ti_capture",
     "make_radar",
     "planar_positions",
     "preset_config",

@@ -1,8 +1,10 @@
-"""Device file formats: Infineon Radar SDK config.json and recordings, TI mmWave .cfg.
+"""Device configuration files: Infineon Radar SDK config.json, TI mmWave .cfg.
+
+The raw captures these files describe are read and written by
+:mod:`twinsense.radar.captures`.
 
 Infineon (ifxdaq / Radar Fusion GUI): a recording folder holds
 ``RadarIfxAvian_00/{config.json, radar.npy, meta.json, format.version}``;
-``radar.npy`` is uint16 (frame, rx, chirp, sample) of 12-bit ADC codes and
 ``config.json`` has ``device_config.fmcw_single_shape`` with the fields of
 :class:`InfineonConfig` (PHYSICS.md section 2).
 
@@ -31,6 +33,7 @@ from twinsense.radar.antennas import (
     ula_positions,
 )
 from twinsense.radar.config import ChirpConfig, IFChain, RadarConfig
+from twinsense.radar.presets import bgt60tr13c_config, iwr6843_config
 
 # ----------------------------------------------------------------------------
 # Infineon
@@ -116,8 +119,6 @@ class InfineonConfig:
 
     def to_radar_config(self, base: RadarConfig | None = None) -> RadarConfig:
         """A :class:`RadarConfig`: the BGT60TR13C preset (or ``base``) with these settings."""
-        from twinsense.radar.presets import bgt60tr13c_config
-
         base = base or bgt60tr13c_config()
         n_tx = len(self.tx_antennas)
         tdm = self.mimo_mode == "tdm" and n_tx > 1
@@ -200,49 +201,6 @@ def save_infineon_config(config: InfineonConfig | RadarConfig, path: str | Path)
     p.parent.mkdir(parents=True, exist_ok=True)
     p.write_text(json.dumps(config.to_dict(), indent=4) + "\n")
     return p
-
-
-def write_infineon_recording(directory: str | Path, adc_frames: np.ndarray,
-                             config: InfineonConfig | RadarConfig,
-                             date_captured: str = "1970-01-01T00:00:00+0000") -> Path:
-    """Write frames as an ifxdaq recording folder, like the SDK's recorder.
-
-    Parameters
-    ----------
-    directory : path
-        Recording folder to create; data go to ``<directory>/RadarIfxAvian_00/``.
-    adc_frames : (n_frames, n_rx, n_chirps, n_samples) uint16
-        12-bit ADC codes (:attr:`RadarFrame.adc` stacked over frames).
-    config : InfineonConfig or RadarConfig
-
-    Returns
-    -------
-    Path of ``radar.npy``.
-    """
-    if isinstance(config, RadarConfig):
-        config = InfineonConfig.from_radar_config(config)
-    data = np.asarray(adc_frames)
-    expected = (len(config.rx_antennas), config.num_chirps_per_frame
-                * (len(config.tx_antennas) if config.mimo_mode == "tdm" else 1),
-                config.num_samples_per_chirp)
-    if data.ndim != 4 or data.shape[1:] != expected:
-        raise ConfigError("adc_frames", f"array of shape {data.shape}",
-                          f"(n_frames, {expected[0]}, {expected[1]}, {expected[2]}) uint16 codes")
-    if data.dtype != np.uint16 or (data.size and int(data.max()) > 4095):
-        raise ConfigError("adc_frames", f"{data.dtype} array", "uint16 12-bit codes 0..4095")
-    root = Path(directory)
-    dev = root / "RadarIfxAvian_00"
-    dev.mkdir(parents=True, exist_ok=True)
-    np.save(dev / "radar.npy", np.ascontiguousarray(data))
-    save_infineon_config(config, dev / "config.json")
-    (dev / "format.version").write_text("1.0.0")
-    (dev / "meta.json").write_text(json.dumps(
-        {"adc_resolution": 12, "description": "BGT60TR13C FMCW Radar Sensor (twinsense simulation)",
-         "firmware_version": "", "sdk_version": "", "uuid": "0"}, indent=4) + "\n")
-    (root / "meta.json").write_text(json.dumps(
-        {"date_captured": date_captured, "hostname": "twinsense", "ifxdaq_version": "1.0.0",
-         "machine": "", "os": "", "os_version": "", "username": ""}, indent=4) + "\n")
-    return dev / "radar.npy"
 
 
 # ----------------------------------------------------------------------------
@@ -344,8 +302,6 @@ class TICfg:
 
     def to_radar_config(self, base: RadarConfig | None = None) -> RadarConfig:
         """A :class:`RadarConfig` (xWR18xx/68xx BOOST antenna layout, first profile)."""
-        from twinsense.radar.presets import iwr6843_config
-
         base = base or iwr6843_config()
         prof = self.profiles[0]
         chirp = ChirpConfig(start_frequency=prof.start_frequency, slope=prof.slope,

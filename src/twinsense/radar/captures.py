@@ -1,4 +1,4 @@
-"""Readers for real radar recordings.
+"""Raw captures of real radar devices: readers, and a writer in the Infineon SDK layout.
 
 - Infineon ifxdaq / Radar Fusion GUI recordings: ``radar.npy`` of shape
   ``(frame, rx, chirp, sample)``, unsigned 12-bit ADC codes of the real IF
@@ -12,7 +12,9 @@
   each other (non-interleaved, ``adcbufCfg`` 4th field = 1) or alternate per
   sample (interleaved).
 
-Both loaders return cubes in the project's axis order ``(frame, rx, chirp, sample)``.
+Both loaders return cubes in the project's axis order ``(frame, rx, chirp, sample)``;
+:func:`write_infineon_recording` writes simulated ADC frames as an ifxdaq folder.
+The device configuration files are parsed by :mod:`twinsense.radar.formats`.
 """
 
 from __future__ import annotations
@@ -25,7 +27,8 @@ import numpy as np
 
 from twinsense import validation as V
 from twinsense.errors import ConfigError, RecordingError
-from twinsense.radar.formats import InfineonConfig, TICfg, read_ti_cfg
+from twinsense.radar.config import RadarConfig
+from twinsense.radar.formats import InfineonConfig, TICfg, read_ti_cfg, save_infineon_config
 
 # ---------------------------------------------------------------- Infineon
 
@@ -246,3 +249,49 @@ def load_ti_capture(bin_path: str | Path, cfg: TICfg | str | Path, *, iq_swap: b
                         n_chirps=n_chirps or c.chirps_per_frame,
                         complex_if=c.adc_format != "real", iq_swap=iq_swap,
                         interleaved=interleaved)
+
+
+# ---------------------------------------------------------------- writer
+
+
+def write_infineon_recording(directory: str | Path, adc_frames: np.ndarray,
+                             config: InfineonConfig | RadarConfig,
+                             date_captured: str = "1970-01-01T00:00:00+0000") -> Path:
+    """Write frames as an ifxdaq recording folder, like the SDK's recorder.
+
+    Parameters
+    ----------
+    directory : path
+        Recording folder to create; data go to ``<directory>/RadarIfxAvian_00/``.
+    adc_frames : (n_frames, n_rx, n_chirps, n_samples) uint16
+        12-bit ADC codes (:attr:`RadarFrame.adc` stacked over frames).
+    config : InfineonConfig or RadarConfig
+
+    Returns
+    -------
+    Path of ``radar.npy``.
+    """
+    if isinstance(config, RadarConfig):
+        config = InfineonConfig.from_radar_config(config)
+    data = np.asarray(adc_frames)
+    expected = (len(config.rx_antennas), config.num_chirps_per_frame
+                * (len(config.tx_antennas) if config.mimo_mode == "tdm" else 1),
+                config.num_samples_per_chirp)
+    if data.ndim != 4 or data.shape[1:] != expected:
+        raise ConfigError("adc_frames", f"array of shape {data.shape}",
+                          f"(n_frames, {expected[0]}, {expected[1]}, {expected[2]}) uint16 codes")
+    if data.dtype != np.uint16 or (data.size and int(data.max()) > 4095):
+        raise ConfigError("adc_frames", f"{data.dtype} array", "uint16 12-bit codes 0..4095")
+    root = Path(directory)
+    dev = root / "RadarIfxAvian_00"
+    dev.mkdir(parents=True, exist_ok=True)
+    np.save(dev / "radar.npy", np.ascontiguousarray(data))
+    save_infineon_config(config, dev / "config.json")
+    (dev / "format.version").write_text("1.0.0")
+    (dev / "meta.json").write_text(json.dumps(
+        {"adc_resolution": 12, "description": "BGT60TR13C FMCW Radar Sensor (twinsense simulation)",
+         "firmware_version": "", "sdk_version": "", "uuid": "0"}, indent=4) + "\n")
+    (root / "meta.json").write_text(json.dumps(
+        {"date_captured": date_captured, "hostname": "twinsense", "ifxdaq_version": "1.0.0",
+         "machine": "", "os": "", "os_version": "", "username": ""}, indent=4) + "\n")
+    return dev / "radar.npy"
