@@ -112,7 +112,7 @@ def test_missing_and_broken_mesh(tmp_path):
     d = base()
     d["objects"][2]["geometry"] = {"type": "mesh", "path": "cart.stl", "unit": "mm"}
     msg = errors_of(d, tmp_path)
-    assert "objects[2].geometry = 'cart.stl'" in msg and "file not found" in msg
+    assert "objects[2].geometry.path = 'cart.stl'" in msg and "file not found" in msg
     (tmp_path / "cart.stl").write_text("solid broken\n facet\nendsolid\n")
     assert "cannot read" in errors_of(d, tmp_path) or "no triangles" in errors_of(d, tmp_path)
     d["objects"][2]["geometry"]["unit"] = "inch"
@@ -157,3 +157,73 @@ def test_pose_forms():
     assert "give one of rpy_deg, quat_xyzw" in errors_of(d)
     d["objects"][0]["pose"] = {"matrix": np.eye(4).tolist()}
     assert scenario_from_dict(d).scene.object("back_wall").pose_at(0).isclose(Pose())
+
+
+@pytest.mark.parametrize("where, value, field", [
+    (("objects", 0, "pose"), {"quat_xyzw": [0, 0, 0, 0]}, "objects[0].pose.quat_xyzw = (0.0, 0.0, 0.0, 0.0)"),
+    (("objects", 0, "pose"), {"matrix": [[2, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]},
+     "objects[0].pose.matrix = "),
+    (("objects", 0, "pose"), {"matrix": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [1, 0, 0, 1]]},
+     "objects[0].pose.matrix = [1.0, 0.0, 0.0, 1.0]: last row"),
+    (("sensors", 0, "mount", "pose"), {"look_at": {"eye": [1, 1, 1], "target": [1, 1, 1]}},
+     "sensors[0].mount.pose.look_at.target = (1.0, 1.0, 1.0): a point different from eye"),
+    (("sensors", 0, "mount", "pose"), {"look_at": {"eye": [0, 0, 0], "target": [0, 0, 1], "up": [0, 0, 2]}},
+     "sensors[0].mount.pose.look_at.up"),
+    (("materials", 0, "base"), "drywal", "materials[0].base = 'drywal': one of: "),
+    (("objects", 3, "geometry", "radius"), 1e-300, "objects[3].geometry.radius = 1e-300: a finite number >= 1e-06"),
+    (("objects", 0, "geometry", "size"), [1e5, 1], "objects[0].geometry.size = [100000.0, 1.0]"),
+    (("objects", 2, "motion", "speed"), 1e9, "objects[2].motion.speed = 1000000000.0: a finite number > 0 and <= 2"),
+    (("objects", 3, "motion", "frequency"), 1e7, "objects[3].motion.frequency = 10000000.0"),
+    (("objects", 2, "motion"), {"type": "keyframes", "keyframes": [
+        {"t": 0, "pose": {"position": [0, 0, 0]}}, {"t": 1e-9, "pose": {"position": [1, 0, 0]}}]},
+     "objects[2].motion.keyframes[1].t = 1e-09: keyframes far enough apart"),
+    (("objects", 2, "motion"), {"type": "keyframes", "keyframes": [
+        {"t": 0, "pose": {"position": [0, 0, 0]}}, {"t": 1, "pose": {"quat_xyzw": [0, 0, 0, 0]}}]},
+     "objects[2].motion.keyframes[1].pose.quat_xyzw"),
+    (("seed",), 10**400, "seed = 1000"),
+    (("objects", 3, "geometry", "radius"), 10**400, "objects[3].geometry.radius = 1000"),
+])
+def test_errors_name_the_real_field(where, value, field):
+    # Each bad value is reported once, under the path of the field that holds it
+    # in the file (not under the API's own name, nor under a neighbouring section).
+    d = base()
+    target = d
+    for key in where[:-1]:
+        target = target[key]
+    target[where[-1]] = value
+    msg = errors_of(d)
+    assert msg.startswith("test.yaml: 1 problem\n"), msg
+    assert field in msg, msg
+
+
+def test_binary_and_non_utf8_files_are_scenario_errors(tmp_path):
+    # A binary file is not YAML: a ScenarioError with the byte offset, never a UnicodeDecodeError.
+    p = tmp_path / "scene.yaml"
+    p.write_bytes(b"name: x\n\xff\xfe\x00garbage")
+    with pytest.raises(ScenarioError, match=r"\(file, byte 8\) = b'\\xff\\xfe.*a UTF-8 text \(YAML\) file"):
+        load_scenario(p)
+    # A UTF-8 byte-order mark (written by some editors) is accepted.
+    p.write_bytes(b"\xef\xbb\xbf" + EXAMPLE.read_bytes())
+    assert load_scenario(p).name == "corridor"
+    with pytest.raises(ScenarioError, match="an existing YAML file"):
+        load_scenario(tmp_path)  # a directory
+
+
+def test_garbage_mesh_files_are_reported_under_geometry_path(tmp_path):
+    d = base()
+    d["objects"][2]["geometry"] = {"type": "mesh", "path": "cart.obj", "unit": "m"}
+    # An OBJ face pointing at a vertex that does not exist (trimesh raises IndexError inside).
+    (tmp_path / "cart.obj").write_text("v 0 0 0\nv 1 0 0\nf 1 2 9\n")
+    msg = errors_of(d, tmp_path)
+    assert "objects[2].geometry.path = 'cart.obj'" in msg and "damaged or not a valid OBJ file" in msg
+    assert "out of bounds" not in msg
+    # A mesh in the wrong unit: a 2 m part read as metres is fine, a 20 km one is not.
+    import trimesh
+
+    trimesh.creation.box(extents=(2e4, 1, 1)).export(tmp_path / "huge.stl")
+    d["objects"][2]["geometry"] = {"type": "mesh", "path": "huge.stl", "unit": "m"}
+    msg = errors_of(d, tmp_path)
+    assert "objects[2].geometry.path = 'huge.stl'" in msg and "largest extent 20000 m" in msg
+    d["objects"][2]["geometry"]["unit"] = "mm"  # the same file in mm is a 20 m part
+    assert scenario_from_dict(d, base_dir=tmp_path).scene.object("cart").geometry.mesh.extents[0] == pytest.approx(
+        20.0, rel=1e-12, abs=0)

@@ -92,14 +92,27 @@ class PoseSpec(_Model):
             raise ValueError(f"give one of rpy_deg, quat_xyzw, look_at, matrix (got {', '.join(given)})")
         return self
 
-    def build(self) -> Pose:
-        if self.look_at is not None:
-            return Pose.look_at(self.look_at.eye, self.look_at.target, self.look_at.up)
-        if self.matrix is not None:
-            return Pose.from_matrix(self.matrix)
-        if self.quat_xyzw is not None:
-            return Pose.from_quat(self.position, self.quat_xyzw)
-        return Pose.from_euler_deg(self.position, self.rpy_deg or (0.0, 0.0, 0.0))
+    def build(self, path: str = "pose") -> Pose:
+        """The Pose; a ConfigError names the field under ``path`` (e.g. ``objects[2].pose.quat_xyzw``)."""
+        try:
+            if self.look_at is not None:
+                return Pose.look_at(self.look_at.eye, self.look_at.target, self.look_at.up)
+            if self.matrix is not None:
+                return Pose.from_matrix(self.matrix)
+            if self.quat_xyzw is not None:
+                return Pose.from_quat(self.position, self.quat_xyzw)
+            return Pose.from_euler_deg(self.position, self.rpy_deg or (0.0, 0.0, 0.0))
+        except ConfigError as e:
+            raise ConfigError(f"{path}.{self._spec_field(e.field)}", e.value, e.allowed) from None
+
+    def _spec_field(self, api_field: str) -> str:
+        """The spec field behind an API error field ("Pose.rotation" from a matrix is ``matrix``)."""
+        if api_field.startswith("look_at."):
+            return api_field
+        name = api_field.split(".", 1)[-1]
+        if name in ("rotation", "matrix"):
+            return "matrix" if self.matrix is not None else "rpy_deg"
+        return name
 
 
 class BoxSpec(_Model):
@@ -117,7 +130,7 @@ class CylinderSpec(_Model):
     type: Literal["cylinder"]
     radius: Pos
     height: Pos
-    sections: int = Field(64, ge=3)
+    sections: int = Field(64, ge=3, le=G.MAX_SECTIONS)
 
 
 class CapsuleSpec(_Model):
@@ -215,16 +228,40 @@ class SensorSpec(_Model):
     frame_rate: Pos | None = None
     mount: MountSpec = MountSpec()
 
+    @field_validator("name")
+    @classmethod
+    def _sink_safe_name(cls, v):
+        # The name becomes an HDF5 group, a topic and a file name: only what all of them accept.
+        from twinsense.io.recording import SENSOR_NAME, SENSOR_NAME_RULE
+
+        if SENSOR_NAME.fullmatch(v) is None:
+            raise ValueError(SENSOR_NAME_RULE)
+        return v
+
 
 class OutputsSpec(_Model):
+    """``recording``: a relative ``.h5`` path inside the output folder, or null for no recording."""
+
     recording: str | None = "recording.h5"
     plots: bool = True
+
+    @field_validator("recording")
+    @classmethod
+    def _inside_output_folder(cls, v):
+        if v is None:
+            return v
+        p = Path(v)
+        if p.suffix not in (".h5", ".hdf5") or not p.stem:
+            raise ValueError("a file name ending in .h5 (or .hdf5), or null for no recording")
+        if p.is_absolute() or v.startswith(("/", "\\", "~")) or ".." in p.parts:
+            raise ValueError("a relative path that stays inside the output folder (-o), e.g. 'recording.h5'")
+        return v
 
 
 class ScenarioSpec(_Model):
     name: str = "scenario"
     duration: Pos = 1.0
-    seed: int = Field(0, ge=0)
+    seed: int = Field(0, ge=0, lt=2**64)
     materials: list[MaterialSpec] = []
     objects: list[ObjectSpec] = []
     sensors: list[SensorSpec] = []
@@ -253,15 +290,21 @@ class Scenario:
     outputs: OutputsSpec
     source: str = "<dict>"
     raw: dict = field(default_factory=dict)
+    limits: Any = None  # twinsense.simulate.RunLimits the scenario was checked against (None: the defaults)
+
+    def recording_path(self, out_dir) -> Path | None:
+        """Where :meth:`run` writes the recording (None when ``outputs.recording`` is null)."""
+        return Path(out_dir) / self.outputs.recording if self.outputs.recording else None
 
     def run(self, out_dir, progress: bool = False):
-        """Simulate and write the recording under ``out_dir``; returns the SimulationResult."""
+        """Simulate and write the recording under ``out_dir``; returns the SimulationResult.
+
+        With ``outputs.recording: null`` nothing is written (``result.path`` is None).
+        """
         from twinsense.simulate import simulate
 
-        out_dir = Path(out_dir)
-        out = out_dir / (self.outputs.recording or "recording.h5") if self.outputs.recording else None
-        return simulate(self.scene, self.sensors, self.duration, out=out, seed=self.seed, progress=progress,
-                        scenario=self.raw, keep_frames=False)
+        return simulate(self.scene, self.sensors, self.duration, out=self.recording_path(out_dir), seed=self.seed,
+                        progress=progress, scenario=self.raw, keep_frames=False, limits=self.limits)
 
 
 def _loc(loc: tuple) -> str:
@@ -291,40 +334,82 @@ def _pydantic_problems(err: ValidationError) -> list[tuple[str, Any, str]]:
     return probs
 
 
-def _build_material(spec: MaterialSpec) -> Material:
-    base = get_material(spec.base) if spec.base else Material(spec.name)
+def _build_material(spec: MaterialSpec, path: str, local: dict[str, Material]) -> Material:
+    """The material of a ``materials[]`` entry; ``base`` may name a library or an earlier local material."""
+    if spec.base is None:
+        base = Material(spec.name)
+    elif spec.base in local:
+        base = local[spec.base]
+    elif spec.base in material_names():
+        base = get_material(spec.base)
+    else:
+        raise ConfigError(f"{path}.base", spec.base, "one of: " + ", ".join(sorted({*material_names(), *local})))
     values = base.to_dict()
     values.update({k: v for k, v in spec.model_dump().items() if v is not None and k not in ("base",)})
-    return Material(**values)
+    try:
+        return Material(**values)
+    except ConfigError as e:
+        raise ConfigError(f"{path}.{e.field.split('.')[-1]}", e.value, e.allowed) from None
 
 
-def _build_geometry(spec, base_dir: Path):
+def _build_geometry(spec, base_dir: Path, path: str):
+    """The geometry of ``objects[i].geometry`` (``path``), its mesh loaded so a broken file is reported here."""
     d = spec.model_dump()
     kind = d.pop("type")
-    if kind == "mesh":
-        p = Path(d["path"])
-        if not p.is_absolute():
-            p = base_dir / p
-        return G.MeshFile(p, unit=d["unit"])
-    return G.GEOMETRY_TYPES[kind](**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+    try:
+        if kind == "mesh":
+            p = Path(d["path"])
+            if not p.is_absolute():
+                p = base_dir / p
+            geom = G.MeshFile(p, unit=d["unit"])
+        else:
+            geom = G.GEOMETRY_TYPES[kind](**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+        geom.mesh  # noqa: B018
+    except ConfigError as e:
+        raise ConfigError(f"{path}.{e.field.split('.', 1)[-1]}", e.value, e.allowed) from None
+    except GeometryError as e:
+        raise ConfigError(f"{path}.path", d.get("path", "?"), _strip_field(str(e))) from None
+    return geom
 
 
-def _build_motion(spec: ObjectSpec):
-    pose = spec.pose.build()
+def _strip_field(msg: str) -> str:
+    """A GeometryError message without its leading ``mesh.path:`` (the scenario path replaces it)."""
+    return msg.split(": ", 1)[1] if msg.startswith("mesh.path: ") else msg
+
+
+def _build_motion(spec: ObjectSpec, path: str):
+    """The motion of ``objects[i]`` (``path``): its pose plus the ``motion`` entry."""
+    pose = spec.pose.build(f"{path}.pose")
     m = spec.motion
-    if m is None or m.type == "static":
-        return M.Static(pose)
-    if m.type == "constant_velocity":
-        return M.ConstantVelocity(pose, m.velocity, m.angular_velocity)
-    if m.type == "waypoints":
-        return M.Waypoints(m.points, m.speed, m.mode, pose.rotation, m.start_time)
-    if m.type == "keyframes":
-        return M.Keyframes([k.t for k in m.keyframes], tuple(k.pose.build() for k in m.keyframes))
-    return M.Oscillation(pose, m.amplitude, m.frequency, m.phase_deg, m.angular_amplitude)
+    if m is not None and m.type == "keyframes":
+        poses = tuple(k.pose.build(f"{path}.motion.keyframes[{j}].pose") for j, k in enumerate(m.keyframes))
+    try:
+        if m is None or m.type == "static":
+            return M.Static(pose)
+        if m.type == "constant_velocity":
+            return M.ConstantVelocity(pose, m.velocity, m.angular_velocity)
+        if m.type == "waypoints":
+            return M.Waypoints(m.points, m.speed, m.mode, pose.rotation, m.start_time)
+        if m.type == "keyframes":
+            return M.Keyframes([k.t for k in m.keyframes], poses)
+        return M.Oscillation(pose, m.amplitude, m.frequency, m.phase_deg, m.angular_amplitude)
+    except ConfigError as e:
+        tail = e.field.split(".", 1)[-1]
+        if tail.startswith("times["):  # Keyframes' times[k] is keyframes[k].t in the file
+            tail = "keyframes[" + tail[len("times["):].split("]")[0] + "].t"
+        elif tail == "times":
+            tail = "keyframes"
+        raise ConfigError(f"{path}.motion.{tail}", e.value, e.allowed) from None
 
 
-def scenario_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = None) -> Scenario:
-    """Validate and build a scenario from parsed YAML/JSON data."""
+def scenario_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = None,
+                       limits=None) -> Scenario:
+    """Validate and build a scenario from parsed YAML/JSON data.
+
+    ``limits`` (a :class:`twinsense.simulate.RunLimits`, default limits when
+    None) bounds the frames of the run and the memory of one frame, so a run
+    that would exhaust the machine is rejected here, before it starts.
+    """
     base_dir = base_dir or Path.cwd()
     if not isinstance(data, dict):
         raise ScenarioError(source, [("(top level)", type(data).__name__, "a mapping with objects, sensors, ...")])
@@ -338,28 +423,30 @@ def scenario_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None 
     local_mats: dict[str, Material] = {}
     for i, ms in enumerate(spec.materials):
         try:
-            local_mats[ms.name] = _build_material(ms)
+            local_mats[ms.name] = _build_material(ms, f"materials[{i}]", local_mats)
         except ConfigError as e:
-            problems.append((f"materials[{i}].{e.field.split('.')[-1]}", e.value, e.allowed))
+            problems.append((e.field, e.value, e.allowed))
+    failed_mats = {ms.name for ms in spec.materials} - set(local_mats)  # reported once, above
     scene = Scene(name=spec.name)
     for i, os_ in enumerate(spec.objects):
         mat = local_mats.get(os_.material)
         if mat is None:
+            if os_.material in failed_mats:
+                continue
             if os_.material not in material_names():
                 problems.append((f"objects[{i}].material", os_.material,
                                  "one of: " + ", ".join(sorted({*material_names(), *local_mats}))))
                 continue
             mat = get_material(os_.material)
-        try:
-            geom = _build_geometry(os_.geometry, base_dir)
-            geom.mesh  # noqa: B018 - load now so a broken mesh is reported here
-            scene.add(SceneObject(os_.name, geom, mat, _build_motion(os_), frozenset(os_.layers)))
-        except ConfigError as e:
-            sub = "motion" if e.field.startswith("motion") else "geometry"
-            tail = e.field.split(".", 1)[-1]
-            problems.append((f"objects[{i}].{sub}.{tail}", e.value, e.allowed))
-        except GeometryError as e:
-            problems.append((f"objects[{i}].geometry", os_.geometry.model_dump().get("path", "?"), str(e)))
+        parts = []  # geometry and motion, each reported on its own
+        for build, args in ((_build_geometry, (os_.geometry, base_dir, f"objects[{i}].geometry")),
+                            (_build_motion, (os_, f"objects[{i}]"))):
+            try:
+                parts.append(build(*args))
+            except ConfigError as e:
+                problems.append((e.field, e.value, e.allowed))
+        if len(parts) == 2:
+            scene.add(SceneObject(os_.name, parts[0], mat, parts[1], frozenset(os_.layers)))
     sensors = []
     for i, ss in enumerate(spec.sensors):
         if ss.mount.parent is not None and ss.mount.parent not in {o.name for o in spec.objects}:
@@ -367,20 +454,29 @@ def scenario_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None 
                              "the name of an object in this scenario: " + ", ".join(o.name for o in spec.objects)))
             continue
         try:
+            mount = Mount(ss.mount.pose.build(f"sensors[{i}].mount.pose"), ss.mount.parent)
+        except ConfigError as e:
+            problems.append((e.field, e.value, e.allowed))
+            continue
+        try:
             from twinsense.presets import make_sensor
 
             overrides = dict(ss.overrides)
             if ss.frame_rate is not None:
                 overrides["frame_rate"] = ss.frame_rate
-            mount = Mount(ss.mount.pose.build(), ss.mount.parent)
             sensors.append(make_sensor(ss.kind, ss.preset, name=ss.name, mount=mount, **overrides))
         except ConfigError as e:
             problems.append((f"sensors[{i}].{_sensor_field(e)}", e.value, e.allowed))
-        except TypeError as e:
-            problems.append((f"sensors[{i}].overrides", ss.overrides, str(e)))
+        except (TypeError, ValueError, OverflowError) as e:
+            # An override of the wrong type that the sensor's config did not catch itself.
+            problems.append((f"sensors[{i}].overrides", ss.overrides, f"values the {ss.kind} config accepts ({e})"))
+    if not problems:
+        from twinsense.simulate import run_size_problems
+
+        problems += run_size_problems(sensors, spec.duration, limits)
     if problems:
         raise ScenarioError(source, problems)
-    return Scenario(spec.name, scene, sensors, spec.duration, spec.seed, spec.outputs, source, data)
+    return Scenario(spec.name, scene, sensors, spec.duration, spec.seed, spec.outputs, source, data, limits)
 
 
 def _sensor_field(e: ConfigError) -> str:
@@ -397,17 +493,33 @@ def _sensor_field(e: ConfigError) -> str:
     return f"overrides.{last}"
 
 
-def load_scenario(path) -> Scenario:
-    """Read, validate and build a scenario YAML file."""
+def load_scenario(path, overrides: dict[str, Any] | None = None, limits=None) -> Scenario:
+    """Read, validate and build a scenario YAML file.
+
+    ``overrides`` replace top-level fields (``{"duration": 2.0, "seed": 3}``)
+    before validation, so they are checked like the file's own values.
+    ``limits``: see :func:`scenario_from_dict`.
+    """
     p = Path(path)
     if not p.is_file():
         raise ScenarioError(str(path), [("(file)", str(path), "an existing YAML file")])
     try:
-        data = yaml.safe_load(p.read_text())
+        raw = p.read_bytes()
+    except OSError as exc:
+        raise ScenarioError(str(p), [("(file)", str(p), f"a readable file ({exc.strerror or exc})")]) from None
+    try:
+        text = raw.decode("utf-8-sig")  # YAML files are UTF-8; a BOM from some editors is fine
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(str(p), [(f"(file, byte {exc.start})", raw[exc.start:exc.start + 8],
+                                      "a UTF-8 text (YAML) file, not a binary one")]) from None
+    try:
+        data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else "?"
         raise ScenarioError(str(p), [(f"(YAML syntax, {where})", getattr(exc, "problem", str(exc)),
                                       "valid YAML")]) from None
-    return scenario_from_dict(data, source=str(p), base_dir=p.parent)
+    if overrides and isinstance(data, dict):
+        data = {**data, **overrides}
+    return scenario_from_dict(data, source=str(p), base_dir=p.parent, limits=limits)
 

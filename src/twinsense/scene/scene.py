@@ -9,7 +9,7 @@ import numpy as np
 from twinsense.errors import ConfigError, UnknownNameError
 from twinsense.scene.geometry import Geometry
 from twinsense.scene.materials import Material, get_material
-from twinsense.scene.motion import Motion, MotionState, Static
+from twinsense.scene.motion import Motion, MotionState, Static, check_time
 from twinsense.scene.pose import Pose
 
 SENSOR_KINDS = ("tof", "radar", "capacitive", "camera")
@@ -175,7 +175,12 @@ class Mount:
             raise ConfigError("mount.parent", self.parent, "an object name or None")
 
     def state_at(self, scene: Scene | None, t: float) -> MotionState:
-        """Sensor pose (sensor -> world) and its velocities at t."""
+        """Sensor pose (sensor -> world) and its velocities at t.
+
+        Every sensor's capture starts here, so a NaN or out-of-range ``t`` is
+        refused for every kind, even by a fixed sensor in a static scene.
+        """
+        check_time(t)
         if self.parent is None:
             return MotionState(self.pose, np.zeros(3), np.zeros(3))
         if scene is None:
