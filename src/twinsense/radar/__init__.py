@@ -34,6 +34,7 @@ from twinsense.radar.formats import (
 from twinsense.radar.presets import PRESET_CONFIGS, preset_config
 from twinsense.radar.processing import *  # noqa: F403
 from twinsense.radar.processing import __all__ as _processing_all
+from twinsense.radar.radiometry import radar_equation_amplitude
 from twinsense.radar.scatterers import Scatterers, ScatterRenderer, received_amplitude
 from twinsense.radar.sensor import FMCWRadar, RadarFrame, make_radar
 from twinsense.radar.synthesis import synthesize, synthesize_exact
@@ -62,6 +63,7 @@ __all__ = [
     "make_radar",
     "planar_positions",
     "preset_config",
+    "radar_equation_amplitude",
     "read_ti_cfg",
     "received_amplitude",
     "save_infineon_config",

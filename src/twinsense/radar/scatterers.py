@@ -2,27 +2,11 @@
 
 The radar's field of view is rendered once (a pinhole view at the
 configured resolution, objects hidden from "radar" skipped); every hit
-pixel becomes one scatterer at its 3-D point. Its radar cross-section is
-the surface patch the pixel sees times the material's normalised RCS:
-
-    footprint  A = Omega_px R^2 / cos(theta)      (Omega_px: pixel solid angle)
-    sigma0     = rho [(1 - k) cos^2(theta) + k L(theta)]
-    L(theta)   = 2 / (3 theta_s^2) exp(-(theta / theta_s)^2)
-    sigma      = A sigma0
-
-rho is ``Material.radar_reflectivity``, k its ``radar_specular`` share,
-theta the incidence angle. The diffuse part is Lambert's law for
-backscatter (sigma0 ~ cos^2, so a patch's RCS goes as cos(theta) per unit
-solid angle); the specular lobe L is normalised so that both parts scatter
-the same total over the hemisphere (the integral of cos^2 over the
-hemisphere, 2 pi / 3). The received peak IF amplitude follows from the
-radar equation (Patole et al. 2017, eq. 1):
-
-    P_r = P_t G_t G_r lambda^2 sigma / ((4 pi)^3 R^4),   A = sqrt(2 P_r)
-
-with G_t, G_r the element patterns towards the scatterer. Velocities come
-from the scene's analytic motion, minus the sensor's own motion (its linear
-velocity and the rotation of its frame), expressed in the sensor frame.
+pixel becomes one scatterer at its 3-D point, with the RCS of the surface
+patch the pixel sees and the radar-equation amplitude of
+:mod:`twinsense.radar.radiometry`. Velocities come from the scene's
+analytic motion, minus the sensor's own motion (its linear velocity and the
+rotation of its frame), expressed in the sensor frame.
 
 Second bounce (``RadarConfig.multipath``): a pixel whose surface has a
 specular share Gamma (``Material.radar_specular``, taken as the mirror's
@@ -48,7 +32,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from twinsense.radar.config import RadarConfig
+from twinsense.radar.radiometry import (
+    backscatter_rcs,
+    radar_equation_amplitude,
+    received_amplitude,
+    second_bounce_rcs,
+)
 from twinsense.render import PinholeCamera, Rays, cast, caster_for
+
+__all__ = ["ScatterRenderer", "Scatterers", "backscatter_rcs", "received_amplitude"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -140,77 +132,6 @@ class Scatterers:
                    np.full(len(p), -1, dtype=np.int32))
 
 
-def received_amplitude(scatterers: Scatterers, config: RadarConfig) -> np.ndarray:
-    """(n,) peak IF amplitude sqrt(2 P_r) of each scatterer at the receiver input [sqrt(W)].
-
-    Radar equation with the element patterns towards the scatterer (seen
-    from the sensor origin; the array is small against the ranges). For a
-    bistatic path the transmit leg ends at ``points`` and the receive leg at
-    ``points_rx``: P_r = P_t G_t G_r lambda^2 sigma / ((4 pi)^3 R_t^2 R_r^2).
-    """
-    p = scatterers.points
-    pr_ = scatterers.points_rx if scatterers.is_bistatic else p
-    r2_t = _norm2(p)
-    r2_r = r2_t if pr_ is p else _norm2(pr_)
-    lam = config.chirp.wavelength
-    ant = config.antennas
-    if ant.tx_pattern == ant.rx_pattern and pr_ is p:
-        g = ant.tx_pattern.gain(p)
-        g *= g
-    else:
-        g = ant.tx_pattern.gain(p) * ant.rx_pattern.gain(pr_)
-    den = r2_t * r2_r if pr_ is not p else r2_t * r2_t
-    power = g
-    power *= (2.0 * config.tx_power * lam**2 / (4 * math.pi) ** 3) * scatterers.rcs
-    # A = sqrt(2 P_r); no return from a point at an element's origin.
-    ok = den > 0
-    np.divide(power, den, out=power, where=ok)
-    power[~ok] = 0.0
-    return np.sqrt(power, out=power)
-
-
-def _norm2(p: np.ndarray) -> np.ndarray:
-    """|p|^2 of the rows of p (n, 3), column by column (faster than einsum on (n, 3))."""
-    out = p[:, 0] * p[:, 0]
-    out += p[:, 1] * p[:, 1]
-    out += p[:, 2] * p[:, 2]
-    return out
-
-
-def backscatter_rcs(distance: np.ndarray, cos_incidence: np.ndarray, solid_angle: np.ndarray,
-                    reflectivity: np.ndarray, specular: np.ndarray,
-                    lobe_rad: float) -> np.ndarray:
-    """(n,) RCS [m^2] of the surface patch a pixel sees (see the module docstring).
-
-    Parameters
-    ----------
-    distance : (n,) float [m]
-    cos_incidence : (n,) float, in [0, 1]
-    solid_angle : (n,) float, pixel solid angle [sr]
-    reflectivity : (n,) float, sigma0 of the material
-    specular : (n,) float, specular share 0..1
-    lobe_rad : float, 1/e half-width of the specular lobe [rad]
-    """
-    c = np.clip(cos_incidence, 1e-6, 1.0)
-    spec = np.asarray(specular, dtype=float)
-    # sigma = A sigma0 with A = Omega R^2 / cos: the diffuse cos^2 keeps one cos.
-    per_sr = (1.0 - spec) * c
-    if np.any(spec):  # the specular lobe only where a material has one
-        theta = np.arccos(c)
-        theta *= 1.0 / lobe_rad
-        np.square(theta, out=theta)
-        lobe = np.exp(np.negative(theta, out=theta), out=theta)
-        lobe *= 2.0 / (3.0 * lobe_rad**2)
-        lobe *= spec
-        lobe /= c
-        per_sr += lobe
-    per_sr *= reflectivity
-    per_sr *= solid_angle
-    per_sr *= distance
-    per_sr *= distance
-    return per_sr
-
-
 _DIRECT_FIELDS = ("distance", "cos_incidence", "object_id", "material_id", "velocity")
 
 
@@ -266,15 +187,13 @@ class ScatterRenderer:
         self._dirs_cols = np.ascontiguousarray(d.T)
         # Pixel solid angle of a pinhole: (1 / (fx fy)) cos^3(angle off axis).
         self._solid_angle = d[:, 2] ** 3 / (self.camera.fx * self.camera.fy)
-        # The radar equation's per-pixel factor 2 P_t G_t G_r lambda^2 / (4 pi)^3:
-        # a direct scatterer lies on its pixel's ray, so the element gains
-        # towards it are those of the pixel direction, computed once here
-        # instead of per scatterer and frame (see :meth:`amplitude`).
+        # G_t G_r of the radar equation per pixel: a direct scatterer lies on
+        # its pixel's ray, so the element gains towards it are those of the
+        # pixel direction, computed once here instead of per scatterer and
+        # frame (see :meth:`amplitude`).
         ant = config.antennas
         g = ant.tx_pattern.gain(d)
-        g = g * g if ant.tx_pattern == ant.rx_pattern else g * ant.rx_pattern.gain(d)
-        g *= 2.0 * config.tx_power * config.chirp.wavelength**2 / (4 * math.pi) ** 3
-        self._power_per_rcs = g
+        self._gain = g * g if ant.tx_pattern == ant.rx_pattern else g * ant.rx_pattern.gain(d)
         # (weak reference to the last render's scatterers, their amplitudes)
         self._last: tuple[weakref.ref, np.ndarray] | None = None
         self._rays_key: bytes | None = None
@@ -338,7 +257,8 @@ class ScatterRenderer:
                               math.radians(self.config.specular_lobe_deg))
         direct = Scatterers(points, velocities, rcs, obj_hit)
         if not self.config.multipath:
-            amp = self._direct_amplitude(take(self._power_per_rcs), rcs, dist)
+            amp = radar_equation_amplitude(self.config.tx_power, self.config.chirp.wavelength,
+                                           take(self._gain), rcs, dist)
             self._last = (weakref.ref(direct), amp)
             return direct
         idx = np.arange(len(hit)) if idx is None else idx
@@ -351,19 +271,6 @@ class ScatterRenderer:
         as :func:`received_amplitude` gives them; None for any other scatterers."""
         last = self._last
         return last[1] if last is not None and last[0]() is scatterers else None
-
-    @staticmethod
-    def _direct_amplitude(power_per_rcs: np.ndarray, rcs: np.ndarray,
-                          distance: np.ndarray) -> np.ndarray:
-        """sqrt(2 P_r) of direct scatterers from the pixels' radar-equation factors (n,),
-        their RCS (n,) [m^2] and ranges (n,) [m]: P_r = factor sigma / R^4."""
-        amp = power_per_rcs * rcs
-        np.sqrt(amp, out=amp)
-        r2 = distance * distance
-        # No return from a point at the origin (as in received_amplitude).
-        np.divide(amp, r2, out=amp, where=r2 > 0)
-        amp[r2 <= 0] = 0.0
-        return amp
 
     def _static_snapshot(self, scene, rays: Rays) -> _Snapshot | None:
         """Scatterer arrays of the static objects alone, seen along ``rays`` (kept per
@@ -480,7 +387,8 @@ class ScatterRenderer:
         points_rx = np.concatenate([img_s, img_s[m], p2_s[m]])
         vel = np.concatenate([vimg_s, v2_s[m], vimg_s[m]])
         vel_rx = np.concatenate([vimg_s, vimg_s[m], v2_s[m]])
-        rcs = np.concatenate([g * g * sigma, g[m] * sigma[m], g[m] * sigma[m]])
+        out_and_back, mixed = second_bounce_rcs(sigma, g, m)
+        rcs = np.concatenate([out_and_back, mixed, mixed])
         ids = np.concatenate([obj, obj[m], obj[m]])
         return Scatterers(points, vel, rcs, ids, points_rx, vel_rx,
                           np.full(len(points), 2, dtype=np.int8))

@@ -13,7 +13,8 @@ from twinsense.radar import effects
 from twinsense.radar.config import RadarConfig
 from twinsense.radar.presets import preset_config
 from twinsense.radar.processing import ProcessingResult, ProcessingSettings, process_cube
-from twinsense.radar.scatterers import Scatterers, ScatterRenderer, received_amplitude
+from twinsense.radar.radiometry import received_amplitude
+from twinsense.radar.scatterers import Scatterers, ScatterRenderer
 from twinsense.radar.synthesis import synthesize
 from twinsense.render.parallel import default_workers
 from twinsense.scene import Mount, Pose
