@@ -86,8 +86,17 @@ def sweep(scenario: Path = typer.Argument(..., help="scenario YAML file"),
                                           help="FIELD=V1,V2,... (repeatable), e.g. seed=0,1,2"),
           out: Path = typer.Option(Path("out/sweep"), "-o", "--out", help="output directory"),
           backend: str = typer.Option("process", help="serial, process or ray"),
-          workers: int = typer.Option(None, help="local worker processes")) -> None:
-    """Run a scenario over a grid of parameter values (one recording per run)."""
+          workers: int = typer.Option(None, help="points run at once (local processes or Ray tasks in flight)"),
+          threads: int = typer.Option(None, help="threads per point (TWINSENSE_THREADS and BLAS in each worker)"),
+          shared_dir: Path = typer.Option(None, "--shared-dir",
+                                          help="folder every Ray node mounts: workers write the runs there"),
+          rerun: bool = typer.Option(False, "--rerun", help="run finished points again")) -> None:
+    """Run a scenario over a grid of parameter values (one recording per run).
+
+    Points with a finished recording of the same scenario are skipped, so a
+    re-run resumes a stopped or partly failed sweep. Exit status 1 when a
+    point failed (each is listed with its error).
+    """
     import yaml
 
     from twinsense.sweep import sweep as run_sweep
@@ -99,11 +108,13 @@ def sweep(scenario: Path = typer.Argument(..., help="scenario YAML file"),
         key, values = item.split("=", 1)
         grid[key.strip()] = [yaml.safe_load(v) for v in values.split(",")]
     try:
-        results = run_sweep(scenario, grid, out, backend=backend, workers=workers)
+        results = run_sweep(scenario, grid, out, backend=backend, workers=workers, threads=threads,
+                            shared_dir=shared_dir, rerun=rerun)
     except (TwinsenseError, ImportError) as exc:
         _fail(exc)
     ok = sum(r["status"] == "ok" for r in results)
-    typer.echo(f"{ok}/{len(results)} runs ok; manifest: {out / 'sweep.json'}")
+    reused = sum(bool(r.get("reused")) for r in results)
+    typer.echo(f"{ok}/{len(results)} runs ok ({reused} finished earlier); manifest: {out / 'sweep.json'}")
     for r in results:
         if r["status"] != "ok":
             typer.echo(f"  run {r['index']} {r['params']}: {r['error']}", err=True)
