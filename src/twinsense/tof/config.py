@@ -21,6 +21,11 @@ from twinsense.errors import ConfigError
 PHASE_STEPS = 4
 #: Largest frequency ratio f_i / gcd(f_1, f_2) the dual-frequency unwrapper accepts.
 MAX_UNWRAP_RATIO = 16
+#: Royale's noise cut-off [m] and the modulation frequencies of the modes it was set for.
+ROYALE_MAX_NOISE = 0.07
+ROYALE_MAX_NOISE_FREQUENCIES = (80.32e6, 60.24e6)
+
+_P = "ToFConfig"
 
 
 @dataclass(frozen=True)
@@ -121,10 +126,17 @@ class ToFConfig:
         The filter threshold [m] at and below this z-depth [m].
     flying_pixel_distance_far, flying_pixel_threshold_far : float
         The filter threshold [m] at and beyond this z-depth [m]; linear in between.
+    flying_pixel_false_rate : float
+        Share of the pixels of a flat, edge-free surface that the filter may
+        remove for their own noise; the threshold is raised above the
+        Royale ramp where the pixels' noise needs it (see
+        :func:`~twinsense.tof.filters.flying_pixel_mask`).
     noise_filter : bool
-        Drop pixels whose estimated depth noise exceeds ``max_noise``.
-    max_noise : float
-        Noise cut-off [m].
+        Drop pixels whose estimated depth noise exceeds :attr:`noise_cutoff`.
+    max_noise : float or None
+        Noise cut-off [m]; None: Royale's 0.07 m carried over to this
+        camera's modulation frequencies at the same phase noise (see
+        :attr:`noise_cutoff`).
     multipath : bool
         Add one diffuse indirect bounce (virtual point lights).
     multipath_vpl_grid : (2,) int
@@ -182,8 +194,9 @@ class ToFConfig:
     flying_pixel_threshold_near: float = 0.018
     flying_pixel_distance_far: float = 4.5
     flying_pixel_threshold_far: float = 0.14
+    flying_pixel_false_rate: float = 1e-3
     noise_filter: bool = True
-    max_noise: float = 0.07
+    max_noise: float | None = None
     multipath: bool = False
     multipath_vpl_grid: tuple[int, int] = (24, 18)
     multipath_stride: int = 2
@@ -191,7 +204,16 @@ class ToFConfig:
     motion_artifacts: bool = False
 
     def __post_init__(self) -> None:
-        p = "ToFConfig"
+        self._check_optics()
+        self._check_modulation()
+        self._check_timing()
+        self._check_illumination()
+        self._check_pixel()
+        self._check_scene_light()
+        self._check_processing()
+
+    def _check_optics(self) -> None:
+        p = _P
         V.integer(f"{p}.width", self.width, lo=1, hi=10_000)
         V.integer(f"{p}.height", self.height, lo=1, hi=10_000)
         if (self.fov_deg is None) == (self.intrinsics_px is None):
@@ -215,6 +237,8 @@ class ToFConfig:
         V.number(f"{p}.f_number", self.f_number, lo=0.5, hi=64)
         V.number(f"{p}.lens_transmission", self.lens_transmission, lo=0, hi=1, lo_open=True)
 
+    def _check_modulation(self) -> None:
+        p = _P
         freqs = self.modulation_frequencies
         if isinstance(freqs, (int, float)) and not isinstance(freqs, bool):
             freqs = (freqs,)
@@ -237,6 +261,9 @@ class ToFConfig:
                     f"{p}.modulation_frequencies", freqs,
                     f"two different frequencies whose ratio to their greatest common divisor "
                     f"is at most {MAX_UNWRAP_RATIO} (e.g. 80.32e6 and 60.24e6: 4 and 3)")
+
+    def _check_timing(self) -> None:
+        p = _P
         _bool(f"{p}.gray_frame", self.gray_frame)
         V.number(f"{p}.exposure_time", self.exposure_time, lo=0, hi=1, lo_open=True, unit="s")
         V.number(f"{p}.readout_time", self.readout_time, lo=0, hi=1, unit="s")
@@ -247,6 +274,8 @@ class ToFConfig:
                 f"at most 1 / (raw frames x (exposure_time + readout_time)) = "
                 f"{1.0 / self.raw_sequence_time:.4g} Hz for {self.n_raw_frames} raw frames")
 
+    def _check_illumination(self) -> None:
+        p = _P
         V.number(f"{p}.illumination_power", self.illumination_power, lo=0, unit="W")
         beam = V.vector(f"{p}.illumination_fwhm_deg", self.illumination_fwhm_deg, 2, "deg")
         for v in beam:
@@ -254,6 +283,8 @@ class ToFConfig:
         self._set("illumination_fwhm_deg", tuple(float(x) for x in beam))
         V.number(f"{p}.wavelength", self.wavelength, lo=200e-9, hi=20e-6, unit="m")
 
+    def _check_pixel(self) -> None:
+        p = _P
         V.number(f"{p}.pixel_pitch", self.pixel_pitch, lo=0.1e-6, hi=1e-3, unit="m")
         V.number(f"{p}.fill_factor", self.fill_factor, lo=0, hi=1, lo_open=True)
         V.number(f"{p}.quantum_efficiency", self.quantum_efficiency, lo=0, hi=1, lo_open=True)
@@ -272,10 +303,14 @@ class ToFConfig:
                               f"< high <= {full} [DN]")
         self._set("raw_valid_range_dn", (float(win[0]), float(win[1])))
 
+    def _check_scene_light(self) -> None:
+        p = _P
         V.non_negative(f"{p}.ambient_irradiance", self.ambient_irradiance, "W/m^2")
         V.number(f"{p}.specular_exponent", self.specular_exponent, lo=1, hi=10_000)
         V.number(f"{p}.retroreflector_gain", self.retroreflector_gain, lo=1, hi=1e6)
 
+    def _check_processing(self) -> None:
+        p = _P
         V.number(f"{p}.crosstalk_sigma_px", self.crosstalk_sigma_px, lo=0, hi=20, unit="px")
         for flag in ("noise", "quantization", "flying_pixel_filter", "noise_filter", "multipath",
                      "multipath_visibility", "motion_artifacts"):
@@ -286,7 +321,9 @@ class ToFConfig:
         V.number(f"{p}.flying_pixel_distance_far", self.flying_pixel_distance_far, lo=zn,
                  lo_open=True, unit="m (> flying_pixel_distance_near)")
         V.positive(f"{p}.flying_pixel_threshold_far", self.flying_pixel_threshold_far, "m")
-        V.positive(f"{p}.max_noise", self.max_noise, "m")
+        V.number(f"{p}.flying_pixel_false_rate", self.flying_pixel_false_rate, lo=1e-9, hi=0.1)
+        if self.max_noise is not None:
+            V.positive(f"{p}.max_noise", self.max_noise, "m (or None: derived from the modulation)")
         grid = self.multipath_vpl_grid
         if (not isinstance(grid, (tuple, list)) or len(grid) != 2
                 or not all(isinstance(g, (int, np.integer)) and not isinstance(g, bool) and 1 <= g <= 256
@@ -338,6 +375,34 @@ class ToFConfig:
         fx = 0.5 * self.width / math.tan(hfov / 2)
         fy = 0.5 * self.height / math.tan(vfov / 2)
         return (fx, fy, (self.width - 1) / 2, (self.height - 1) / 2)
+
+    @property
+    def effective_frequency(self) -> float:
+        """Frequency [Hz] of a single-frequency camera with the same depth noise: sqrt(sum f_k^2).
+
+        Every frequency sees the same phase noise sigma_phi (same exposure, same
+        amplitude); its distance noise is c sigma_phi / (4 pi f_k), and the
+        inverse-variance weights w_k = f_k^2 / sum f^2 of the unwrapper give
+        sigma_d^2 = sum w_k^2 (c sigma_phi / (4 pi f_k))^2 = (c sigma_phi / 4 pi)^2 / sum f_k^2.
+        """
+        return math.sqrt(sum(f * f for f in self.modulation_frequencies))
+
+    @property
+    def noise_cutoff(self) -> float:
+        """Distance noise [m] above which the noise filter drops a pixel.
+
+        ``max_noise`` when set. Otherwise Royale's 0.07 m for the pico
+        flexx's 80.32 + 60.24 MHz modes (effective frequency 100.4 MHz), a
+        phase-noise (i.e. signal-to-noise) limit of
+        sigma_phi = 0.07 m x 4 pi f_eff / c = 0.295 rad, carried over to this
+        camera's effective frequency: the same confidence is a larger
+        distance noise at a lower frequency (0.117 m at 60.24 MHz, 0.351 m at
+        20 MHz).
+        """
+        if self.max_noise is not None:
+            return self.max_noise
+        royale = math.sqrt(sum(f * f for f in ROYALE_MAX_NOISE_FREQUENCIES))
+        return ROYALE_MAX_NOISE * royale / self.effective_frequency
 
     def flying_pixel_threshold(self, z: np.ndarray) -> np.ndarray:
         """Flying-pixel threshold [m] at z-depth ``z`` [m] (linear between the near and far points)."""

@@ -17,7 +17,7 @@ class InvalidReason(enum.IntFlag):
     SATURATED = 1  #: a tap passed full well or a raw value left the valid window
     LOW_SIGNAL = 2  #: amplitude below ``min_amplitude_dn`` (includes no return at all)
     FLYING_PIXEL = 4  #: removed by the flying-pixel filter
-    TOO_NOISY = 8  #: estimated distance noise above ``max_noise``
+    TOO_NOISY = 8  #: estimated distance noise above ``ToFConfig.noise_cutoff``
 
 
 @dataclass(frozen=True, eq=False)
@@ -49,7 +49,7 @@ class ToFFrame:
     noise : (H, W) float32
         Estimated distance noise (1 sigma) [m].
     confidence : (H, W) uint8
-        0 invalid; 1..255 falling linearly with ``noise`` (128 at ``max_noise``).
+        0 invalid; 1..255 falling linearly with ``noise`` (128 at ``ToFConfig.noise_cutoff``).
     invalid : (H, W) uint8
         :class:`InvalidReason` bits; 0 for a valid pixel.
     points_sensor : (H, W, 3) float32

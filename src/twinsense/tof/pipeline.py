@@ -170,7 +170,7 @@ def chain_from_raw(corr: np.ndarray, taps: np.ndarray, gray_taps: np.ndarray, co
     invalid[dig.saturated] |= np.uint8(InvalidReason.SATURATED)
     invalid[amp.min(axis=0) < cfg.min_amplitude_dn] |= np.uint8(InvalidReason.LOW_SIGNAL)
     if cfg.noise_filter:
-        invalid[noise_mask(sigma_d, invalid == 0, cfg.max_noise)] |= np.uint8(InvalidReason.TOO_NOISY)
+        invalid[noise_mask(sigma_d, invalid == 0, cfg.noise_cutoff)] |= np.uint8(InvalidReason.TOO_NOISY)
     return ChainOutput(dig.raw, gray, phase, amp, distance, sigma_d, invalid)
 
 
@@ -214,11 +214,13 @@ def finish_geometry(out: ChainOutput, pixel_dirs: np.ndarray, config: ToFConfig
     dirs = pixel_dirs.astype(np.float32, copy=False)
     z = out.distance * dirs[..., 2]
     if cfg.flying_pixel_filter:
-        invalid[flying_pixel_mask(z, invalid == 0, cfg)] |= np.uint8(InvalidReason.FLYING_PIXEL)
+        # The z-depth noise is the distance noise times the ray's z component.
+        sigma_z = out.noise * dirs[..., 2]
+        invalid[flying_pixel_mask(z, invalid == 0, cfg, sigma_z)] |= np.uint8(InvalidReason.FLYING_PIXEL)
     valid = invalid == 0
     distance = np.where(valid, out.distance, np.float32(0.0))
     depth = np.where(valid, z, np.float32(0.0))
     points = distance[..., None] * dirs
-    conf = 255.0 * np.clip(1.0 - out.noise / (2.0 * cfg.max_noise), 0.0, 1.0)
+    conf = 255.0 * np.clip(1.0 - out.noise / (2.0 * cfg.noise_cutoff), 0.0, 1.0)
     confidence = np.where(valid, np.clip(np.rint(conf), 1, 255), 0).astype(np.uint8)
     return distance, depth, invalid, confidence, points

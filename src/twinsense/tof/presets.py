@@ -15,6 +15,29 @@ full well, read noise) are representative of PMD/Infineon REAL3 sensors and
 are chosen so that a white wall saturates closer than ~0.2 m in the
 shortest-exposure mode and a retro-reflector saturates at room distances, as
 the device does.
+
+Working ranges for a matte white wall (drywall) facing the camera, from
+:func:`~twinsense.tof.working_range.working_range`: the wall distances at
+which at least 95 % of the pixels are expected valid (not saturated, above
+the amplitude threshold, under the noise cut-off) and no pixel wraps.
+
+==========================  =============
+preset / mode               range [m]
+==========================  =============
+pmd MODE_9_5FPS_2000        0.87 - 5.36
+pmd MODE_9_10FPS_1000       0.62 - 4.27
+pmd MODE_9_15FPS_700        0.52 - 3.76
+pmd MODE_9_25FPS_450        0.41 - 3.18
+pmd MODE_5_35FPS_600        0.48 - 1.72
+pmd MODE_5_45FPS_500        0.44 - 1.72
+paper_pico_flexx            0.42 - 2.81
+generic                     0.41 - 3.31
+==========================  =============
+
+The 60.24 MHz modes end where the image corners reach the 2.49 m
+unambiguous range; the others where the dimmest pixels (image corners: beam
+fall-off and cos^7 of the off-axis angle) reach the noise cut-off. Darker
+surfaces end sooner, the centre of the image reaches further.
 """
 
 from __future__ import annotations
