@@ -39,7 +39,12 @@ class DepthFrame:
 
 @dataclass(frozen=True)
 class DepthCameraConfig:
-    """Ideal pinhole depth camera: ``camera`` intrinsics, ``frame_rate`` [Hz], ``max_range`` [m]."""
+    """Ideal pinhole depth camera: ``camera`` intrinsics, ``frame_rate`` [Hz], ``max_range`` [m].
+
+    A preset's ``width`` / ``height`` overrides keep its optics (field of view
+    and optical axis, see :meth:`PinholeCamera.resized`); ``fx``, ``fy``,
+    ``cx``, ``cy`` overrides set the intrinsics [px] explicitly.
+    """
 
     camera: PinholeCamera = field(default_factory=lambda: PinholeCamera.from_fov(224, 171, 72.0, 45.0))
     frame_rate: float = 30.0
@@ -96,7 +101,15 @@ def _factory(base: DepthCameraConfig):
             cam_keys = {"width", "height", "fx", "fy", "cx", "cy", "distortion"}
             cam_over = {k: overrides.pop(k) for k in list(overrides) if k in cam_keys}
             if cam_over:
-                cfg = replace(cfg, camera=replace(cfg.camera, **cam_over))
+                cam = cfg.camera
+                size = (cam_over.get("width", cam.width), cam_over.get("height", cam.height))
+                if size != (cam.width, cam.height):
+                    # The same optics on another image size (binned or resampled sensor):
+                    # field of view and optical axis stay; explicit fx..cy below win.
+                    size = (V.integer("camera.width", size[0], lo=1, hi=100_000),
+                            V.integer("camera.height", size[1], lo=1, hi=100_000))
+                    cam = cam.resized(*size)
+                cfg = replace(cfg, camera=replace(cam, **cam_over))
             if overrides:
                 bad = [k for k in overrides if k not in DepthCameraConfig.__dataclass_fields__]
                 if bad:

@@ -56,6 +56,22 @@ def _grid(n_pix: int, supersample: int) -> np.ndarray:
     return (k + 0.5) / supersample - 0.5
 
 
+def scaled_intrinsics(intrinsics: tuple[float, float, float, float], size: tuple[int, int],
+                      new_size: tuple[int, int]) -> tuple[float, float, float, float]:
+    """Pinhole intrinsics (fx, fy, cx, cy) [px] of a ``size`` (W, H) image resampled to ``new_size``.
+
+    With pixel centres at integer coordinates the image spans -0.5 .. W - 0.5;
+    resampling by s = W' / W maps u to (u + 0.5) s - 0.5, so fx' = s fx and
+    cx' = (cx + 0.5) s - 0.5 (likewise y with H' / H). Every image edge and
+    the principal point keep their rays: same field of view, same optical axis.
+    """
+    w, h = (V.integer("camera.width", size[0], lo=1), V.integer("camera.height", size[1], lo=1))
+    w2, h2 = (V.integer("camera.width", new_size[0], lo=1), V.integer("camera.height", new_size[1], lo=1))
+    sx, sy = w2 / w, h2 / h
+    fx, fy, cx, cy = (float(v) for v in intrinsics)
+    return (fx * sx, fy * sy, (cx + 0.5) * sx - 0.5, (cy + 0.5) * sy - 0.5)
+
+
 @dataclass(frozen=True, eq=False)
 class PinholeCamera:
     """Pinhole camera with OpenCV's radial-tangential distortion.
@@ -105,6 +121,17 @@ class PinholeCamera:
             fx = 0.5 * width / np.tan(np.deg2rad(hfov_deg) / 2)
             fy = 0.5 * height / np.tan(np.deg2rad(vfov_deg) / 2)
         return cls(width, height, fx, fy, (width - 1) / 2, (height - 1) / 2, distortion)
+
+    def resized(self, width: int, height: int) -> PinholeCamera:
+        """The same optics on a ``width`` x ``height`` image (the sensor binned or resampled).
+
+        The image keeps its field of view and its optical axis: see
+        :func:`scaled_intrinsics`. The distortion coefficients act on
+        normalised coordinates and stay as they are.
+        """
+        fx, fy, cx, cy = scaled_intrinsics((self.fx, self.fy, self.cx, self.cy), (self.width, self.height),
+                                           (width, height))
+        return PinholeCamera(width, height, fx, fy, cx, cy, self.distortion)
 
     @property
     def is_distorted(self) -> bool:

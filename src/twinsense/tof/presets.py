@@ -10,6 +10,14 @@
 - ``generic``: a plain 62 x 45 deg camera with the defaults of
   :class:`~twinsense.tof.config.ToFConfig`.
 
+Overriding ``width`` / ``height`` gives the same optics on a smaller or larger
+image (the sensor binned or resampled): the field of view and the optical
+axis stay. ``fov_deg`` presets recompute their focal lengths from the size;
+the calibrated pico flexx intrinsics are scaled with
+:func:`~twinsense.render.rays.scaled_intrinsics`. To set other optics give
+``intrinsics_px=(fx, fy, cx, cy)`` (with ``fov_deg=None`` on a ``fov_deg``
+preset): explicit intrinsics are used as given.
+
 Radiometric figures that pmd does not publish (illumination power, f-number,
 full well, read noise) are representative of PMD/Infineon REAL3 sensors and
 are chosen so that a white wall saturates closer than ~0.2 m in the
@@ -45,7 +53,9 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from twinsense import validation as V
 from twinsense.errors import UnknownNameError
+from twinsense.render.rays import scaled_intrinsics
 from twinsense.tof.config import ToFConfig
 
 
@@ -71,6 +81,7 @@ PICO_FLEXX_MODES: dict[str, PicoFlexxMode] = {
 #: Public calibration of a pico flexx (PHYSICS.md): fx, fy, cx, cy [px] and OpenCV k.
 PICO_FLEXX_INTRINSICS = (213.08, 213.48, 106.31, 87.48)
 PICO_FLEXX_DISTORTION = (0.0656, -2.146, 0.0005, -0.0033, 3.229)
+_PICO_SIZE = (224, 171)  # image size of the calibration
 
 _PICO_COMMON = {
     "width": 224, "height": 171, "wavelength": 850e-9, "pixel_pitch": 17.5e-6,
@@ -89,6 +100,11 @@ def pmd_pico_flexx(mode: str = "MODE_9_25FPS_450", **overrides) -> ToFConfig:
                   distortion=PICO_FLEXX_DISTORTION, modulation_frequencies=m.frequencies,
                   frame_rate=m.frame_rate, exposure_time=m.exposure_time)
     fields.update(overrides)
+    size = (V.integer("ToFConfig.width", fields["width"], lo=1, hi=10_000),
+            V.integer("ToFConfig.height", fields["height"], lo=1, hi=10_000))
+    if "intrinsics_px" not in overrides and fields["intrinsics_px"] is not None and size != _PICO_SIZE:
+        # A resized image is the same sensor binned or resampled: same field of view and axis.
+        fields["intrinsics_px"] = scaled_intrinsics(PICO_FLEXX_INTRINSICS, _PICO_SIZE, size)
     return ToFConfig(**fields)
 
 
