@@ -1,10 +1,11 @@
-"""Command line: ``twinsense run | validate | presets | demo | sweep | info``.
+"""Command line: ``twinsense run | validate | recover | presets | demo | sweep | info``.
 
 A thin layer over the Python API; every command has ``--help``.
 """
 
 from __future__ import annotations
 
+import signal
 import sys
 from pathlib import Path
 
@@ -22,32 +23,137 @@ def _fail(exc: Exception) -> None:
     raise typer.Exit(2)
 
 
+class _Stopped(KeyboardInterrupt):
+    """SIGTERM or SIGHUP: stop the run the way Ctrl-C does (a marked partial recording)."""
+
+    def __init__(self, signum: int):
+        self.signum = signum
+        super().__init__(f"stopped by {signal.Signals(signum).name}")
+
+
+_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+def _install_stop_handlers() -> dict:
+    """Route SIGINT, SIGTERM and SIGHUP to one exception; later signals are ignored while cleaning up."""
+    stopping = []
+
+    def handler(signum, frame):
+        if stopping:
+            return  # already stopping: let the partial recording be written
+        stopping.append(signum)
+        raise _Stopped(signum)
+
+    return {s: signal.signal(s, handler) for s in _STOP_SIGNALS}
+
+
+def _load(scenario: Path, duration: float | None, seed: int | None, max_frames: int | None,
+          max_frame_bytes: int | None):
+    from twinsense.scenario import load_scenario
+    from twinsense.simulate import RunLimits
+
+    limits = None
+    if max_frames is not None or max_frame_bytes is not None:
+        d = RunLimits()
+        limits = RunLimits(d.max_frames if max_frames is None else max_frames,
+                           d.max_frame_bytes if max_frame_bytes is None else max_frame_bytes)
+    overrides = {k: v for k, v in (("duration", duration), ("seed", seed)) if v is not None}
+    return load_scenario(scenario, overrides=overrides, limits=limits)
+
+
+_DURATION = typer.Option(None, "--duration", help="run length [s], replaces the scenario's duration")
+_SEED = typer.Option(None, "--seed", help="random seed (integer >= 0), replaces the scenario's seed")
+_MAX_FRAMES = typer.Option(None, "--max-frames", help="frames allowed in one run (default 10,000,000)")
+_MAX_FRAME_BYTES = typer.Option(None, "--max-frame-bytes",
+                                help="estimated memory allowed for one frame [B] (default 4 GiB)")
+
+
 @app.command()
 def run(scenario: Path = typer.Argument(..., help="scenario YAML file"),
         out: Path = typer.Option(Path("out"), "-o", "--out", help="output directory"),
-        progress: bool = typer.Option(True, help="show a progress bar")) -> None:
-    """Simulate a scenario and write its recording under OUT."""
-    from twinsense.scenario import load_scenario
+        progress: bool = typer.Option(True, help="show a progress bar"),
+        duration: float = _DURATION, seed: int = _SEED, max_frames: int = _MAX_FRAMES,
+        max_frame_bytes: int = _MAX_FRAME_BYTES) -> None:
+    """Simulate a scenario and write its recording under OUT.
 
+    Ctrl-C, SIGTERM and SIGHUP stop the run and keep every frame so far in
+    <name>.partial.h5 (exit status 128 + signal number).
+    """
     try:
-        sc = load_scenario(scenario)
+        sc = _load(scenario, duration, seed, max_frames, max_frame_bytes)
+    except TwinsenseError as exc:
+        _fail(exc)
+    previous = _install_stop_handlers()
+    try:
         res = sc.run(out, progress=progress)
     except TwinsenseError as exc:
         _fail(exc)
+    except KeyboardInterrupt as exc:
+        _report_stopped(sc, out, exc)
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
     counts = ", ".join(f"{k}: {v}" for k, v in res.frame_counts.items())
-    typer.echo(f"wrote {res.path} ({counts} frames)")
+    if res.path is None:
+        typer.echo(f"no recording written (outputs.recording is null); captured {counts} frames")
+    else:
+        typer.echo(f"wrote {res.path} ({counts} frames)")
+    for p in res.removed:
+        typer.echo(f"removed {p} (an earlier run's partial recording, superseded)")
+    for p in res.stale:
+        typer.echo(f"note: {p} is left by an earlier run that was killed; "
+                   f"'twinsense recover {p}' saves its frames", err=True)
+
+
+def _report_stopped(sc, out: Path, exc: KeyboardInterrupt) -> None:
+    from twinsense.io.recording import open_recording, partial_path
+
+    signum = exc.signum if isinstance(exc, _Stopped) else signal.SIGINT
+    what = signal.Signals(signum).name
+    target = sc.recording_path(out)
+    part = partial_path(target) if target is not None else None
+    if part is not None and part.exists():
+        try:
+            with open_recording(part, allow_incomplete=True) as rec:
+                kept = ", ".join(f"{k}: {len(v)}" for k, v in rec.sensors.items())
+            typer.echo(f"stopped by {what}: kept {kept} frames in {part}", err=True)
+        except TwinsenseError as err:
+            typer.echo(f"stopped by {what}: {part} cannot be read back: {err}", err=True)
+    else:
+        typer.echo(f"stopped by {what}: no recording written", err=True)
+    raise typer.Exit(128 + int(signum))
 
 
 @app.command()
-def validate(scenario: Path = typer.Argument(..., help="scenario YAML file")) -> None:
-    """Check a scenario file and report every problem with its field path."""
-    from twinsense.scenario import load_scenario
+def validate(scenario: Path = typer.Argument(..., help="scenario YAML file"),
+             duration: float = _DURATION, seed: int = _SEED, max_frames: int = _MAX_FRAMES,
+             max_frame_bytes: int = _MAX_FRAME_BYTES) -> None:
+    """Check a scenario file and report every problem with its field path.
 
+    Also checks that the run fits the limits (frames per run, memory per frame).
+    """
     try:
-        sc = load_scenario(scenario)
+        sc = _load(scenario, duration, seed, max_frames, max_frame_bytes)
     except TwinsenseError as exc:
         _fail(exc)
     typer.echo(f"{scenario}: ok ({len(sc.scene)} objects, {len(sc.sensors)} sensors, {sc.duration:g} s)")
+
+
+@app.command()
+def recover(path: Path = typer.Argument(..., help="a killed run's '.<name>.h5.<pid>.tmp' file, or its folder")) -> None:
+    """Turn the temporary file of a killed run into a readable partial recording.
+
+    Every frame written up to the run's last flush (about 1 s before it was
+    killed) is kept; the result is <name>.partial.h5 with complete = false.
+    """
+    from twinsense.io.recording import recover as do_recover
+
+    try:
+        dest, counts = do_recover(path)
+    except TwinsenseError as exc:
+        _fail(exc)
+    kept = ", ".join(f"{k}: {v}" for k, v in counts.items()) or "no sensors"
+    typer.echo(f"recovered {sum(counts.values())} frames ({kept}) into {dest}")
 
 
 @app.command()
