@@ -229,10 +229,46 @@ def process_cube(cube: np.ndarray, *, sample_rate: float, slope: float,
     t_c = V.positive("chirp_repetition_time", chirp_repetition_time, "s")
     lam = rfft.wavelength(fc)
 
-    # ---- spectra
+    rd, power, n_rfft, n_loops = _range_doppler(x, s, real_if, n_tx)
+    n_dfft = rd.shape[1]
+    t_loop = n_tx * t_c
+    r_axis = rfft.range_axis(power.shape[1], sample_rate=sample_rate, slope=slope, n_fft=n_rfft)
+    v_axis = rfft.velocity_axis(n_dfft, chirp_repetition_time=t_loop, carrier_frequency=fc)
+    limits = dict(
+        max_range=rfft.max_range(sample_rate=sample_rate, slope=slope, real_if=real_if),
+        max_velocity=rfft.max_velocity(chirp_repetition_time=t_loop, carrier_frequency=fc),
+        range_resolution=rfft.range_resolution(sample_rate=sample_rate, slope=slope,
+                                               n_samples=n_samp),
+        velocity_resolution=rfft.velocity_resolution(n_loops, chirp_repetition_time=t_loop,
+                                                     carrier_frequency=fc),
+    )
+
+    cf, d_idx, r_idx = _detect(power, r_axis, s)
+    virt = mimo.virtual_array(tx, rx)
+    if len(d_idx) == 0:
+        return ProcessingResult(r_axis, v_axis, rd, power, cf,
+                                _with_pose(RadarPointCloud.empty(**limits), pose), virt)
+    p_det = power[d_idx, r_idx]
+    rng, vel = r_axis[r_idx].copy(), v_axis[d_idx].copy()
+    if s.interpolate:
+        rng, vel = _refined(power, r_axis, v_axis, d_idx, r_idx, rng, vel)
+    az, el = _angles(rd[:, d_idx, r_idx].T, virt, lam, s.doa)
+    noise = cf.noise[d_idx, r_idx] if cf.noise.ndim == 2 else cf.noise[r_idx]
+    cloud = RadarPointCloud.from_polar(
+        range=rng, velocity=vel, azimuth=az, elevation=el,
+        snr_db=10.0 * np.log10(p_det / np.maximum(noise, 1e-300)),
+        power=p_det, range_bin=r_idx, doppler_bin=d_idx, pose=pose, **limits)
+    return ProcessingResult(r_axis, v_axis, rd, power, cf, cloud, virt)
+
+
+def _range_doppler(x: np.ndarray, s: ProcessingSettings, real_if: bool,
+                   n_tx: int) -> tuple[np.ndarray, np.ndarray, int, int]:
+    """Raw cube (rx, chirp, sample) -> range-Doppler spectra (virtual, doppler_bin, range_bin),
+    their mean power over channels (doppler_bin, range_bin), the range FFT length and the
+    number of slow-time loops after MTI."""
     if s.remove_dc:
         x = rfft.remove_dc(x, axis=-1)
-    n_rfft = s.range_fft_size or n_samp
+    n_rfft = s.range_fft_size or x.shape[-1]
     spec = rfft.range_fft(x, n_fft=n_rfft, window=s.range_window, real_if=real_if)
     if n_tx > 1:
         spec = mimo.demultiplex(spec, n_tx)
@@ -245,23 +281,16 @@ def process_cube(cube: np.ndarray, *, sample_rate: float, slope: float,
     if n_tx > 1 and s.compensate_tdm_doppler:
         rd = mimo.compensate_doppler_phase(rd, n_tx)
     power = np.mean(rd.real ** 2 + rd.imag ** 2, axis=0)
+    return rd, power, n_rfft, n_loops
 
-    r_axis = rfft.range_axis(power.shape[1], sample_rate=sample_rate, slope=slope, n_fft=n_rfft)
-    t_loop = n_tx * t_c
-    v_axis = rfft.velocity_axis(n_dfft, chirp_repetition_time=t_loop, carrier_frequency=fc)
-    limits = dict(
-        max_range=rfft.max_range(sample_rate=sample_rate, slope=slope, real_if=real_if),
-        max_velocity=rfft.max_velocity(chirp_repetition_time=t_loop, carrier_frequency=fc),
-        range_resolution=rfft.range_resolution(sample_rate=sample_rate, slope=slope,
-                                               n_samples=n_samp),
-        velocity_resolution=rfft.velocity_resolution(n_loops, chirp_repetition_time=t_loop,
-                                                     carrier_frequency=fc),
-    )
 
-    # ---- detection
+def _detect(power: np.ndarray, r_axis: np.ndarray,
+            s: ProcessingSettings) -> tuple[CfarResult, np.ndarray, np.ndarray]:
+    """CFAR on the (doppler_bin, range_bin) power map, then peak grouping: the CFAR
+    result and the (doppler, range) bin indices of at most ``max_detections`` peaks."""
     gd, gr = s.cfar_guard
     td, tr = s.cfar_train
-    if n_dfft >= 2 * (gd + td) + 1:
+    if power.shape[0] >= 2 * (gd + td) + 1:
         cf = cfar_2d(power, s.cfar, guard=s.cfar_guard, train=s.cfar_train, pfa=s.pfa,
                      rank=s.os_rank)
     else:
@@ -269,49 +298,42 @@ def process_cube(cube: np.ndarray, *, sample_rate: float, slope: float,
         cf = cfar_1d(power, s.cfar, guard=gr, train=tr, pfa=s.pfa, rank=s.os_rank, axis=-1)
     mask = cf.mask & (r_axis >= s.min_range)[None, :]
     d_idx, r_idx = group_peaks(power, mask, s.grouping)
-    d_idx, r_idx = d_idx[: s.max_detections], r_idx[: s.max_detections]
-    virt = mimo.virtual_array(tx, rx)
-    if len(d_idx) == 0:
-        return ProcessingResult(r_axis, v_axis, rd, power, cf,
-                                _with_pose(RadarPointCloud.empty(**limits), pose), virt)
+    return cf, d_idx[: s.max_detections], r_idx[: s.max_detections]
 
-    p_det = power[d_idx, r_idx]
-    rng = r_axis[r_idx].copy()
-    vel = v_axis[d_idx].copy()
-    if s.interpolate:
-        db = 10.0 * np.log10(np.maximum(power, 1e-300))
-        n_r = power.shape[1]
-        inner = (r_idx > 0) & (r_idx < n_r - 1)
-        rl, rr = np.clip(r_idx - 1, 0, n_r - 1), np.clip(r_idx + 1, 0, n_r - 1)
-        off_r = np.where(inner, parabolic_offset(db[d_idx, rl], db[d_idx, r_idx], db[d_idx, rr]), 0)
-        rng = rng + off_r * (r_axis[1] - r_axis[0] if n_r > 1 else 0.0)
-        if n_dfft > 2:
-            dl, dr = (d_idx - 1) % n_dfft, (d_idx + 1) % n_dfft
-            off_d = parabolic_offset(db[dl, r_idx], db[d_idx, r_idx], db[dr, r_idx])
-            vel = vel + off_d * (v_axis[1] - v_axis[0])
 
-    # ---- angles
-    snap = rd[:, d_idx, r_idx].T  # (n_det, n_virtual)
+def _refined(power, r_axis, v_axis, d_idx, r_idx, rng, vel) -> tuple[np.ndarray, np.ndarray]:
+    """Range and velocity (n_det,) of the peaks refined by a parabola through the peak
+    and its neighbours in dB (range: interior bins only; Doppler: periodic)."""
+    db = 10.0 * np.log10(np.maximum(power, 1e-300))
+    n_d, n_r = power.shape
+    inner = (r_idx > 0) & (r_idx < n_r - 1)
+    rl, rr = np.clip(r_idx - 1, 0, n_r - 1), np.clip(r_idx + 1, 0, n_r - 1)
+    off_r = np.where(inner, parabolic_offset(db[d_idx, rl], db[d_idx, r_idx], db[d_idx, rr]), 0)
+    rng = rng + off_r * (r_axis[1] - r_axis[0] if n_r > 1 else 0.0)
+    if n_d > 2:
+        dl, dr = (d_idx - 1) % n_d, (d_idx + 1) % n_d
+        off_d = parabolic_offset(db[dl, r_idx], db[d_idx, r_idx], db[dr, r_idx])
+        vel = vel + off_d * (v_axis[1] - v_axis[0])
+    return rng, vel
+
+
+def _angles(snap: np.ndarray, virt: np.ndarray, lam: float,
+            doa: str) -> tuple[np.ndarray, np.ndarray]:
+    """Azimuth and elevation [rad] (n_det,) from the detections' snapshots (n_det, n_virtual):
+    the largest row of the virtual array gives u_x, the largest column u_up."""
     tol = 1e-3 * lam
     row = _line(virt, along=0, across=1, tol=tol)
     col = _line(virt, along=1, across=0, tol=tol)
-    u_x = np.zeros(len(d_idx))
-    u_up = np.zeros(len(d_idx))
+    u_x = np.zeros(len(snap))
+    u_up = np.zeros(len(snap))
     if len(row):
-        u_x = estimate_direction_cosine(snap[:, row], virt[row, 0], lam, _doa_name(s.doa, row))
+        u_x = estimate_direction_cosine(snap[:, row], virt[row, 0], lam, _doa_name(doa, row))
     if len(col):
         # "Up" is -y in the optical sensor frame.
-        u_up = estimate_direction_cosine(snap[:, col], -virt[col, 1], lam, _doa_name(s.doa, col))
+        u_up = estimate_direction_cosine(snap[:, col], -virt[col, 1], lam, _doa_name(doa, col))
     az = np.arctan2(u_x, np.sqrt(np.clip(1.0 - u_x ** 2 - u_up ** 2, 0.0, None)))
     el = np.arcsin(np.clip(u_up, -1.0, 1.0))
-
-    cloud = RadarPointCloud.from_polar(
-        range=rng, velocity=vel, azimuth=az, elevation=el,
-        snr_db=10.0 * np.log10(p_det / np.maximum(cf.noise[d_idx, r_idx]
-                                                  if cf.noise.ndim == 2 else cf.noise[r_idx],
-                                                  1e-300)),
-        power=p_det, range_bin=r_idx, doppler_bin=d_idx, pose=pose, **limits)
-    return ProcessingResult(r_axis, v_axis, rd, power, cf, cloud, virt)
+    return az, el
 
 
 def _doa_name(name: str, idx: np.ndarray) -> str:
