@@ -25,7 +25,8 @@ import numpy as np
 
 from twinsense.errors import ConfigError
 from twinsense.render.backends import make_intersector
-from twinsense.render.hits import Hits
+from twinsense.render.culling import rays_hit_box, rays_near_sphere
+from twinsense.render.hits import ALWAYS_FIELDS, HIT_FIELDS, Hits, allocate_field, check_fields
 from twinsense.render.parallel import default_workers, map_ordered
 from twinsense.render.rays import Rays
 from twinsense.scene.scene import SENSOR_KINDS, Scene
@@ -91,11 +92,11 @@ class SceneCaster:
         """
         if self.scene.version != self._version:
             raise ConfigError("scene", "changed after the caster was built", "a new SceneCaster (use cast())")
-        want = _check_fields(fields)
+        want = check_fields(fields)
         o, d = rays.origins, rays.directions
         n = len(d)
         states = {i: self.scene.objects[i].state_at(t) for i in self._moving} if moving else {}
-        out = {f: _allocate(f, n) for f in _ALWAYS | want}
+        out = {f: allocate_field(f, n) for f in ALWAYS_FIELDS | want}
         workers = default_workers() if workers is None else workers
         memo, ready = self._static_memo(o, d)
         # Tracing dominates a cold cast: chunks of rays on all workers, small
@@ -150,7 +151,7 @@ class SceneCaster:
         states = {i: self.scene.objects[i].state_at(t) for i in self._moving}
         changes = self._moving_changes(o, d, states, dist, workers, update=several)
         if not changes:
-            return np.zeros(0, np.int64), Hits(*(_allocate(f, 0) for f in HIT_FIELDS))
+            return np.zeros(0, np.int64), Hits(*(allocate_field(f, 0) for f in HIT_FIELDS))
         # One object's rows are already ascending (from a cull by np.nonzero).
         rows = changes[0][0] if len(changes) == 1 else np.unique(np.concatenate([c[0] for c in changes]))
         k = len(rows)
@@ -189,7 +190,7 @@ class SceneCaster:
             # Cull: only rays that pass through the object's bounding sphere
             # before their current closest hit can hit it.
             centre = pos + rot @ self._moving_centre[k]
-            sel = _rays_near_sphere(o, d, centre, self._moving_radius[k], dist)
+            sel = rays_near_sphere(o, d, centre, self._moving_radius[k], dist)
             if len(sel) == 0:
                 continue
             if o.strides[0] == 0:  # one shared origin: move it once
@@ -200,7 +201,7 @@ class SceneCaster:
             d_local = _rotate(np.take(d, sel, axis=0), rot)
             # Second cull in the object's frame: its bounding box is much
             # tighter than the sphere for elongated objects (a person).
-            inside = _rays_hit_box(o_local, d_local, *self._moving_box[k], np.take(dist, sel))
+            inside = rays_hit_box(o_local, d_local, *self._moving_box[k], np.take(dist, sel))
             if not inside.all():
                 sel, d_local = sel[inside], d_local[inside]
                 o_local = o_local[inside] if o_local.strides[0] else o_local[:len(sel)]
@@ -305,28 +306,6 @@ class SceneCaster:
 _MEMOS = 4  # ray bundles whose static hits are kept
 _CHUNK = 16384  # rays per task: a chunk's per-ray arrays stay in a core's L2 cache
 _PARALLEL_MIN_RAYS = 2 * _CHUNK
-HIT_FIELDS = ("distance", "point", "normal", "cos_incidence", "object_id", "material_id",
-              "triangle_id", "velocity")
-_ALWAYS = frozenset({"distance", "object_id"})  # needed to tell hits from misses
-_DTYPES = {"object_id": np.int32, "material_id": np.int32, "triangle_id": np.int32}
-_SHAPES = {"point": 3, "normal": 3, "velocity": 3}
-
-
-def _check_fields(fields) -> frozenset:
-    if fields is None:
-        return frozenset(HIT_FIELDS)
-    want = frozenset(fields)
-    bad = sorted(want - set(HIT_FIELDS))
-    if bad:
-        raise ConfigError("fields", bad, "names among: " + ", ".join(HIT_FIELDS))
-    return want
-
-
-def _allocate(field: str, n: int) -> np.ndarray:
-    k = _SHAPES.get(field)
-    return np.empty((n, k) if k else n, dtype=_DTYPES.get(field, np.float64))
-
-
 def _frozen(a: np.ndarray) -> bool:
     """True if ``a`` and every array it views are read-only (nothing can change it in place)."""
     while isinstance(a, np.ndarray):
@@ -354,44 +333,6 @@ def _rotate(v: np.ndarray, m: np.ndarray) -> np.ndarray:
         col += y * m[1, k]
         col += z * m[2, k]
     return out
-
-
-def _rays_hit_box(o: np.ndarray, d: np.ndarray, lo: np.ndarray, hi: np.ndarray, t_max: np.ndarray) -> np.ndarray:
-    """(n,) bool: rays (origins o, shared (stride 0) or (n, 3); directions d (n, 3)) that
-    enter the axis-aligned box [lo, hi] before ``t_max`` (slab test, one axis at a time)."""
-    near = np.zeros(len(d))
-    far = np.array(t_max, dtype=float, copy=True)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        for a in range(3):
-            oa = o[0, a] if o.strides[0] == 0 else o[:, a]
-            inv = 1.0 / d[:, a]
-            t1 = (lo[a] - oa) * inv
-            t2 = (hi[a] - oa) * inv
-            # fmin/fmax ignore the NaN of 0 * inf (a ray lying in a slab's plane).
-            near = np.fmax(near, np.fmin(t1, t2))
-            far = np.fmin(far, np.fmax(t1, t2))
-    return near <= far
-
-
-def _rays_near_sphere(o: np.ndarray, d: np.ndarray, centre: np.ndarray, radius: float,
-                      t_max: np.ndarray) -> np.ndarray:
-    """Indices of rays (unit d) that enter the sphere before distance ``t_max``."""
-    if o.strides[0] == 0:  # one shared origin (a camera): scalar offsets
-        w = centre - o[0]
-        tca = d[:, 0] * w[0]
-        tca += d[:, 1] * w[1]
-        tca += d[:, 2] * w[2]
-        # Outside the sphere, the rays that meet it form a cone around w:
-        # tca >= sqrt(|w|^2 - r^2) (this also gives tca > 0); inside, all rays do.
-        w2 = float(w @ w)
-        cand = (np.flatnonzero(tca >= np.sqrt(w2 - radius * radius)) if w2 > radius * radius
-                else np.arange(len(d)))
-        tc = np.take(tca, cand)
-        return cand[(tc + radius > 0) & (tc - radius < np.take(t_max, cand))]
-    w = centre - o
-    tca = d[:, 0] * w[:, 0] + d[:, 1] * w[:, 1] + d[:, 2] * w[:, 2]
-    d2 = w[:, 0] ** 2 + w[:, 1] ** 2 + w[:, 2] ** 2 - tca * tca
-    return np.nonzero((d2 <= radius * radius) & (tca + radius > 0) & (tca - radius < t_max))[0]
 
 
 _CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()

@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from twinsense.errors import ConfigError
+
 
 @dataclass(frozen=True, eq=False)
 class Hits:
@@ -57,3 +59,28 @@ class Hits:
         def r(a):
             return None if a is None else a.reshape(*shape, *a.shape[1:])
         return Hits(*(r(getattr(self, f)) for f in self.__dataclass_fields__))
+
+
+#: Every field a cast can compute, in Hits order.
+HIT_FIELDS = ("distance", "point", "normal", "cos_incidence", "object_id", "material_id",
+              "triangle_id", "velocity")
+ALWAYS_FIELDS = frozenset({"distance", "object_id"})  # needed to tell hits from misses
+_DTYPES = {"object_id": np.int32, "material_id": np.int32, "triangle_id": np.int32}
+_SHAPES = {"point": 3, "normal": 3, "velocity": 3}
+
+
+def check_fields(fields) -> frozenset:
+    """The set of hit fields to compute: all for None, else ``fields`` checked against HIT_FIELDS."""
+    if fields is None:
+        return frozenset(HIT_FIELDS)
+    want = frozenset(fields)
+    bad = sorted(want - set(HIT_FIELDS))
+    if bad:
+        raise ConfigError("fields", bad, "names among: " + ", ".join(HIT_FIELDS))
+    return want
+
+
+def allocate_field(field: str, n: int) -> np.ndarray:
+    """An uninitialised array for ``n`` rays of hit field ``field`` (dtype and shape as in Hits)."""
+    k = _SHAPES.get(field)
+    return np.empty((n, k) if k else n, dtype=_DTYPES.get(field, np.float64))
