@@ -18,7 +18,7 @@ from twinsense.radar import (
     synthesize_exact,
     ula_positions,
 )
-from twinsense.radar.synthesis import _exp_poly, _exp_quad_cubic, _taylor_order
+from twinsense.radar.nufft import _exp_poly, _exp_quad_cubic, _taylor_order
 
 
 def _config(complex_if=False, num_samples=128, num_chirps=8, tx=None, seq=None, rx=None):
