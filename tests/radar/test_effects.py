@@ -42,14 +42,27 @@ def test_filters_are_butterworth_with_minus_3_db_corners():
     hp_only = IFChain(hp_cutoff=80e3, hp_order=2)
     lp_only = IFChain(aaf_cutoff=500e3, aaf_order=4)
     # |H| at the corner is 1/sqrt(2) by the Butterworth definition.
-    assert abs(effects.filter_response(80e3, hp_only)) == pytest.approx(2**-0.5, rel=1e-9)
-    assert abs(effects.filter_response(500e3, lp_only)) == pytest.approx(2**-0.5, rel=1e-9)
+    assert abs(effects.filter_response(80e3, hp_only)) == pytest.approx(2**-0.5, rel=1e-9, abs=0)
+    assert abs(effects.filter_response(500e3, lp_only)) == pytest.approx(2**-0.5, rel=1e-9, abs=0)
     # n-th order low-pass: |H(f)|^2 = 1 / (1 + (f/fc)^(2n)).
     assert abs(effects.filter_response(2e6, lp_only)) ** 2 == pytest.approx(1 / (1 + 4**8),
-                                                                             rel=1e-9)
+                                                                             rel=1e-9, abs=0)
     # A complex receiver sees the conjugate response at negative frequency.
     h = effects.filter_response(np.array([2e5, -2e5]), ifc)
-    assert h[1] == pytest.approx(np.conj(h[0]), rel=1e-12)
+    assert h[1] == pytest.approx(np.conj(h[0]), rel=1e-12, abs=0)
+
+
+def test_beat_frequency_is_range_term_plus_doppler():
+    cfg = _config()
+    s, lam = 6e9 / (512 / 2e6), SPEED_OF_LIGHT / 60e9  # slope 23.4 THz/s, lambda 5 mm
+    # A point 3 m ahead receding at 2 m/s, plus a sideways velocity that changes no range:
+    # f_b = 2 S R / c + 2 v_r / lambda = 468.4 kHz + 800 Hz.
+    f = effects.beat_frequency(np.array([[0.0, 0.0, 3.0]]), np.array([[0.7, 0.0, 2.0]]), cfg)
+    assert f[0] == pytest.approx(2 * s * 3.0 / SPEED_OF_LIGHT + 2 * 2.0 / lam, rel=1e-12, abs=0)
+    # Bistatic: each leg adds its own range and range rate (2 m away at 2 m/s, 4 m approaching at 1 m/s).
+    f = effects.beat_frequency(np.array([[0.0, 0.0, 2.0]]), np.array([[0.0, 0.0, 2.0]]), cfg,
+                               np.array([[0.0, 4.0, 0.0]]), np.array([[0.0, -1.0, 0.0]]))
+    assert f[0] == pytest.approx(s * 6.0 / SPEED_OF_LIGHT + (2.0 - 1.0) / lam, rel=1e-12, abs=0)
 
 
 def test_tone_weight_is_the_steady_state_response_of_the_analog_filter():
@@ -76,10 +89,10 @@ def test_thermal_noise_variance_is_k_t_b_nf():
     g2 = 50.0 * 10 ** (40 / 10)  # impedance x (20 dB + 20 dB) voltage gain squared
     expect = K_B * 290.0 * 10.0 * 1e6 * g2  # k T NF (fs/2) per real sample
     # 16384 samples: the sample variance has a relative spread sqrt(2/N) = 1.1 %; 5 % is 4.5 sigma.
-    assert noise.var() == pytest.approx(expect, rel=0.05)
+    assert noise.var() == pytest.approx(expect, rel=0.05, abs=0)
     c = effects.thermal_noise(_config(complex_if=True), np.random.default_rng(1))
-    assert c.real.var() == pytest.approx(expect, rel=0.05)
-    assert c.imag.var() == pytest.approx(expect, rel=0.05)
+    assert c.real.var() == pytest.approx(expect, rel=0.05, abs=0)
+    assert c.imag.var() == pytest.approx(expect, rel=0.05, abs=0)
 
 
 @pytest.mark.parametrize("complex_if", [False, True])
@@ -140,7 +153,7 @@ def test_quantisation_noise_is_lsb_squared_over_12():
     x = np.random.default_rng(2).uniform(-0.3, 0.3, 200_000)
     err = effects.codes_to_voltage(effects.adc(x, ifc), ifc) - x
     # Uniform error on [-q/2, q/2]: variance q^2/12; 2e5 samples -> 0.3 % spread, 2 % bound.
-    assert err.var() == pytest.approx((1 / 4096) ** 2 / 12, rel=0.02)
+    assert err.var() == pytest.approx((1 / 4096) ** 2 / 12, rel=0.02, abs=0)
 
 
 def test_dc_offset_shifts_the_codes():

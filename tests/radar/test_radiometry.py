@@ -14,7 +14,8 @@ from twinsense.radar import (
     radar_equation_amplitude,
     received_amplitude,
 )
-from twinsense.scene import Material, Mount, Plane, Pose, Scene, SceneObject
+from twinsense.radar.radiometry import backscatter_rcs
+from twinsense.scene import ConstantVelocity, Material, Mount, Plane, Pose, Scene, SceneObject
 
 
 def test_radar_equation_in_decibels():
@@ -44,6 +45,7 @@ PLATE_Y, PLATE_Z = (-0.6, 0.6), (0.2, 1.4)  # its extent [m]
 GAMMA = 0.7  # the floor's specular share = mirror power reflectance
 RHO = 0.3  # the plate's (Lambertian) reflectivity
 POSE = Pose.look_at((0.0, 0.0, H), (D, 0.0, H - D * math.tan(math.radians(20.0))))
+V_PLATE = np.array([0.4, -0.3, 0.5])  # the plate's velocity [m/s] (where it is at t = 0)
 
 
 def _mirror_scene() -> Scene:
@@ -54,7 +56,7 @@ def _mirror_scene() -> Scene:
     rot = np.column_stack([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
     plate = SceneObject("plate", Plane((PLATE_Z[1] - PLATE_Z[0], PLATE_Y[1] - PLATE_Y[0])),
                         Material("test_lambert_plate_2", radar_reflectivity=RHO, radar_specular=0.0),
-                        Pose((D, 0.0, 0.5 * sum(PLATE_Z)), rot))
+                        ConstantVelocity(Pose((D, 0.0, 0.5 * sum(PLATE_Z)), rot), tuple(V_PLATE)))
     return Scene([floor, plate])
 
 
@@ -124,6 +126,13 @@ def test_second_bounce_rcs_and_amplitude_by_hand():
     # sigma to 1e-5 and R^-4 to ~1.3e-6: the amplitude (a square root) to < 1e-5.
     np.testing.assert_allclose(amp, np.sqrt(2 * p_r), rtol=1e-5, atol=0)
 
+    # The image of a moving point moves as the point mirrored: (vx, vy, -vz) over the
+    # floor z = 0, in sensor coordinates R^T v'.
+    v_image = (V_PLATE * [1.0, 1.0, -1.0]) @ POSE.rotation
+    np.testing.assert_allclose(scat.velocities[rows], np.tile(v_image, (len(rows), 1)),
+                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(scat.velocities_rx[rows], scat.velocities[rows], rtol=0, atol=0)
+
     # The two mixed paths (tx -> plate -> floor -> rx and the reverse), plate seen
     # directly: one leg ends on P2, the other on P2'; one mirror hit, Gamma sigma.
     # The image leg is the longer one (P2' lies beyond the mirror).
@@ -141,5 +150,27 @@ def test_second_bounce_rcs_and_amplitude_by_hand():
     rows = np.stack([order[first], order[first + 1]], axis=1)  # (n, 2) indices into mixed
     np.testing.assert_allclose(scat.rcs[mixed][rows], GAMMA * sigma[:, None] * [1.0, 1.0],
                                rtol=1e-5, atol=0)
-    # Their other leg ends on the plate itself, x = D in the world.
+    # Their other leg ends on the plate itself, x = D in the world, and moves with it.
     np.testing.assert_allclose(POSE.apply(direct[rows[:, 0]])[:, 0], D, rtol=0, atol=1e-5)
+    v_tx = np.where(tx_on_image, scat.velocities[mixed], scat.velocities_rx[mixed])
+    v_rx = np.where(tx_on_image, scat.velocities_rx[mixed], scat.velocities[mixed])
+    np.testing.assert_allclose(v_tx, np.tile(v_image, (len(mixed), 1)), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(v_rx, np.tile(V_PLATE @ POSE.rotation, (len(mixed), 1)),
+                               rtol=0, atol=1e-12)
+
+
+def test_specular_lobe_scatters_as_much_as_the_diffuse_law():
+    # sigma0(theta) = sigma / A with the footprint A = Omega R^2 / cos(theta); over the
+    # hemisphere the diffuse law rho cos^2 integrates to rho 2 pi / 3, and the lobe
+    # rho 2 / (3 theta_s^2) exp(-(theta / theta_s)^2) to the same, up to its small-angle
+    # form: int exp(-theta^2/theta_s^2) sin(theta) dtheta = theta_s^2 / 2 (1 - theta_s^2 / 6 ...),
+    # -0.51 % for theta_s = 10 deg. Tolerance 1 %.
+    lobe = math.radians(10.0)
+    theta = np.linspace(0.0, math.pi / 2, 20001)[:-1] + math.pi / 4 / 20000  # midpoints
+    c = np.cos(theta)
+    d_omega = 2 * math.pi * np.sin(theta) * (math.pi / 2 / 20000)
+    ones = np.ones_like(theta)
+    for spec in (0.0, 1.0):
+        sigma = backscatter_rcs(2.0 * ones, c, 1e-4 * ones, 0.3 * ones, spec * ones, lobe)
+        sigma0 = sigma * c / (1e-4 * 2.0**2)
+        assert np.sum(sigma0 * d_omega) == pytest.approx(0.3 * 2 * math.pi / 3, rel=0.01, abs=0)
