@@ -53,6 +53,16 @@ class Geometry:
         raise NotImplementedError
 
 
+def _scaled(unit_mesh: trimesh.Trimesh, scale: float) -> trimesh.Trimesh:
+    """A primitive built at radius 1 and scaled to ``scale`` [m].
+
+    trimesh merges vertices closer than 1e-8 and drops triangles of area under
+    ~1e-12 while it builds, in absolute units: a cylinder of radius 1 um would
+    lose every face. Built at unit size the mesh keeps them all.
+    """
+    return trimesh.Trimesh(unit_mesh.vertices * scale, unit_mesh.faces, process=False)
+
+
 def _sizes(field_name: str, value, n: int) -> np.ndarray:
     """``n`` edge lengths, each within [LENGTH_MIN, LENGTH_MAX] [m]."""
     allowed = f"{n} edge lengths, each in [{V.LENGTH_MIN:g}, {V.LENGTH_MAX:g}] [m]"
@@ -126,7 +136,7 @@ class Sphere(Geometry):
         V.integer("sphere.subdivisions", self.subdivisions, lo=0, hi=7)
 
     def _build_mesh(self):
-        return trimesh.creation.icosphere(subdivisions=self.subdivisions, radius=self.radius)
+        return _scaled(trimesh.creation.icosphere(subdivisions=self.subdivisions, radius=1.0), self.radius)
 
     def contains(self, points):
         p = _pts(points)
@@ -151,7 +161,8 @@ class Cylinder(Geometry):
         V.integer("cylinder.sections", self.sections, lo=3, hi=MAX_SECTIONS)
 
     def _build_mesh(self):
-        return trimesh.creation.cylinder(radius=self.radius, height=self.height, sections=self.sections)
+        return _scaled(trimesh.creation.cylinder(radius=1.0, height=self.height / self.radius,
+                                                 sections=self.sections), self.radius)
 
     def contains(self, points):
         p = _pts(points)
@@ -177,7 +188,8 @@ class Capsule(Geometry):
                      unit="m; or 0 for a sphere")
 
     def _build_mesh(self):
-        return trimesh.creation.capsule(height=self.height, radius=self.radius, count=[32, 32])
+        return _scaled(trimesh.creation.capsule(height=self.height / self.radius, radius=1.0, count=[32, 32]),
+                       self.radius)
 
     def contains(self, points):
         p = _pts(points)
