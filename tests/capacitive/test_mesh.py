@@ -30,7 +30,7 @@ def test_tensor_mesh_is_conforming_and_fills_the_box():
     x, y, z = (np.sort(np.concatenate([[0.0, 1.0], rng.uniform(0, 1, 4)])) for _ in range(3))
     mesh = tensor_tet_mesh(x, y, z)
     assert np.all(mesh.volumes > 0)
-    assert mesh.volumes.sum() == pytest.approx(1.0, rel=1e-12)
+    assert mesh.volumes.sum() == pytest.approx(1.0, rel=1e-12, abs=0)
     assert _interior_facets_shared_twice(mesh)
     # A conforming box mesh has exactly 2 boundary triangles per boundary quad.
     nx, ny, nz = len(x) - 1, len(y) - 1, len(z) - 1

@@ -113,15 +113,15 @@ def test_unknown_preset_lists_the_valid_names():
 
 def test_derived_figures_match_closed_forms():
     c = ChirpConfig.from_frequencies(57e9, 63e9, 2e6, 512, 16, 300e-6, 1 / 30)
-    assert c.sampled_bandwidth == pytest.approx(6e9, rel=1e-12)
-    assert c.range_resolution == pytest.approx(SPEED_OF_LIGHT / 12e9, rel=1e-12)
-    assert c.centre_frequency == pytest.approx(60e9, rel=1e-12)
+    assert c.sampled_bandwidth == pytest.approx(6e9, rel=1e-12, abs=0)
+    assert c.range_resolution == pytest.approx(SPEED_OF_LIGHT / 12e9, rel=1e-12, abs=0)
+    assert c.centre_frequency == pytest.approx(60e9, rel=1e-12, abs=0)
     cfg = RadarConfig(c, _array())
     # Real IF: beat frequencies up to fs/2 -> R_max = c fs / (4 S); S = 6 GHz / 256 us.
-    assert cfg.max_range == pytest.approx(SPEED_OF_LIGHT * 2e6 / (4 * 6e9 / 256e-6), rel=1e-12)
+    assert cfg.max_range == pytest.approx(SPEED_OF_LIGHT * 2e6 / (4 * 6e9 / 256e-6), rel=1e-12, abs=0)
     lam = SPEED_OF_LIGHT / 60e9
-    assert cfg.max_velocity == pytest.approx(lam / (4 * 300e-6), rel=1e-12)
-    assert cfg.velocity_resolution == pytest.approx(lam / (2 * 16 * 300e-6), rel=1e-12)
+    assert cfg.max_velocity == pytest.approx(lam / (4 * 300e-6), rel=1e-12, abs=0)
+    assert cfg.velocity_resolution == pytest.approx(lam / (2 * 16 * 300e-6), rel=1e-12, abs=0)
     assert cfg.cube_shape == (2, 16, 512)
 
 
@@ -160,7 +160,7 @@ def test_element_pattern_is_cos_power():
     d = np.array([[math.cos(el) * math.sin(az), -math.sin(el), math.cos(el) * math.cos(az)],
                   [0.0, 0.0, -1.0]])
     g = p.gain(d)
-    assert g[0] == pytest.approx(10**0.6 * math.cos(az) ** 2 * math.cos(el), rel=1e-12)
+    assert g[0] == pytest.approx(10**0.6 * math.cos(az) ** 2 * math.cos(el), rel=1e-12, abs=0)
     assert g[1] == 0.0  # behind the array
 
 

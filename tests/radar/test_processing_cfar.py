@@ -27,8 +27,8 @@ def test_go_so_closed_forms_match_numerical_integration(n_half):
     f = gamma(n_half, scale=1.0 / n_half)
     go = quad(lambda z: 2 * np.exp(-alpha * z) * f.cdf(z) * f.pdf(z), 0, np.inf)[0]
     so = quad(lambda z: 2 * np.exp(-alpha * z) * f.sf(z) * f.pdf(z), 0, np.inf)[0]
-    assert go_pfa(alpha, n_half) == pytest.approx(go, rel=1e-7)
-    assert so_pfa(alpha, n_half) == pytest.approx(so, rel=1e-7)
+    assert go_pfa(alpha, n_half) == pytest.approx(go, rel=1e-7, abs=0)
+    assert so_pfa(alpha, n_half) == pytest.approx(so, rel=1e-7, abs=0)
 
 
 @pytest.mark.parametrize(("n", "k"), [(16, 12), (24, 18), (90, 68)])
@@ -39,15 +39,15 @@ def test_os_rohling_formula_matches_order_statistic_integral(n, k):
     dens = lambda x: (k * comb(n, k) * (-np.expm1(-x)) ** (k - 1)  # noqa: E731
                       * np.exp(-x * (n - k + 1)))
     val = quad(lambda x: np.exp(-alpha * x) * dens(x), 0, np.inf, epsabs=0, limit=200)[0]
-    assert os_pfa(alpha, n, k) == pytest.approx(PFA, rel=1e-9)
-    assert val == pytest.approx(PFA, rel=1e-6)
+    assert os_pfa(alpha, n, k) == pytest.approx(PFA, rel=1e-9, abs=0)
+    assert val == pytest.approx(PFA, rel=1e-6, abs=0)
 
 
 def test_threshold_factors_are_exact_for_the_design_pfa():
     n = 32
-    assert (1 + threshold_factor("ca", PFA, n) / n) ** (-n) == pytest.approx(PFA, rel=1e-12)
-    assert go_pfa(threshold_factor("go", PFA, n), n // 2) == pytest.approx(PFA, rel=1e-9)
-    assert so_pfa(threshold_factor("so", PFA, n), n // 2) == pytest.approx(PFA, rel=1e-9)
+    assert (1 + threshold_factor("ca", PFA, n) / n) ** (-n) == pytest.approx(PFA, rel=1e-12, abs=0)
+    assert go_pfa(threshold_factor("go", PFA, n), n // 2) == pytest.approx(PFA, rel=1e-9, abs=0)
+    assert so_pfa(threshold_factor("so", PFA, n), n // 2) == pytest.approx(PFA, rel=1e-9, abs=0)
     # Ordering for equal Pfa: SO needs the largest factor, GO the smallest (its
     # estimate is biased high), CA in between.
     assert (threshold_factor("go", PFA, n) < threshold_factor("ca", PFA, n)
@@ -75,14 +75,14 @@ SHAPE = (256, 1024)
 def test_false_alarm_rate_1d(method):
     p = _noise(SHAPE, 11)
     res = cfar_1d(p, method, guard=2, train=8, pfa=PFA, axis=-1)
-    assert res.mask.mean() == pytest.approx(PFA, rel=0.3)
+    assert res.mask.mean() == pytest.approx(PFA, rel=0.3, abs=0)
 
 
 @pytest.mark.parametrize("method", sorted(CFAR_METHODS))
 def test_false_alarm_rate_2d(method):
     p = _noise(SHAPE, 12)
     res = cfar_2d(p, method, guard=(1, 2), train=(3, 6), pfa=PFA)
-    assert res.mask.mean() == pytest.approx(PFA, rel=0.3)
+    assert res.mask.mean() == pytest.approx(PFA, rel=0.3, abs=0)
 
 
 def test_go_and_so_bracket_ca_at_a_common_factor():
@@ -171,9 +171,9 @@ def test_2d_ring_estimates_equal_a_brute_force_loop():
                         lead.append(v)
                     elif dj > gr:
                         lag.append(v)
-            assert ca.noise[i, j] == pytest.approx(np.mean(ring), rel=1e-10)
-            assert os_.noise[i, j] == pytest.approx(np.sort(ring)[19], rel=1e-12)
-            assert so.noise[i, j] == pytest.approx(min(np.mean(lead), np.mean(lag)), rel=1e-10)
+            assert ca.noise[i, j] == pytest.approx(np.mean(ring), rel=1e-10, abs=0)
+            assert os_.noise[i, j] == pytest.approx(np.sort(ring)[19], rel=1e-12, abs=0)
+            assert so.noise[i, j] == pytest.approx(min(np.mean(lead), np.mean(lag)), rel=1e-10, abs=0)
 
 
 # ---------------------------------------------------------------- errors

@@ -55,14 +55,14 @@ def test_noise_threshold_false_positive_rate_matches_monte_carlo():
 def test_noise_cutoff_follows_the_modulation_frequency():
     """Royale's 0.07 m at 80.32 + 60.24 MHz is a phase-noise limit; other frequencies scale by 1/f_eff."""
     dual = tof_preset("pmd_pico_flexx")
-    assert dual.effective_frequency == pytest.approx(math.hypot(80.32e6, 60.24e6), rel=1e-12)
-    assert dual.noise_cutoff == pytest.approx(0.07, rel=1e-12)
+    assert dual.effective_frequency == pytest.approx(math.hypot(80.32e6, 60.24e6), rel=1e-12, abs=0)
+    assert dual.noise_cutoff == pytest.approx(0.07, rel=1e-12, abs=0)
     sigma_phi = 0.07 * 4 * math.pi * math.hypot(80.32e6, 60.24e6) / C_LIGHT  # 0.2946 rad
     paper = tof_preset("paper_pico_flexx")
-    assert paper.noise_cutoff == pytest.approx(C_LIGHT * sigma_phi / (4 * math.pi * 20e6), rel=1e-12)
+    assert paper.noise_cutoff == pytest.approx(C_LIGHT * sigma_phi / (4 * math.pi * 20e6), rel=1e-12, abs=0)
     assert paper.noise_cutoff == pytest.approx(0.3514, abs=1e-4)
     single = tof_preset("pmd_pico_flexx", mode="MODE_5_45FPS_500")
-    assert single.noise_cutoff == pytest.approx(0.07 * math.hypot(80.32, 60.24) / 60.24, rel=1e-12)
+    assert single.noise_cutoff == pytest.approx(0.07 * math.hypot(80.32, 60.24) / 60.24, rel=1e-12, abs=0)
     # An explicit cut-off wins.
     assert tof_preset("paper_pico_flexx", max_noise=0.05).noise_cutoff == 0.05
 

@@ -41,11 +41,11 @@ def test_beam_profile_integrates_to_one(fwhm):
     # discretisation error for Gaussians wider than 10 deg is ~1e-7).
     omega = _beam_integral_spherical(*fwhm)
     p0 = beam_profile(np.array([0.0, 0.0, 1.0]), fwhm)
-    assert p0 * omega == pytest.approx(1.0, rel=1e-5)
+    assert p0 * omega == pytest.approx(1.0, rel=1e-5, abs=0)
     # Half maximum at half the FWHM off axis, horizontally and vertically.
     half = math.radians(fwhm[0] / 2)
     d = np.array([math.sin(half), 0.0, math.cos(half)])
-    assert beam_profile(d, fwhm) / p0 == pytest.approx(0.5, rel=1e-12)
+    assert beam_profile(d, fwhm) / p0 == pytest.approx(0.5, rel=1e-12, abs=0)
     assert beam_profile(np.array([0.0, 0.0, -1.0]), fwhm) == 0.0
 
 
@@ -57,8 +57,8 @@ def test_radiance_factor_lambertian_specular_retro():
     spec = radiance_factor(np.full(3, 0.5), np.ones(3), np.zeros(3, bool), c, 30.0, 300.0)
     # Normalised Phong lobe at the mirror direction: (n + 2) / 2 = 16 x albedo at normal incidence;
     # beyond 45 deg incidence the lobe points away from the source: 0.
-    assert spec[0] == pytest.approx(0.5 * 16.0, rel=1e-6)
-    assert spec[1] == pytest.approx(0.5 * 16.0 * math.cos(math.radians(60)) ** 30, rel=1e-4)
+    assert spec[0] == pytest.approx(0.5 * 16.0, rel=1e-6, abs=0)
+    assert spec[1] == pytest.approx(0.5 * 16.0 * math.cos(math.radians(60)) ** 30, rel=1e-4, abs=0)
     assert spec[2] == 0.0
     retro = radiance_factor(np.full(3, 0.5), np.zeros(3), np.ones(3, bool), c, 30.0, 300.0)
     np.testing.assert_allclose(retro, 0.5 * 300.0 * c, rtol=1e-6)
@@ -92,10 +92,10 @@ def test_crosstalk_is_a_normalised_gaussian():
     # A delta spreads into a Gaussian: total charge kept (the kernel is normalised; the
     # 3-sigma truncation is renormalised by scipy) and second moment sigma^2 per axis
     # (truncation at 3 sigma lowers it by ~3 %, hence rel=0.04).
-    assert out.sum() == pytest.approx(1.0, rel=1e-6)
+    assert out.sum() == pytest.approx(1.0, rel=1e-6, abs=0)
     yy, xx = np.mgrid[-20:21, -20:21]
-    assert (out * xx ** 2).sum() == pytest.approx(1.5 ** 2, rel=0.04)
-    assert (out * yy ** 2).sum() == pytest.approx(1.5 ** 2, rel=0.04)
+    assert (out * xx ** 2).sum() == pytest.approx(1.5 ** 2, rel=0.04, abs=0)
+    assert (out * yy ** 2).sum() == pytest.approx(1.5 ** 2, rel=0.04, abs=0)
     # sigma 0 returns its input untouched; a uniform image stays uniform.
     assert crosstalk(img, 0.0) is img
     flat = np.full((2, 4, 9, 9), 3.0, np.float32)
@@ -104,7 +104,7 @@ def test_crosstalk_is_a_normalised_gaussian():
 
 def test_photon_constants():
     # 850 nm photon energy: h c / lambda = 2.337e-19 J (1.4586 eV).
-    assert H_PLANCK * C_LIGHT / 850e-9 == pytest.approx(2.3370e-19, rel=1e-4)
+    assert H_PLANCK * C_LIGHT / 850e-9 == pytest.approx(2.3370e-19, rel=1e-4, abs=0)
 
 
 def test_power_by_squaring_matches_powf():

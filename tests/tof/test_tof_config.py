@@ -51,7 +51,7 @@ def test_pico_flexx_modes_follow_royale():
         assert cfg.distortion == (0.0656, -2.146, 0.0005, -0.0033, 3.229)
     dual = tof_preset("pmd_pico_flexx", mode="MODE_9_5FPS_2000")
     # 80.32 and 60.24 MHz share gcd 20.08 MHz: c / (2 x 20.08 MHz) = 7.465 m (PHYSICS.md).
-    assert dual.unambiguous_range == pytest.approx(C_LIGHT / (2 * 20.08e6), rel=1e-12)
+    assert dual.unambiguous_range == pytest.approx(C_LIGHT / (2 * 20.08e6), rel=1e-12, abs=0)
     assert dual.unambiguous_range == pytest.approx(7.465, abs=5e-4)
     single = tof_preset("pmd_pico_flexx", mode="MODE_5_45FPS_500")
     assert single.unambiguous_range == pytest.approx(2.488, abs=1e-3)
