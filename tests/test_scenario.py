@@ -227,3 +227,13 @@ def test_garbage_mesh_files_are_reported_under_geometry_path(tmp_path):
     d["objects"][2]["geometry"]["unit"] = "mm"  # the same file in mm is a 20 m part
     assert scenario_from_dict(d, base_dir=tmp_path).scene.object("cart").geometry.mesh.extents[0] == pytest.approx(
         20.0, rel=1e-12, abs=0)
+
+
+def test_duplicate_keys_and_non_path_arguments(tmp_path):
+    # PyYAML keeps the last of two equal keys silently; a scenario refuses the file instead.
+    p = tmp_path / "dup.yaml"
+    p.write_text("name: a\nduration: 1.0\nname: b\n")
+    with pytest.raises(ScenarioError, match=r"line 3, column 1\) = \"duplicate key 'name'"):
+        load_scenario(p)
+    with pytest.raises(ScenarioError, match=r"\(file\) = 123: a path \(str or os.PathLike\)"):
+        load_scenario(123)

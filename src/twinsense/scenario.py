@@ -32,6 +32,7 @@ Example::
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -493,6 +494,28 @@ def _sensor_field(e: ConfigError) -> str:
     return f"overrides.{last}"
 
 
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """SafeLoader that refuses a key given twice in one mapping (PyYAML keeps the last one silently)."""
+
+
+def _unique_mapping(loader: yaml.SafeLoader, node: yaml.MappingNode, deep: bool = False) -> dict:
+    seen = set()
+    for key_node, _ in node.value:
+        key = loader.construct_object(key_node, deep=deep)
+        try:
+            duplicate = key in seen
+        except TypeError:  # an unhashable key: construct_mapping reports it
+            continue
+        if duplicate:
+            raise yaml.constructor.ConstructorError(None, None, f"duplicate key {key!r} (each key once per mapping)",
+                                                    key_node.start_mark)
+        seen.add(key)
+    return loader.construct_mapping(node, deep)
+
+
+_UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _unique_mapping)
+
+
 def load_scenario(path, overrides: dict[str, Any] | None = None, limits=None) -> Scenario:
     """Read, validate and build a scenario YAML file.
 
@@ -500,6 +523,8 @@ def load_scenario(path, overrides: dict[str, Any] | None = None, limits=None) ->
     before validation, so they are checked like the file's own values.
     ``limits``: see :func:`scenario_from_dict`.
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise ScenarioError(repr(path), [("(file)", path, "a path (str or os.PathLike) to a YAML file")])
     p = Path(path)
     if not p.is_file():
         raise ScenarioError(str(path), [("(file)", str(path), "an existing YAML file")])
@@ -513,7 +538,7 @@ def load_scenario(path, overrides: dict[str, Any] | None = None, limits=None) ->
         raise ScenarioError(str(p), [(f"(file, byte {exc.start})", raw[exc.start:exc.start + 8],
                                       "a UTF-8 text (YAML) file, not a binary one")]) from None
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=_UniqueKeyLoader)  # a SafeLoader subclass
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else "?"
