@@ -126,7 +126,8 @@ def digitize(correlation: np.ndarray, tap_sum: np.ndarray, config: ToFConfig,
         saturated |= np.logical_or.reduce(((code < lo) | (code > hi)).reshape(f * k, -1), axis=0
                                           ).reshape(bad.shape[2:])
     np.clip(code, 0.0, float(2 ** cfg.adc_bits - 1), out=code)
-    raw = code.astype(np.uint16) if cfg.quantization else code
+    # Without quantisation the raw values are floats: copied, since ``code`` becomes the difference.
+    raw = code.astype(np.uint16) if cfg.quantization else code.copy()
     code -= off
     return Digitized(raw, code, saturated)
 
