@@ -3,8 +3,9 @@
 One frame of a capacitive sensor needs one solve per terminal (6 electrodes:
 6 right-hand sides). :func:`block_pcg` runs an independent CG per column but
 does the sparse products for all active columns together. The AMG hierarchy
-(pyamg smoothed aggregation) is built once and kept while the matrix changes
-frame to frame: the finest level takes the current matrix (so the smoother is
+(smoothed aggregation, :mod:`twinsense.capacitive.amg`, the same from run
+to run) is built once and kept while the matrix changes frame to frame: the
+finest level takes the current matrix (so the smoother is
 exact) and the coarse levels stay as built, which is still a symmetric
 positive-definite preconditioner; it is rebuilt only when the iteration count
 grows past ``rebuild_factor`` times the count right after a rebuild.
@@ -18,6 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from twinsense import validation as v
+from twinsense.capacitive.amg import BlockAMG
 from twinsense.errors import ConfigError
 
 __all__ = ["PRECONDITIONERS", "PCGSolver", "SolveInfo", "SolverConfig", "block_pcg"]
@@ -255,93 +257,6 @@ class PCGSolver:
         elif worst > max(8, cfg.rebuild_factor * self._reference_iters):
             self._force_rebuild = True
         return X, SolveInfo(it, rebuilt)
-
-
-class BlockAMG:
-    """A symmetric AMG V-cycle applied to many columns at once.
-
-    The hierarchy (aggregation and prolongators) comes from pyamg's smoothed
-    aggregation; the cycle itself is written here with damped-Jacobi
-    smoothing, so every step is one sparse-times-block product for all
-    right-hand sides together (6 columns cost about twice one column, where a
-    Gauss-Seidel sweep per column would cost six times). Pre- and
-    post-smoothing are the same symmetric Jacobi steps, so the cycle is a
-    symmetric positive-definite preconditioner for CG.
-
-    Parameters
-    ----------
-    A : (n, n) csr_matrix, SPD.
-    theta : float, strength-of-connection threshold of the aggregation.
-    steps : int, Jacobi steps before and after the coarse correction.
-    """
-
-    def __init__(self, A: sp.csr_matrix, theta: float = 0.0, steps: int = 1) -> None:
-        import pyamg
-        import scipy.linalg as sla
-
-        ml = pyamg.smoothed_aggregation_solver(
-            A,
-            symmetry="hermitian",
-            strength=("symmetric", {"theta": theta}),
-            max_coarse=300,
-        )
-        self.A = [lvl.A.tocsr() for lvl in ml.levels]
-        self.P = [lvl.P.tocsr() for lvl in ml.levels[:-1]]
-        self.R = [p.T.tocsr() for p in self.P]
-        self.steps = steps
-        self.theta = theta
-        self.scaled_dinv = [self._jacobi(a) for a in self.A[:-1]]
-        self._omega0 = self.scaled_dinv[0][:, 0] * self.A[0].diagonal() if self.scaled_dinv else None
-        coarse = self.A[-1].toarray()
-        empty = np.diag(coarse) <= 0
-        coarse[empty, empty] = 1.0  # decoupled empty rows: identity, they only carry zeros
-        # The coarsest operator is SPD up to round-off; a tiny shift keeps Cholesky happy.
-        coarse += 1e-14 * np.trace(coarse) / len(coarse) * np.eye(len(coarse))
-        self._chol = sla.cho_factor(coarse)
-        self._cho_solve = sla.cho_solve
-
-    @staticmethod
-    def _jacobi(A: sp.csr_matrix) -> np.ndarray:
-        """(n, 1) damping / diagonal with damping 4 / (3 rho(D^-1 A)) (rho by power iteration)."""
-        diag = A.diagonal()
-        # An aggregate of decoupled (Dirichlet) nodes can leave an empty coarse
-        # row; it gets no smoothing instead of a division by zero.
-        d = np.divide(1.0, diag, out=np.zeros_like(diag), where=diag > 0)
-        x = np.random.default_rng(0).standard_normal(A.shape[0])
-        lam = 1.0
-        for _ in range(20):
-            x = d * (A @ x)
-            lam = float(np.linalg.norm(x))
-            x /= lam
-        # Power iteration under-estimates rho; 10 % margin keeps the smoother convergent.
-        omega = 4.0 / (3.0 * 1.1 * lam)
-        return (omega * d)[:, None]
-
-    def set_fine(self, A: sp.csr_matrix) -> None:
-        """Use ``A`` (same size) on the finest level; coarse levels stay as built.
-
-        The damping factor found at build time is kept; the diagonal is the new one.
-        """
-        if self._omega0 is None:  # a single level: the direct solve must see the new matrix
-            self.__init__(A, self.theta, self.steps)
-            return
-        self.A[0] = A
-        self.scaled_dinv[0] = (self._omega0 / A.diagonal())[:, None]
-
-    def __call__(self, B: np.ndarray) -> np.ndarray:
-        return self._cycle(B, 0)
-
-    def _cycle(self, B: np.ndarray, lvl: int) -> np.ndarray:
-        if lvl == len(self.A) - 1:
-            return self._cho_solve(self._chol, B)
-        A, D = self.A[lvl], self.scaled_dinv[lvl]
-        X = D * B
-        for _ in range(self.steps - 1):
-            X += D * (B - A @ X)
-        X += self.P[lvl] @ self._cycle(self.R[lvl] @ (B - A @ X), lvl + 1)
-        for _ in range(self.steps):
-            X += D * (B - A @ X)
-        return X
 
 
 def check_solver_config(config) -> SolverConfig:
