@@ -34,17 +34,31 @@ class _Stopped(KeyboardInterrupt):
 _STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
-def _install_stop_handlers() -> dict:
-    """Route SIGINT, SIGTERM and SIGHUP to one exception; later signals are ignored while cleaning up."""
-    stopping = []
+class _StopRequests:
+    """SIGINT, SIGTERM and SIGHUP handlers for a run.
 
-    def handler(signum, frame):
-        if stopping:
-            return  # already stopping: let the partial recording be written
-        stopping.append(signum)
-        raise _Stopped(signum)
+    The first signal asks the run to stop before its next frame: the
+    simulation loop polls :meth:`__call__`, so the frame being captured is
+    finished and written, and nothing is cut half-way (an exception raised
+    from a signal handler can land anywhere, even in a garbage-collector
+    callback that swallows it). A second signal stops at once.
+    """
 
-    return {s: signal.signal(s, handler) for s in _STOP_SIGNALS}
+    def __init__(self):
+        self.signum: int | None = None
+        self.previous = {s: signal.signal(s, self._handle) for s in _STOP_SIGNALS}
+
+    def _handle(self, signum, frame):
+        if self.signum is not None:
+            raise _Stopped(signum)
+        self.signum = signum
+
+    def __call__(self) -> BaseException | None:
+        return None if self.signum is None else _Stopped(self.signum)
+
+    def restore(self) -> None:
+        for s, h in self.previous.items():
+            signal.signal(s, h)
 
 
 def _load(scenario: Path, duration: float | None, seed: int | None, max_frames: int | None,
@@ -76,23 +90,23 @@ def run(scenario: Path = typer.Argument(..., help="scenario YAML file"),
         max_frame_bytes: int = _MAX_FRAME_BYTES) -> None:
     """Simulate a scenario and write its recording under OUT.
 
-    Ctrl-C, SIGTERM and SIGHUP stop the run and keep every frame so far in
-    <name>.partial.h5 (exit status 128 + signal number).
+    Ctrl-C, SIGTERM and SIGHUP stop the run after the frame in progress and
+    keep every frame so far in <name>.partial.h5 (exit status 128 + signal
+    number); a second signal stops at once.
     """
     try:
         sc = _load(scenario, duration, seed, max_frames, max_frame_bytes)
     except TwinsenseError as exc:
         _fail(exc)
-    previous = _install_stop_handlers()
+    stop = _StopRequests()
     try:
-        res = sc.run(out, progress=progress)
+        res = sc.run(out, progress=progress, stop=stop)
     except TwinsenseError as exc:
         _fail(exc)
     except KeyboardInterrupt as exc:
         _report_stopped(sc, out, exc)
     finally:
-        for s, h in previous.items():
-            signal.signal(s, h)
+        stop.restore()
     counts = ", ".join(f"{k}: {v}" for k, v in res.frame_counts.items())
     if res.path is None:
         typer.echo(f"no recording written (outputs.recording is null); captured {counts} frames")

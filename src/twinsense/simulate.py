@@ -167,7 +167,8 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
              progress: bool = False, keep_frames: bool | None = None,
              scenario: Mapping[str, Any] | None = None,
              on_frame: Callable[[Any, Any], None] | None = None,
-             limits: RunLimits | None = None) -> SimulationResult:
+             limits: RunLimits | None = None,
+             stop: Callable[[], BaseException | None] | None = None) -> SimulationResult:
     """Run ``sensors`` over ``[t0, t0 + duration)`` on one shared clock.
 
     Parameters
@@ -189,6 +190,11 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
         Keep frames in memory (default: only when ``out`` is None).
     on_frame : callable, optional
         ``on_frame(sensor, frame)`` after each capture (live plots, streams).
+    stop : callable, optional
+        Called before each frame; when it returns an exception the run stops
+        with it after the last whole frame (the recording is kept as
+        ``<name>.partial.h5`` marked with it). The command line stops on
+        SIGTERM/SIGHUP/Ctrl-C this way, never in the middle of a frame.
     limits : RunLimits, optional
         Frames per run and memory per frame allowed (checked before anything
         is allocated; ConfigError naming the field and the estimate).
@@ -233,6 +239,8 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
     bar = _progress(sum(n_frames)) if progress else None
     try:
         for t, i in events:
+            if stop is not None and (reason := stop()) is not None:
+                raise reason
             s = sensors[i]
             frame = s.capture(scene, t, rngs[i])
             if writer is not None:
