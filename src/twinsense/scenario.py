@@ -297,15 +297,17 @@ class Scenario:
         """Where :meth:`run` writes the recording (None when ``outputs.recording`` is null)."""
         return Path(out_dir) / self.outputs.recording if self.outputs.recording else None
 
-    def run(self, out_dir, progress: bool = False):
+    def run(self, out_dir, progress: bool = False, stop=None):
         """Simulate and write the recording under ``out_dir``; returns the SimulationResult.
 
         With ``outputs.recording: null`` nothing is written (``result.path`` is None).
+        ``stop``: see :func:`twinsense.simulate.simulate`.
         """
         from twinsense.simulate import simulate
 
         return simulate(self.scene, self.sensors, self.duration, out=self.recording_path(out_dir), seed=self.seed,
-                        progress=progress, scenario=self.raw, keep_frames=False, limits=self.limits)
+                        progress=progress, scenario=self.raw, keep_frames=False, limits=self.limits,
+                        stop=stop)
 
 
 def _loc(loc: tuple) -> str:
