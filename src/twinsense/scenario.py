@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from twinsense.errors import ConfigError, GeometryError, TwinsenseError
 from twinsense.scene import geometry as G
@@ -62,8 +62,17 @@ class ScenarioError(TwinsenseError, ValueError):
         super().__init__("\n".join(lines))
 
 
-Finite = Annotated[float, Field(allow_inf_nan=False)]
-Pos = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+def _number_only(value: Any) -> Any:
+    """Refuse true/false and text where a number belongs (pydantic would read true as 1 and "0.5" as 0.5)."""
+    if isinstance(value, (bool, str, bytes)):
+        raise ValueError("Input should be a valid number, not true/false or text")
+    return value
+
+
+Num = Annotated[float, BeforeValidator(_number_only)]
+Int = Annotated[int, BeforeValidator(_number_only)]
+Finite = Annotated[Num, Field(allow_inf_nan=False)]
+Pos = Annotated[Num, Field(gt=0, allow_inf_nan=False)]
 Vec3 = tuple[Finite, Finite, Finite]
 
 
@@ -124,20 +133,20 @@ class BoxSpec(_Model):
 class SphereSpec(_Model):
     type: Literal["sphere"]
     radius: Pos
-    subdivisions: int = Field(4, ge=0, le=7)
+    subdivisions: Int = Field(4, ge=0, le=7)
 
 
 class CylinderSpec(_Model):
     type: Literal["cylinder"]
     radius: Pos
     height: Pos
-    sections: int = Field(64, ge=3, le=G.MAX_SECTIONS)
+    sections: Int = Field(64, ge=3, le=G.MAX_SECTIONS)
 
 
 class CapsuleSpec(_Model):
     type: Literal["capsule"]
     radius: Pos
-    height: Annotated[float, Field(ge=0, allow_inf_nan=False)]
+    height: Annotated[Num, Field(ge=0, allow_inf_nan=False)]
 
 
 class PlaneSpec(_Model):
@@ -198,12 +207,12 @@ MotionSpec = Annotated[StaticSpec | ConstantVelocitySpec | WaypointsSpec | Keyfr
 class MaterialSpec(_Model):
     name: str = Field(min_length=1)
     base: str | None = None
-    nir_reflectance: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] | None = None
-    nir_specular: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] | None = None
+    nir_reflectance: Annotated[Num, Field(ge=0, le=1, allow_inf_nan=False)] | None = None
+    nir_specular: Annotated[Num, Field(ge=0, le=1, allow_inf_nan=False)] | None = None
     nir_retroreflective: bool | None = None
-    radar_reflectivity: Annotated[float, Field(ge=0, allow_inf_nan=False)] | None = None
-    radar_specular: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] | None = None
-    permittivity: Annotated[float, Field(ge=1, allow_inf_nan=False)] | None = None
+    radar_reflectivity: Annotated[Num, Field(ge=0, allow_inf_nan=False)] | None = None
+    radar_specular: Annotated[Num, Field(ge=0, le=1, allow_inf_nan=False)] | None = None
+    permittivity: Annotated[Num, Field(ge=1, allow_inf_nan=False)] | None = None
     conductor: Literal["none", "grounded", "floating"] | None = None
 
 
@@ -262,7 +271,7 @@ class OutputsSpec(_Model):
 class ScenarioSpec(_Model):
     name: str = "scenario"
     duration: Pos = 1.0
-    seed: int = Field(0, ge=0, lt=2**64)
+    seed: Int = Field(0, ge=0, lt=2**64)
     materials: list[MaterialSpec] = []
     objects: list[ObjectSpec] = []
     sensors: list[SensorSpec] = []
@@ -312,11 +321,15 @@ class Scenario:
 
 def _loc(loc: tuple) -> str:
     out = ""
+    prev = None
     for part in loc:
+        tag = (prev in ("geometry", "motion") and part in ("box", "sphere", "cylinder", "capsule", "plane", "mesh",
+                                                          "static", "constant_velocity", "waypoints", "keyframes",
+                                                          "oscillation"))
+        prev = part
         if isinstance(part, int):
             out += f"[{part}]"
-        elif part in ("box", "sphere", "cylinder", "capsule", "plane", "mesh", "static", "constant_velocity",
-                      "waypoints", "keyframes", "oscillation", "function-after[_one_rotation()]"):
+        elif tag or part == "function-after[_one_rotation()]":
             continue  # discriminated-union tags add nothing for the user
         else:
             out += ("." if out else "") + str(part)
@@ -333,6 +346,8 @@ def _pydantic_problems(err: ValidationError) -> list[tuple[str, Any, str]]:
             msg = "unknown field (check the spelling)"
         elif e["type"] == "finite_number":
             msg = "a finite number (not NaN or inf)"
+        elif e["type"] == "value_error":
+            msg = msg.removeprefix("Value error, ")
         probs.append((_loc(e["loc"]), e.get("input"), msg))
     return probs
 
@@ -543,9 +558,17 @@ def load_scenario(path, overrides: dict[str, Any] | None = None, limits=None) ->
         data = yaml.load(text, Loader=_UniqueKeyLoader)  # a SafeLoader subclass
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
-        where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else "?"
-        raise ScenarioError(str(p), [(f"(YAML syntax, {where})", getattr(exc, "problem", str(exc)),
-                                      "valid YAML")]) from None
+        if mark is not None:
+            where = f"line {mark.line + 1}, column {mark.column + 1}"
+        elif isinstance(exc, yaml.reader.ReaderError):  # a character YAML does not allow (NUL, ...)
+            where = f"character {exc.position + 1}"
+        else:
+            where = "?"
+        problem = getattr(exc, "problem", None) or str(exc)
+        if isinstance(exc, yaml.reader.ReaderError):
+            ch = exc.character
+            problem = f"unacceptable character U+{ch if isinstance(ch, int) else ord(ch):04X}"
+        raise ScenarioError(str(p), [(f"(YAML syntax, {where})", problem, "valid YAML")]) from None
     if overrides and isinstance(data, dict):
         data = {**data, **overrides}
     return scenario_from_dict(data, source=str(p), base_dir=p.parent, limits=limits)

@@ -1,0 +1,33 @@
+"""Every malformed input in the catalogue (benchmarks/bad_inputs.py) gives a
+twinsense error that names the field: the scenario path, the API field or the file.
+
+The catalogue covers scenario dicts and files, constructors and calls of the
+public API, mesh files and recordings; ``python benchmarks/bad_inputs.py``
+prints the same result as a summary.
+"""
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import pytest
+
+_PATH = Path(__file__).resolve().parents[1] / "benchmarks" / "bad_inputs.py"
+_spec = importlib.util.spec_from_file_location("twinsense_bad_inputs", _PATH)
+bad_inputs = importlib.util.module_from_spec(_spec)
+sys.modules[_spec.name] = bad_inputs  # its dataclass looks its module up while it is defined
+_spec.loader.exec_module(bad_inputs)
+
+CASES = bad_inputs.catalogue()
+
+
+def test_catalogue_size_and_unique_ids():
+    # At least 150 distinct malformed inputs, each reported under its own id.
+    assert len(CASES) >= 150
+    assert len({c.id for c in CASES}) == len(CASES)
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
+def test_bad_input_gives_a_clear_error(case, tmp_path):
+    outcome, msg = bad_inputs.run_case(case, tmp_path)
+    assert outcome == "clear", f"{outcome}: expected a twinsense error naming {case.field!r}, got {msg!r}"
