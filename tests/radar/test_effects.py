@@ -128,10 +128,20 @@ def test_leakage_tone_has_its_power_and_path():
     cfg = _config(complex_if=True, leakage_dbc=-40.0, leakage_path=0.03, hp_cutoff=50e3)
     tone = effects.leakage(cfg)
     f_beat = cfg.chirp.slope * 0.03 / SPEED_OF_LIGHT
-    h = abs(effects.filter_response(f_beat, cfg.if_chain))
+    h_c = effects.filter_response(f_beat, cfg.if_chain)
+    h = abs(h_c)
     # Amplitude sqrt(2 P_t 10^(-4)) times the high-pass gain at its beat frequency.
     expect = math.sqrt(2 * 10e-3 * 1e-4) * h
     np.testing.assert_allclose(np.abs(tone), expect, rtol=1e-12)
+    # Its phase is the IF model of PHYSICS.md section 2 with tau = path / c:
+    # 2 pi f_c tau + 2 pi S tau t - pi S tau^2 (the last term 7.4e-7 rad here), plus the
+    # high-pass phase; float64 phases of ~2 pi * 6 rad agree to ~1e-14.
+    tau = 0.03 / SPEED_OF_LIGHT
+    t = np.arange(512) / 2e6
+    s = 6e9 / (512 / 2e6)
+    phase = 2 * np.pi * 57e9 * tau + 2 * np.pi * s * tau * t - np.pi * s * tau**2
+    np.testing.assert_allclose(tone[0, 0], expect * np.exp(1j * (phase + np.angle(h_c))),
+                               rtol=1e-12, atol=0)
     assert np.allclose(effects.leakage(_config()), 0.0)
 
 
