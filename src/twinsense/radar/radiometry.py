@@ -2,7 +2,8 @@
 the mirror loss of second-bounce paths.
 
 Radar equation (Skolnik, Introduction to Radar Systems, 3rd ed., sec. 1.2;
-bistatic form with one range per leg, Willis, Bistatic Radar, ch. 4):
+Patole et al., IEEE SPM 34(2) 2017, eq. 1; bistatic form with one range per
+leg, Willis, Bistatic Radar, ch. 4):
 
     P_r = P_t G_t G_r lambda^2 sigma / ((4 pi)^3 R_t^2 R_r^2),   A = sqrt(2 P_r)
 
