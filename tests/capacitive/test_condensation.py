@@ -71,6 +71,7 @@ def test_incremental_condensed_updates_meet_the_1e6_bar_and_never_recondense():
     active = cond.prepare(scene, times)
     assert 0 < active.sum() < 0.5 * cond.layout_mesh.mesh.n_cells
     reference = _sensor(False, TIGHT)
+    reference.prepare(scene, times)  # the same object-refined mesh as ``cond``
     for t in times:
         got = cond.solve_at(scene, t).matrix
         ref = reference.solve_at(scene, t).matrix
