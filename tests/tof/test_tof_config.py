@@ -27,6 +27,8 @@ from twinsense.tof import PICO_FLEXX_MODES, ToFCamera, ToFConfig, tof_preset
     ({"multipath_vpl_grid": (0, 4)}, r"multipath_vpl_grid .*two integers in 1\.\.256"),
     ({"flying_pixel_distance_far": 0.5}, r"flying_pixel_distance_far = 0\.5 is invalid"),
     ({"crosstalk_sigma_px": -0.1}, r"crosstalk_sigma_px = -0\.1 is invalid"),
+    ({"flying_pixel_false_rate": 0.5}, r"flying_pixel_false_rate = 0\.5 is invalid: expected .*<= 0\.1"),
+    ({"max_noise": -0.07}, r"max_noise = -0\.07 is invalid: expected .*or None"),
 ])
 def test_bad_values_name_field_value_and_what_is_allowed(changes, match):
     with pytest.raises(ConfigError, match=match):
