@@ -274,7 +274,13 @@ def _mesh(name: str, content: bytes | str, unit: str = "m") -> Callable[[Path], 
     return lambda tmp: MeshFile(_write(name, content)(tmp), unit)
 
 
-_CUBE_OBJ = "".join(f"v {x} {y} {z}\n" for x in (0, 1) for y in (0, 1) for z in (0, 1)) + "f 1 2 4\nf 1 4 3\n"
+def _cube_obj(edge: float) -> str:
+    """An OBJ cube (closed, 12 triangles) of the given edge length, in the file's unit."""
+    import trimesh
+
+    m = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
+    verts = "".join(f"v {float(x) * edge!r} {float(y) * edge!r} {float(z) * edge!r}\n" for x, y, z in m.vertices)
+    return verts + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in m.faces)
 
 
 def _mesh_cases() -> list[Case]:
@@ -286,10 +292,11 @@ def _mesh_cases() -> list[Case]:
         Case("mesh OBJ no faces", "mesh.path", _mesh("n.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n")),
         Case("mesh OBJ text", "mesh.path", _mesh("t.obj", "hello world\n")),
         Case("mesh OBJ NaN vertex", "mesh.path", _mesh("nan.obj", "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n")),
-        Case("mesh OBJ 20 km extent", "mesh.path", _mesh("big.obj", _CUBE_OBJ.replace("1", "20000"))),
-        Case("mesh OBJ 1 nm extent", "mesh.path", _mesh("tiny.obj", _CUBE_OBJ.replace("1", "1e-9"))),
-        Case("mesh OBJ 2 m read as km-sized mm", "mesh.path",
-             _mesh("mm.obj", _CUBE_OBJ.replace("1", "2e-7"), "mm")),
+        Case("mesh OBJ 20 km extent", "largest extent 20000 m", _mesh("big.obj", _cube_obj(2e4))),
+        Case("mesh OBJ 1 nm extent", "largest extent 1e-09 m", _mesh("tiny.obj", _cube_obj(1e-9))),
+        Case("mesh OBJ 0.5 um read in mm", "largest extent 5e-07 m (read in mm)",
+             _mesh("mm.obj", _cube_obj(5e-4), "mm")),
+        Case("mesh OBJ 1e300 extent", "mesh.path", _mesh("huge.obj", _cube_obj(1e300))),
         Case("mesh PLY garbage", "mesh.path", _mesh("g.ply", b"ply\nformat nonsense\nend_header\n\x00\x01")),
         Case("mesh OFF garbage", "mesh.path", _mesh("g.off", "OFF\n3 1 0\n0 0 0\n")),
         Case("mesh GLB garbage", "mesh.path", _mesh("g.glb", b"glTF\x02\x00\x00\x00garbage")),

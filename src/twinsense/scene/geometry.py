@@ -317,7 +317,8 @@ class MeshFile(TriangleMesh):
             raise GeometryError(f"mesh.path: file not found: {str(path)!r}")
         kind = p.suffix.lower().lstrip(".").upper()
         try:
-            loaded = trimesh.load(p, force="mesh", process=True)
+            # Unprocessed first: merging vertices (1e-8 in file units) would hide the true extent.
+            loaded = trimesh.load(p, force="mesh", process=False)
         except ImportError as exc:
             # trimesh imports some readers lazily (ASCII STL needs charset_normalizer).
             raise GeometryError(f"mesh.path: cannot read {str(path)!r}: the {kind} reader needs the missing "
@@ -334,8 +335,13 @@ class MeshFile(TriangleMesh):
         if faces.min() < 0 or faces.max() >= len(verts):
             raise GeometryError(f"mesh.path: {str(path)!r} has face indices outside its {len(verts)} vertices")
         with np.errstate(over="ignore", under="ignore"):
-            verts = verts * UNITS[unit]
-        _check_extent(f"mesh.path: {str(path)!r}", verts[np.unique(faces)], f" (read in {unit})")
+            scaled = verts * UNITS[unit]
+        _check_extent(f"mesh.path: {str(path)!r}", scaled[np.unique(faces)], f" (read in {unit})")
+        loaded.process()  # merge duplicate vertices, drop degenerate faces
+        if len(loaded.faces) == 0:
+            raise GeometryError(f"mesh.path: {str(path)!r} holds no triangles of non-zero area")
+        verts = np.asarray(loaded.vertices, dtype=float) * UNITS[unit]
+        faces = np.asarray(loaded.faces, dtype=np.int64)
         object.__setattr__(self, "path", str(path))
         object.__setattr__(self, "unit", unit)
         object.__setattr__(self, "name", p.name)
