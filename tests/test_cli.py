@@ -91,3 +91,43 @@ def test_robot_cell_runs_all_sensor_kinds(tmp_path):
     with open_recording(tmp_path / "recording.h5") as rec:
         assert {s.kind for s in rec.sensors.values()} == {"tof", "radar", "capacitive"}
         assert len(rec["radar"]) == 2 and len(rec["skin"]) == 4  # 10 Hz and 20 Hz over 0.2 s
+
+
+def test_overrides_and_limits_are_validated_like_the_file(tmp_path):
+    ex = str(ROOT / "examples" / "office_depth.yaml")
+    r = run("validate", ex, "--duration", "1e9")
+    assert r.returncode == 2 and "duration = 1000000000.0" in r.stderr and "estimated 1e+10 frames" in r.stderr
+    assert "Traceback" not in r.stderr
+    r = run("run", ex, "-o", str(tmp_path), "--duration", "-1", "--seed", "-3")
+    assert r.returncode == 2 and "duration = -1.0" in r.stderr and "seed = -3" in r.stderr
+    assert not list(tmp_path.iterdir())
+
+
+def test_run_duration_and_seed_overrides(tmp_path):
+    # office_depth.yaml: 0.5 s at 10 Hz, seed 7; the overrides give 3 frames with seed 3.
+    r = run("run", str(ROOT / "examples" / "office_depth.yaml"), "-o", str(tmp_path), "--no-progress",
+            "--duration", "0.3", "--seed", "3")
+    assert r.returncode == 0, r.stderr
+    assert "depth: 3 frames" in r.stdout
+    from twinsense import open_recording
+
+    with open_recording(tmp_path / "recording.h5") as rec:
+        assert rec.scenario["duration"] == 0.3 and rec.scenario["seed"] == 3
+        np.testing.assert_array_equal(rec["depth"].timestamps, np.arange(3) / 10)
+
+
+def test_bad_names_and_recording_paths_fail_validation(tmp_path):
+    text = (ROOT / "examples" / "office_depth.yaml").read_text()
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(text.replace("  - name: depth\n", "  - name: cam/depth\n")
+                   .replace("outputs: {recording: recording.h5}", "outputs: {recording: /tmp/x/rec.txt}"))
+    r = run("validate", str(bad))
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert "sensors[0].name = 'cam/depth'" in r.stderr and "a letter, then up to 63" in r.stderr
+    assert "outputs.recording = '/tmp/x/rec.txt'" in r.stderr and "ending in .h5" in r.stderr
+    null = tmp_path / "null.yaml"
+    null.write_text(text.replace("outputs: {recording: recording.h5}", "outputs: {recording: null}"))
+    out = tmp_path / "out"
+    r = run("run", str(null), "-o", str(out), "--no-progress", "--duration", "0.1")
+    assert r.returncode == 0, r.stderr
+    assert "no recording written (outputs.recording is null)" in r.stdout and not out.exists()

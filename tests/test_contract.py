@@ -2,8 +2,8 @@
 
 For each preset: it builds with a name and a mount, captures a frame of a
 small scene at t with an explicit generator, the frame's streams are arrays
-that a recording stores and reads back unchanged, the same seed gives the
-same frame, and the config is JSON-able. A new preset is covered by adding it
+that a recording stores and reads back unchanged (every value, dtype and
+timestamp), the same seed gives the same frame, and the config is JSON-able. A new preset is covered by adding it
 to the registry, with no new test to write.
 """
 
@@ -63,13 +63,24 @@ def test_preset_contract(kind, preset, tmp_path):
             np.testing.assert_allclose(sa[key], sb[key], rtol=1e-5, atol=1e-5 * scale)
         else:
             np.testing.assert_array_equal(sa[key], sb[key], err_msg=f"{kind}/{preset} stream {key}")
-    # Through the recorder and back, unchanged.
-    res = simulate(scene, [sensor], duration=1.0 / sensor.frame_rate, out=tmp_path / "r.h5", seed=1)
+    # Through the recorder and back, unchanged: two frames (so the second
+    # append into an existing dataset is covered), every stream bit for bit,
+    # and the timestamps exactly the frames' times.
+    res = simulate(scene, [sensor], duration=2.0 / sensor.frame_rate, out=tmp_path / "r.h5", seed=1,
+                   keep_frames=True)
+    written = res.frames["dut"]
+    assert len(written) == 2
     with open_recording(res.path) as rec:
         r = rec["dut"]
-        assert r.kind == kind and len(r) == 1
-        for key, value in sa.items():
-            assert r[key].shape[1:] == value.shape and r[key].dtype == value.dtype
+        assert r.kind == kind and len(r) == 2 and r.config == json.loads(json.dumps(sensor.config_dict()))
+        np.testing.assert_array_equal(r.timestamps, [f.t for f in written])
+        assert r.stream_names == sorted(sa)
+        for k, frame in enumerate(written):
+            for key, value in frame.streams().items():
+                got = r[key][k]
+                assert got.dtype == value.dtype and got.shape == value.shape, (kind, preset, key)
+                # assert_array_equal counts NaN == NaN (invalid pixels) as equal.
+                np.testing.assert_array_equal(got, value, err_msg=f"{kind}/{preset} frame {k} stream {key}")
 
 
 @pytest.mark.parametrize("kind", ["tof", "radar", "capacitive", "camera"])
