@@ -323,7 +323,7 @@ def _capture(kind: str, t) -> Callable[[Path], object]:
 
         scene = Scene()
         scene.add_object("box", Box((0.2, 0.2, 0.2)), pose=Pose((0, 0, 1)))
-        preset = {"camera": "generic", "tof": "generic", "radar": "infineon_bgt60tr13c"}[kind]
+        preset = {"camera": "generic", "tof": "generic", "radar": "infineon_bgt60tr13c", "capacitive": "pad-grid"}[kind]
         return make_sensor(kind, preset).capture(scene, t, np.random.default_rng(0))
 
     return call
@@ -428,6 +428,7 @@ def _api_cases() -> list[Case]:
         Case("DepthCamera capture t=NaN", "t = nan", _capture("camera", NAN)),
         Case("ToF capture t=NaN", "t = nan", _capture("tof", NAN)),
         Case("radar capture t=NaN", "t = nan", _capture("radar", NAN)),
+        Case("capacitive capture t=NaN", "t = nan", _capture("capacitive", NAN)),
         Case("DepthCamera capture t=inf", "t = inf", _capture("camera", INF)),
         Case("DepthCamera preset unknown", "kinect", lambda tmp: DepthCamera.preset("kinect")),
     ]

@@ -298,8 +298,8 @@ class CapacitiveSensor:
 
     def solve_at(self, scene, t: float) -> MaxwellResult:
         """Map the scene at time ``t`` onto the mesh and solve (incrementally)."""
+        pose = self.mount.pose_at(scene, t)  # first: it refuses a bad t before the system is built
         system = self.system
-        pose = self.mount.pose_at(scene, t)
         incs = self._inclusions(scene, t)
         if float(t) not in self._prepared_times:
             self._check_resolution(scene, t, pose)
