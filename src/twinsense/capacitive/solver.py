@@ -20,6 +20,7 @@ import scipy.sparse as sp
 
 from twinsense import validation as v
 from twinsense.capacitive.amg import BlockAMG
+from twinsense.capacitive.pcg import block_pcg
 from twinsense.errors import ConfigError
 
 __all__ = ["PRECONDITIONERS", "PCGSolver", "SolveInfo", "SolverConfig", "block_pcg"]
@@ -92,107 +93,6 @@ class SolveInfo:
 
     iterations: np.ndarray
     rebuilt: bool
-
-
-def block_pcg(
-    A: sp.csr_matrix,
-    B: np.ndarray,
-    X0: np.ndarray,
-    precond,
-    rtol: float,
-    maxiter: int,
-    energy: np.ndarray | None = None,
-    energy_tol: float = 0.0,
-    free: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Independent PCG on every column of ``A X = B``, products done together.
-
-    Two stopping rules, whichever comes first per column: the residual
-    ``|r| <= rtol |b|``, or the energy rule. CG minimises the energy
-    ``f(x) = x^T A x / 2 - b^T x`` and each step lowers ``2 f`` by exactly
-    ``alpha_k r_k^T z_k``; for a unit-potential problem ``2 f + const`` is
-    the terminal's capacitance ``x^T K x`` and its error is the sum of the
-    decrements still to come. The energy rule stops when that tail,
-    estimated from the last decrement as a geometric series with the
-    largest of the last three decrement ratios, is below ``energy_tol``
-    times the current energy.
-
-    Parameters
-    ----------
-    A : (n, n) symmetric positive definite sparse matrix.
-    B : (n, t) float right-hand sides.
-    X0 : (n, t) float initial guesses.
-    precond : callable ((n, c) float) -> (n, c) float, SPD preconditioner.
-    rtol : float, residual rule.
-    maxiter : int
-    energy : (t,) float, optional
-        ``x0^T K x0`` of every column (the energy rule needs it).
-    energy_tol : float, relative energy (capacitance) error; 0 disables the rule.
-    free : (n,) bool, optional
-        Unknowns that may change. The preconditioner's output is zeroed
-        elsewhere (an AMG coarse correction would otherwise leak into
-        Dirichlet rows), so prescribed values stay exact and the energy
-        identity above holds step by step.
-
-    Returns
-    -------
-    X : (n, t) float; iterations : (t,) int.
-    """
-    X = np.array(X0, dtype=float, copy=True)
-    R = B - A @ X
-    bnorm = np.linalg.norm(B, axis=0)
-    bnorm[bnorm == 0] = 1.0
-    t = B.shape[1]
-    iters = np.zeros(t, dtype=np.int64)
-    active = np.flatnonzero(np.linalg.norm(R, axis=0) > rtol * bnorm)
-    if len(active) == 0:
-        return X, iters
-    use_energy = energy is not None and energy_tol > 0
-    E = np.array(energy, float) if use_energy else np.zeros(t)
-    last = np.full(t, np.inf)
-    ratios = np.zeros((2, t))  # the two ratios before the current one
-    mask = None if free is None else free.astype(float)[:, None]
-
-    def apply(Rm):
-        Zm = precond(Rm)
-        return Zm if mask is None else Zm * mask
-
-    Z = apply(R[:, active])
-    P = Z.copy()
-    rz = np.einsum("ij,ij->j", R[:, active], Z)
-    for _ in range(maxiter):
-        AP = A @ P
-        pap = np.einsum("ij,ij->j", P, AP)
-        alpha = rz / pap
-        X[:, active] += alpha * P
-        Ra = R[:, active] - alpha * AP
-        R[:, active] = Ra
-        iters[active] += 1
-        still = np.linalg.norm(Ra, axis=0) > rtol * bnorm[active]
-        if use_energy:
-            drop = alpha * rz
-            E[active] -= drop
-            # Tail of a geometric series with the observed ratio (capped, so
-            # a stall never reads as convergence).
-            prev = last[active]
-            ratio = np.where(np.isfinite(prev), np.minimum(drop / prev, 0.9), 0.9)
-            # The largest of the last three ratios: CG's decrements are not
-            # a clean geometric series (least of all with a preconditioner
-            # whose coarse levels lag the matrix), and one unusually large
-            # step must not read as fast convergence.
-            seen = np.maximum(ratio, ratios[:, active].max(axis=0))
-            ratios[:, active] = np.vstack([ratios[1:, active], ratio])
-            tail = drop * seen / (1.0 - seen)
-            last[active] = drop
-            still &= tail > energy_tol * np.abs(E[active])
-        if not np.any(still):
-            return X, iters
-        active, Ra, P, rz = active[still], Ra[:, still], P[:, still], rz[still]
-        Z = apply(Ra)
-        rz_new = np.einsum("ij,ij->j", Ra, Z)
-        P = Z + (rz_new / rz) * P
-        rz = rz_new
-    raise RuntimeError(f"PCG did not converge in {maxiter} iterations (columns {active.tolist()} still active)")
 
 
 class PCGSolver:

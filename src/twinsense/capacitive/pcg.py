@@ -1,0 +1,146 @@
+"""Preconditioned conjugate gradients on many right-hand sides at once.
+
+:func:`block_pcg` runs an independent CG per column but does the sparse
+products for all active columns together; a column leaves the block when its
+residual or its energy (capacitance) error is small enough.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+__all__ = ["block_pcg"]
+
+# Cap of the decrement ratio in the energy rule's tail estimate, so a stall
+# never reads as convergence.
+_MAX_RATIO = 0.9
+
+
+@dataclass
+class _EnergyTail:
+    """The energy stopping rule's state (see :func:`block_pcg`).
+
+    Attributes
+    ----------
+    energy : (t,) float, current ``x^T K x`` per column [F].
+    last : (t,) float, the previous energy decrement per column (inf before the first).
+    ratios : (2, t) float, the two decrement ratios before the current one.
+    """
+
+    energy: np.ndarray
+    last: np.ndarray
+    ratios: np.ndarray
+
+    @classmethod
+    def start(cls, energy: np.ndarray) -> _EnergyTail:
+        t = len(energy)
+        return cls(np.array(energy, float), np.full(t, np.inf), np.zeros((2, t)))
+
+    def unconverged(self, active: np.ndarray, drop: np.ndarray, tol: float) -> np.ndarray:
+        """Record the decrements ``drop`` of columns ``active``; (a,) bool: tail still above ``tol``."""
+        self.energy[active] -= drop
+        # Tail of a geometric series with the observed ratio (capped).
+        prev = self.last[active]
+        ratio = np.where(np.isfinite(prev), np.minimum(drop / prev, _MAX_RATIO), _MAX_RATIO)
+        # The largest of the last three ratios: CG's decrements are not a
+        # clean geometric series (least of all with a preconditioner whose
+        # coarse levels lag the matrix), and one unusually large step must
+        # not read as fast convergence.
+        seen = np.maximum(ratio, self.ratios[:, active].max(axis=0))
+        self.ratios[:, active] = np.vstack([self.ratios[1:, active], ratio])
+        tail = drop * seen / (1.0 - seen)
+        self.last[active] = drop
+        return tail > tol * np.abs(self.energy[active])
+
+
+def _dots(U: np.ndarray, V: np.ndarray) -> np.ndarray:
+    """Column-wise inner products (c,) of two (n, c) blocks."""
+    return np.einsum("ij,ij->j", U, V)
+
+
+def block_pcg(
+    A: sp.csr_matrix,
+    B: np.ndarray,
+    X0: np.ndarray,
+    precond,
+    rtol: float,
+    maxiter: int,
+    energy: np.ndarray | None = None,
+    energy_tol: float = 0.0,
+    free: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Independent PCG on every column of ``A X = B``, products done together.
+
+    Two stopping rules, whichever comes first per column: the residual
+    ``|r| <= rtol |b|``, or the energy rule. CG minimises the energy
+    ``f(x) = x^T A x / 2 - b^T x`` and each step lowers ``2 f`` by exactly
+    ``alpha_k r_k^T z_k``; for a unit-potential problem ``2 f + const`` is
+    the terminal's capacitance ``x^T K x`` and its error is the sum of the
+    decrements still to come. The energy rule stops when that tail,
+    estimated from the last decrement as a geometric series with the
+    largest of the last three decrement ratios, is below ``energy_tol``
+    times the current energy.
+
+    Parameters
+    ----------
+    A : (n, n) symmetric positive definite sparse matrix.
+    B : (n, t) float right-hand sides.
+    X0 : (n, t) float initial guesses.
+    precond : callable ((n, c) float) -> (n, c) float, SPD preconditioner.
+    rtol : float, residual rule.
+    maxiter : int
+    energy : (t,) float, optional
+        ``x0^T K x0`` of every column (the energy rule needs it).
+    energy_tol : float, relative energy (capacitance) error; 0 disables the rule.
+    free : (n,) bool, optional
+        Unknowns that may change. The preconditioner's output is zeroed
+        elsewhere (an AMG coarse correction would otherwise leak into
+        Dirichlet rows), so prescribed values stay exact and the energy
+        identity above holds step by step.
+
+    Returns
+    -------
+    X : (n, t) float; iterations : (t,) int.
+    """
+    X = np.array(X0, dtype=float, copy=True)
+    R = B - A @ X
+    bnorm = np.linalg.norm(B, axis=0)
+    bnorm[bnorm == 0] = 1.0
+    iters = np.zeros(B.shape[1], dtype=np.int64)
+    active = np.flatnonzero(np.linalg.norm(R, axis=0) > rtol * bnorm)
+    if len(active) == 0:
+        return X, iters
+    tail = _EnergyTail.start(energy) if energy is not None and energy_tol > 0 else None
+    mask = None if free is None else free.astype(float)[:, None]
+
+    def apply(Rm):
+        Zm = precond(Rm)
+        return Zm if mask is None else Zm * mask
+
+    Z = apply(R[:, active])
+    P = Z.copy()
+    rz = _dots(R[:, active], Z)
+    for _ in range(maxiter):
+        # One CG step on every active column.
+        AP = A @ P
+        alpha = rz / _dots(P, AP)
+        X[:, active] += alpha * P
+        Ra = R[:, active] - alpha * AP
+        R[:, active] = Ra
+        iters[active] += 1
+        # Stopping rules; converged columns leave the block.
+        still = np.linalg.norm(Ra, axis=0) > rtol * bnorm[active]
+        if tail is not None:
+            still &= tail.unconverged(active, alpha * rz, energy_tol)
+        if not np.any(still):
+            return X, iters
+        active, Ra, P, rz = active[still], Ra[:, still], P[:, still], rz[still]
+        # Next search directions.
+        Z = apply(Ra)
+        rz_new = _dots(Ra, Z)
+        P = Z + (rz_new / rz) * P
+        rz = rz_new
+    raise RuntimeError(f"PCG did not converge in {maxiter} iterations (columns {active.tolist()} still active)")
