@@ -31,3 +31,25 @@ def test_catalogue_size_and_unique_ids():
 def test_bad_input_gives_a_clear_error(case, tmp_path):
     outcome, msg = bad_inputs.run_case(case, tmp_path)
     assert outcome == "clear", f"{outcome}: expected a twinsense error naming {case.field!r}, got {msg!r}"
+
+
+@pytest.mark.parametrize("content", [
+    bytes(range(256)),  # binary
+    b"name: x\nname: y\n",  # duplicate key
+    b"duration: .nan\n",
+    b"objects: [{name: a, geometry: {type: sphere, radius: 1.0e-300}}]\n",
+    b"objects: [{name: a, geometry: {type: box, size: [1, 1, 1]}, pose: {quat_xyzw: [1.0e+200, 1e200, 0, 0]},"
+    b" motion: {type: waypoints, points: [[0, 0, 0], [0, 0, 0]], speed: 1}}]\n",
+])
+def test_cli_reports_bad_files_without_traceback(content, tmp_path):
+    # The command line prints the twinsense error (file, field, value, what is allowed) and exits with 2.
+    from typer.testing import CliRunner
+
+    from twinsense.cli import app
+
+    p = tmp_path / "bad.yaml"
+    p.write_bytes(content)
+    res = CliRunner().invoke(app, ["validate", str(p)])
+    assert res.exit_code == 2, res.output
+    assert res.exception is None or isinstance(res.exception, SystemExit)
+    assert "Traceback" not in res.output and "bad.yaml: 1 problem" in res.output

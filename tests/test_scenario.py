@@ -237,3 +237,16 @@ def test_duplicate_keys_and_non_path_arguments(tmp_path):
         load_scenario(p)
     with pytest.raises(ScenarioError, match=r"\(file\) = 123: a path \(str or os.PathLike\)"):
         load_scenario(123)
+
+
+def test_yaml_numbers_without_exponent_sign_and_booleans(tmp_path):
+    # PyYAML (YAML 1.1) reads 2e-1 as the text "2e-1": it must still count as 0.2 m,
+    # while true (which pydantic would read as 1) is refused where a number belongs.
+    text = EXAMPLE.read_text().replace("radius: 0.2", "radius: 2e-1")
+    assert "radius: 2e-1" in text
+    p = tmp_path / "s.yaml"
+    p.write_text(text)
+    assert load_scenario(p).scene.object("ball").geometry.radius == 0.2
+    p.write_text(text.replace("radius: 2e-1", "radius: true"))
+    with pytest.raises(ScenarioError, match=r"objects\[3\].geometry.radius = True: Input should be a valid number"):
+        load_scenario(p)

@@ -63,9 +63,13 @@ class ScenarioError(TwinsenseError, ValueError):
 
 
 def _number_only(value: Any) -> Any:
-    """Refuse true/false and text where a number belongs (pydantic would read true as 1 and "0.5" as 0.5)."""
-    if isinstance(value, (bool, str, bytes)):
-        raise ValueError("Input should be a valid number, not true/false or text")
+    """Refuse true/false where a number belongs (pydantic would read true as 1).
+
+    Text that reads as a number stays allowed: PyYAML (YAML 1.1) loads ``1e-3``
+    (no exponent sign) as the string "1e-3".
+    """
+    if isinstance(value, bool):
+        raise ValueError("Input should be a valid number, not true/false")
     return value
 
 
