@@ -241,7 +241,7 @@ def test_duplicate_keys_and_non_path_arguments(tmp_path):
 
 def test_yaml_numbers_without_exponent_sign_and_booleans(tmp_path):
     # PyYAML (YAML 1.1) reads 2e-1 as the text "2e-1"; a scenario reads it as 0.2 (YAML 1.2),
-    # also where the value goes on unconverted (sensor overrides: width 64 written as 6.4e1).
+    # also where the value goes on unconverted (sensor settings: a frame rate of 1e1 Hz).
     # true (which pydantic would read as 1) is refused where a number belongs.
     text = EXAMPLE.read_text().replace("radius: 0.2", "radius: 2e-1").replace("frame_rate: 10", "frame_rate: 1e1")
     assert "radius: 2e-1" in text and "frame_rate: 1e1" in text

@@ -109,3 +109,32 @@ def test_layers_validated():
     with pytest.raises(ConfigError, match="layers"):
         SceneObject("o", Box(), "wood", layers=["lidar"])
     assert not SceneObject("o", Box(), "wood", layers=["tof"]).visible_to("radar")
+
+
+@pytest.mark.parametrize("make, n_faces", [
+    (lambda s: Sphere(s, 2), 320),  # icosphere: 20 * 4^2
+    (lambda s: Cylinder(s, 3 * s, 16), 64),  # 16 sides x 2 + 2 caps x 16
+    (lambda s: Capsule(s, 2 * s), None),
+])
+def test_primitives_keep_their_triangles_at_the_size_limits(make, n_faces):
+    # Built at unit size and scaled: the same triangles at 1 um, 1 m and 10 km
+    # (trimesh drops faces under its absolute 1e-8 merge tolerance when built in place),
+    # and vertices that scale exactly (products by a float: rel 1e-15).
+    ref = make(1.0).mesh
+    for s in (1e-6, 1e4 / 3):
+        m = make(s).mesh
+        assert len(m.faces) == len(ref.faces) == (n_faces or len(ref.faces))
+        np.testing.assert_allclose(m.vertices, ref.vertices * s, rtol=1e-15, atol=0)
+    with pytest.raises(ConfigError, match=r"radius = 1e-07 is invalid: expected a finite number >= 1e-06 and <= 10000"):
+        make(1e-7)
+
+
+def test_mesh_file_extent_is_checked_in_its_unit(tmp_path):
+    # A 2 m part written in mm is 2000 units: fine in mm, 2 km (fine) in m; 20 000 units in m is 20 km.
+    import trimesh
+
+    trimesh.creation.box(extents=(2000, 10, 10)).export(tmp_path / "part.stl")
+    assert MeshFile(tmp_path / "part.stl", "mm").mesh.extents[0] == pytest.approx(2.0, rel=1e-12, abs=0)
+    trimesh.creation.box(extents=(20000, 10, 10)).export(tmp_path / "big.stl")
+    with pytest.raises(GeometryError, match=r"largest extent 20000 m \(read in m\) is outside the allowed \[1e-06"):
+        MeshFile(tmp_path / "big.stl", "m")

@@ -81,3 +81,42 @@ def test_keyframes_hit_the_keys():
 def test_bad_motion(make, match):
     with pytest.raises(ConfigError, match=match):
         make()
+
+
+@pytest.mark.parametrize("motion", [
+    Static(Pose()),
+    ConstantVelocity(Pose(), (1, 0, 0)),
+    Waypoints([[0, 0, 0], [1, 0, 0]], 1.0),
+    Keyframes([0.0, 1.0], (Pose(), Pose((1, 0, 0)))),
+    Oscillation(Pose(), (0, 0, 0.1), 1.0),
+])
+@pytest.mark.parametrize("t", [float("nan"), float("inf"), -1.1e10, "0.5", None])
+def test_state_refuses_times_that_are_not_finite_numbers(motion, t):
+    # A NaN time used to return the start pose (Waypoints, Static) or NaN poses.
+    with pytest.raises(ConfigError, match=r"^t = .* expected a finite number >= -1e\+10 and <= 1e\+10 \[s\]"):
+        motion.state(t)
+
+
+def test_speed_limits_are_the_speed_of_light():
+    # Keyframes imply the speed |dp| / dt: 1 m in 1 ns is 1e9 m/s > c = 2.998e8 m/s (refused),
+    # 0.25 m in 1 ns is 2.5e8 m/s (allowed; the state reports that speed exactly).
+    with pytest.raises(ConfigError, match=r"motion.times\[1\] = 1e-09 .* speed stays <= 2.99792e\+08 m/s"):
+        Keyframes([0.0, 1e-9], (Pose(), Pose((1, 0, 0))))
+    k = Keyframes([0.0, 1e-9], (Pose(), Pose((0.25, 0, 0))))
+    assert k.state(0.5e-9).linear_velocity[0] == pytest.approx(2.5e8, rel=1e-12, abs=0)
+    # An oscillation's peak speed is |a| 2 pi f: 1 m at 1e6 Hz is 6.3e6 m/s (allowed),
+    # 100 m at 1e6 Hz is 6.3e8 m/s (refused).
+    Oscillation(Pose(), (0, 0, 1.0), 1e6)
+    with pytest.raises(ConfigError, match="motion.amplitude"):
+        Oscillation(Pose(), (0, 0, 100.0), 1e6)
+    with pytest.raises(ConfigError, match="motion.velocity"):
+        ConstantVelocity(Pose(), (3e8, 0, 1))
+
+
+def test_waypoint_path_length_without_overflow():
+    # Squares of 1e200 overflow; the scaled norm gives sqrt(2) * 1e200 to float precision
+    # (a few ulp: rel 1e-15), and the motion runs along it.
+    w = Waypoints([[0, 0, 0], [1e200, 1e200, 0]], 1.0)
+    assert w.length == pytest.approx(np.sqrt(2) * 1e200, rel=1e-15, abs=0)
+    s = w.state(2.0)
+    np.testing.assert_allclose(s.pose.position, [np.sqrt(2), np.sqrt(2), 0], rtol=1e-15, atol=0)

@@ -89,7 +89,8 @@ class Pose:
         """Position [m] and unit quaternion in (x, y, z, w) order (scipy/ROS convention)."""
         q = V.vector("Pose.quat_xyzw", quat_xyzw, 4)
         # Scale by the largest entry before normalising: the norm of
-        # (1e200, 1e200, 0, 0) overflows, that of (1e-200, ...) underflows.
+        # (1e200, 1e200, 0, 0) overflows. A near-zero one is refused: its
+        # direction is mostly rounding noise.
         m = np.max(np.abs(q))
         if m < 1e-9:
             raise ConfigError("Pose.quat_xyzw", quat_xyzw, "a non-zero quaternion (x, y, z, w)")
