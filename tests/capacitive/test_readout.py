@@ -27,3 +27,15 @@ def test_quantisation_and_delta():
     assert np.allclose(measured / 1e-15, np.round(measured / 1e-15), atol=1e-9)
     assert delta[1] == 0.0
     assert delta[0] == pytest.approx(40e-15, abs=1e-15)  # within one LSB
+
+
+def test_quantiser_rounds_to_the_nearest_step():
+    # Round to nearest: every error is within half an LSB and, over values
+    # spread evenly across 50 steps, the errors average to zero (a floor or a
+    # ceiling would bias them by half an LSB; the grid's ends leave < 1e-3 LSB).
+    lsb = 1e-15
+    values = 2e-12 + np.linspace(0.0, 50 * lsb, 5001)
+    measured, _ = read_out(values, values, ReadoutConfig(resolution=lsb), None)
+    err = measured - values
+    assert np.abs(err).max() <= 0.5 * lsb * (1 + 1e-6)
+    assert abs(err.mean()) < 0.01 * lsb
