@@ -138,3 +138,19 @@ def test_mesh_file_extent_is_checked_in_its_unit(tmp_path):
     trimesh.creation.box(extents=(20000, 10, 10)).export(tmp_path / "big.stl")
     with pytest.raises(GeometryError, match=r"largest extent 20000 m \(read in m\) is outside the allowed \[1e-06"):
         MeshFile(tmp_path / "big.stl", "m")
+
+
+def test_mesh_reader_without_its_optional_import(tmp_path, monkeypatch):
+    # trimesh guesses the text encoding of a non-UTF-8 STL with charset_normalizer,
+    # imported only then: without it the error names the package, not "No module named ...".
+    import sys
+
+    p = tmp_path / "latin.stl"
+    p.write_bytes(b"solid \xe9\nfacet normal 0 0 1\n")
+    monkeypatch.setitem(sys.modules, "charset_normalizer", None)
+    with pytest.raises(GeometryError, match=r"latin.stl'?: the STL reader needs the missing package charset_normal"):
+        MeshFile(p)
+    monkeypatch.undo()
+    with pytest.raises(GeometryError, match="latin.stl") as info:
+        MeshFile(p)
+    assert "charset" not in str(info.value)
