@@ -51,6 +51,7 @@ from twinsense import (
     register_material,
 )
 from twinsense.errors import TwinsenseError
+from twinsense.radar.scatterers import Scatterers
 from twinsense.scenario import scenario_from_dict
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "office_depth.yaml"
@@ -329,6 +330,12 @@ def _capture(kind: str, t) -> Callable[[Path], object]:
     return call
 
 
+def _radar():
+    from twinsense.presets import make_sensor
+
+    return make_sensor("radar", "infineon_bgt60tr13c")
+
+
 def _api_cases() -> list[Case]:
     p = Pose()
     c = [
@@ -429,6 +436,8 @@ def _api_cases() -> list[Case]:
         Case("ToF capture t=NaN", "t = nan", _capture("tof", NAN)),
         Case("radar capture t=NaN", "t = nan", _capture("radar", NAN)),
         Case("capacitive capture t=NaN", "t = nan", _capture("capacitive", NAN)),
+        Case("radar capture_scatterers t=NaN", "t = nan", lambda tmp: _radar().capture_scatterers(
+            Scatterers(np.array([[0.0, 0.0, 2.0]]), np.zeros((1, 3)), np.ones(1), np.zeros(1, int)), NAN)),
         Case("DepthCamera capture t=inf", "t = inf", _capture("camera", INF)),
         Case("DepthCamera preset unknown", "kinect", lambda tmp: DepthCamera.preset("kinect")),
     ]

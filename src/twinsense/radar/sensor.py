@@ -179,6 +179,7 @@ class FMCWRadar:
                            rng: np.random.Generator | None = None,
                            pose: Pose | None = None) -> RadarFrame:
         """One frame from given scatterers (sensor frame), without a scene."""
+        t = V.time("t", t)  # no mount here to check it (capture checks it there)
         cfg = self.config
         if rng is None:
             rng = np.random.default_rng(round(t * 1e6) & 0xFFFFFFFF)
