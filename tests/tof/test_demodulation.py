@@ -128,3 +128,19 @@ def test_noise_rows_do_not_depend_on_the_split():
     # Standard normal draws: mean 0, variance 1 within sampling error (n = 1323: 5 sigma).
     z = full.raw.ravel()
     assert abs(z.mean()) < 5 / np.sqrt(z.size) and abs(z.var() - 1) < 5 * np.sqrt(2 / z.size)
+
+
+def test_unwrapped_distance_weights_each_frequency_by_its_inverse_variance():
+    """Equal phase noise: distance variance ~ 1/f^2, so the weights are f^2 / sum f^2.
+
+    Wrapped distances off by +1 cm (80.32 MHz) and -1 cm (60.24 MHz), far inside the
+    unwrapping margin: the combined error is (f1^2 - f2^2) / (f1^2 + f2^2) x 1 cm = 2.80 mm
+    (weights proportional to f would give 1.43 mm).
+    """
+    f1, f2 = 80.32e6, 60.24e6
+    r1, r2 = C_LIGHT / (2 * f1), C_LIGHT / (2 * f2)
+    truth = np.array([0.5, 1.7, 3.3, 6.1])
+    d = unwrap_two_frequencies(np.mod(truth + 0.01, r1), np.mod(truth - 0.01, r2), f1, f2)
+    expected = (f1 ** 2 - f2 ** 2) / (f1 ** 2 + f2 ** 2) * 0.01
+    # float32 distances of a few metres: ~1e-6 m.
+    np.testing.assert_allclose(d - truth, expected, atol=5e-6)

@@ -159,3 +159,21 @@ def test_noisy_step_edge_still_loses_its_flying_pixels(look_x, small_config):
     assert np.all(flying[:, edge_col])
     # Elsewhere the false-positive rate is 1e-3 of 690 pixels: 0.7 expected; 4 is > 3 sigma.
     assert np.delete(flying, edge_col, axis=1).sum() <= 4
+
+
+def test_confidence_falls_linearly_to_128_at_the_noise_cutoff():
+    """Royale's depth confidence: 255 for a noiseless pixel, 128 at the cut-off, 1 at twice it."""
+    from twinsense.tof.pipeline import ChainOutput, finish_geometry
+
+    cfg = tof_preset("paper_pico_flexx", width=4, height=1)
+    m = cfg.noise_cutoff  # 0.351 m at 20 MHz
+    noise = np.array([[0.0, m / 2, m, 2 * m]], np.float32)
+    shape = noise.shape
+    out = ChainOutput(raw=None, gray=None, phase=None, amplitude=None, distance=np.full(shape, 2.0, np.float32),
+                      noise=noise, invalid=np.zeros(shape, np.uint8))
+    dirs = np.zeros((*shape, 3), np.float32)
+    dirs[..., 2] = 1.0
+    _, _, invalid, confidence, _ = finish_geometry(out, dirs, cfg.replaced(flying_pixel_filter=False))
+    # 255 (1 - sigma / (2 m)): 255, 191.25, 127.5 -> 128, 0 -> 1 (a valid pixel is never 0).
+    np.testing.assert_array_equal(confidence[0], [255, 191, 128, 1])
+    assert not invalid.any()  # the noise filter acts in the chain, not here
