@@ -57,13 +57,25 @@ def test_sphere_converges_at_second_order(outer):
     for level in (0, 1):
         mesh, rad = _shell(level, b)
         C = _maxwell(mesh, [np.flatnonzero(np.isclose(rad, a))], outer, center=(0, 0, 0))
-        errors.append(abs(C[0, 0] / exact - 1))
+        errors.append(C[0, 0] / exact - 1)
     # Smooth solution, P1 and a polyhedral sphere: energy error O(h^2), so
     # halving h divides it by ~4 (3 allows for pre-asymptotic meshes).
-    assert errors[0] / errors[1] > 3.0
-    # Level 1: 320 triangles per sphere (edge ~0.3 a) and 8 layers; the
-    # measured O(h^2) constant puts the error near 2.4 % (grounded), 0.7 % (open).
-    assert errors[1] < (0.03 if outer == "grounded" else 0.01)
+    assert abs(errors[0]) / abs(errors[1]) > 3.0
+    _assert_second_order_limit(errors)
+
+
+def _assert_second_order_limit(errors):
+    """The O(h^2) model accounts for the error: its extrapolate is the closed form.
+
+    With e(h) = c h^2 + (higher order), the Richardson extrapolate
+    (4 e_1 - e_0) / 3 cancels the h^2 term; what is left is smaller than e_1
+    by a factor O(h_1 / a) ~ 0.3 on level 1 (320 triangles per sphere, edge
+    ~0.3 a). Bound: half of e_1. Measured: 0.015 e_1 (grounded sphere),
+    0.007 e_1 (open), 0.33 e_1 (floating shell, whose refinement ratio is
+    3.0, still pre-asymptotic).
+    """
+    richardson = (4 * errors[1] - errors[0]) / 3
+    assert abs(richardson) < 0.5 * abs(errors[1])
 
 
 def test_floating_shell_between_spheres_is_two_capacitors_in_series():
@@ -76,9 +88,9 @@ def test_floating_shell_between_spheres_is_two_capacitors_in_series():
         mesh, rad = _shell(level, c, extra=[b1, b2])
         floating = np.flatnonzero((rad >= b1 * (1 - 1e-9)) & (rad <= b2 * (1 + 1e-9)))
         C = _maxwell(mesh, [np.flatnonzero(np.isclose(rad, a))], "grounded", floating=[floating])
-        errors.append(abs(C[0, 0] / exact - 1))
-    assert errors[0] / errors[1] > 3.0  # O(h^2) as for the single sphere
-    assert errors[1] < 0.03  # same mesh sizes as the sphere test
+        errors.append(C[0, 0] / exact - 1)
+    assert abs(errors[0]) / abs(errors[1]) > 3.0  # O(h^2) as for the single sphere
+    _assert_second_order_limit(errors)  # same mesh sizes as the sphere test
 
 
 def _disk_mesh(level: int, z_planes, R=4.0):
