@@ -24,9 +24,10 @@ from twinsense.constants import BOLTZMANN
 from twinsense.errors import ConfigError
 from twinsense.radar.antennas import AntennaArray
 from twinsense.radar.chirp import ChirpConfig
+from twinsense.radar.impairments import Impairments
 from twinsense.radar.receiver import NOISE_MODES, IFChain, NoiseConfig
 
-__all__ = ["NOISE_MODES", "ChirpConfig", "IFChain", "NoiseConfig", "RadarConfig"]
+__all__ = ["NOISE_MODES", "ChirpConfig", "IFChain", "Impairments", "NoiseConfig", "RadarConfig"]
 
 
 @dataclass(frozen=True)
@@ -50,6 +51,9 @@ class RadarConfig:
     multipath : bool
         Add second-bounce paths over mirror-like surfaces
         (see :mod:`twinsense.radar.scatterers`).
+    impairments : Impairments
+        Front-end impairments: phase noise, chirp non-linearity, I/Q imbalance
+        (see :mod:`twinsense.radar.impairments`); default: none.
     """
 
     chirp: ChirpConfig
@@ -63,11 +67,13 @@ class RadarConfig:
     render_height: int = 128
     specular_lobe_deg: float = 10.0
     multipath: bool = False
+    impairments: Impairments = field(default_factory=Impairments)
 
     def __post_init__(self) -> None:
         p = "RadarConfig"
         for name, typ in (("chirp", ChirpConfig), ("antennas", AntennaArray),
-                          ("if_chain", IFChain), ("noise", NoiseConfig)):
+                          ("if_chain", IFChain), ("noise", NoiseConfig),
+                          ("impairments", Impairments)):
             if not isinstance(getattr(self, name), typ):
                 raise ConfigError(f"{p}.{name}", getattr(self, name), f"a {typ.__name__}")
         V.number(f"{p}.tx_power_dbm", self.tx_power_dbm, lo=-60, hi=60, unit="dBm")
@@ -80,6 +86,12 @@ class RadarConfig:
         if not isinstance(self.multipath, bool):
             raise ConfigError(f"{p}.multipath", self.multipath, "true or false")
         c, ifc = self.chirp, self.if_chain
+        if self.impairments.iq_imbalance and not ifc.complex_if:
+            raise ConfigError("Impairments.iq_gain_imbalance",
+                              (self.impairments.iq_gain_imbalance,
+                               self.impairments.iq_phase_imbalance_deg),
+                              "zero I/Q imbalance for a real-IF receiver (IFChain.complex_if = False "
+                              "has no Q branch)")
         if ifc.max_sample_rate is not None and c.sample_rate > ifc.max_sample_rate:
             raise ConfigError("ChirpConfig.sample_rate", c.sample_rate,
                               f"<= the ADC's maximum sample rate {ifc.max_sample_rate:g} Hz")
@@ -166,9 +178,9 @@ class RadarConfig:
             else:
                 top[key] = value
         for part, subs in nested.items():
-            if part not in ("chirp", "if_chain", "noise", "antennas"):
+            if part not in ("chirp", "if_chain", "noise", "antennas", "impairments"):
                 raise ConfigError(f"RadarConfig.{part}", subs,
-                                  "a sub-config: chirp, if_chain, noise or antennas")
+                                  "a sub-config: chirp, if_chain, noise, antennas or impairments")
             base = top.get(part, getattr(self, part))
             try:
                 top[part] = replace(base, **subs)
@@ -188,4 +200,5 @@ class RadarConfig:
                 "tx_power_dbm": self.tx_power_dbm, "hfov_deg": self.hfov_deg,
                 "vfov_deg": self.vfov_deg, "render_width": self.render_width,
                 "render_height": self.render_height,
-                "specular_lobe_deg": self.specular_lobe_deg, "multipath": self.multipath}
+                "specular_lobe_deg": self.specular_lobe_deg, "multipath": self.multipath,
+                "impairments": self.impairments.to_dict()}

@@ -8,9 +8,18 @@ from typing import Any
 import numpy as np
 
 from twinsense import validation as V
+from twinsense.constants import SPEED_OF_LIGHT
 from twinsense.errors import ConfigError
 from twinsense.radar import effects
 from twinsense.radar.config import RadarConfig
+from twinsense.radar.impairments import (
+    apply_iq_imbalance,
+    complex_config,
+    delay_groups,
+    delay_impairment,
+    path_delays,
+)
+from twinsense.radar.interference import Interferer, interference
 from twinsense.radar.presets import preset_config
 from twinsense.radar.processing import ProcessingResult, ProcessingSettings, process_cube
 from twinsense.radar.radiometry import received_amplitude
@@ -119,6 +128,12 @@ class FMCWRadar:
         scatterers that changed (those a moving object now hides or
         uncovers, and the movers). Exact up to the synthesis' ``eps``; a
         moving radar or a changed scene simply rebuilds what is kept.
+        Phase noise or a chirp non-linearity (``config.impairments``)
+        change every frame's IF signal, so they bypass what is kept.
+    interferers : sequence of Interferer, FMCWRadar or (FMCWRadar, time_offset)
+        Other radars whose chirps reach this one (see
+        :mod:`twinsense.radar.interference`); usually the other radars of the
+        same simulation. A bare radar has ``time_offset`` 0.
     """
 
     kind = "radar"
@@ -126,7 +141,7 @@ class FMCWRadar:
     def __init__(self, config: RadarConfig, *, name: str = "radar", mount: Mount | None = None,
                  processing: ProcessingSettings | None = None, process: bool = True,
                  backend: str = "embree", eps: float = 1e-6, workers: int | None = None,
-                 reuse_static: bool = True):
+                 reuse_static: bool = True, interferers=()):
         if not isinstance(config, RadarConfig):
             raise ConfigError("FMCWRadar.config", config, "a RadarConfig")
         if not isinstance(name, str) or not name:
@@ -143,8 +158,32 @@ class FMCWRadar:
         self.workers = (default_workers() if workers is None
                         else V.integer("FMCWRadar.workers", workers, lo=1, hi=64))
         self.reuse_static = bool(reuse_static)
+        self.interferers = self._check_interferers(interferers)
         self._renderer: ScatterRenderer | None = None
         self._static_base: _StaticBase | None = None
+
+    def _check_interferers(self, interferers) -> tuple[Interferer, ...]:
+        if isinstance(interferers, (FMCWRadar, Interferer)):
+            interferers = [interferers]
+        try:
+            items = list(interferers)
+        except TypeError:
+            raise ConfigError("FMCWRadar.interferers", interferers,
+                              "a sequence of Interferer, FMCWRadar or (FMCWRadar, time_offset)") from None
+        out = []
+        for i, item in enumerate(items):
+            if isinstance(item, FMCWRadar):
+                item = Interferer(item)
+            elif isinstance(item, tuple) and len(item) == 2:
+                item = Interferer(*item)
+            if not isinstance(item, Interferer):
+                raise ConfigError(f"FMCWRadar.interferers[{i}]", item,
+                                  "an Interferer, an FMCWRadar or (FMCWRadar, time_offset)")
+            if item.radar is self:
+                raise ConfigError(f"FMCWRadar.interferers[{i}]", item.radar.name,
+                                  "another radar (a radar does not interfere with itself)")
+            out.append(item)
+        return tuple(out)
 
     # ---- sensor protocol ---------------------------------------------------
     @property
@@ -173,23 +212,42 @@ class FMCWRadar:
             self._renderer = ScatterRenderer(self.config, self.backend, self.workers,
                                              reuse_static_hits=self.reuse_static)
         scat = self._renderer.render(scene, state, t)
-        return self.capture_scatterers(scat, t, rng, pose=state.pose)
+        poses = [i.radar.mount.pose_at(scene, t) for i in self.interferers]
+        return self.capture_scatterers(scat, t, rng, pose=state.pose, interferer_poses=poses)
 
     def capture_scatterers(self, scatterers: Scatterers, t: float = 0.0,
                            rng: np.random.Generator | None = None,
-                           pose: Pose | None = None) -> RadarFrame:
-        """One frame from given scatterers (sensor frame), without a scene."""
+                           pose: Pose | None = None,
+                           interferer_poses: list[Pose] | None = None) -> RadarFrame:
+        """One frame from given scatterers (sensor frame), without a scene.
+
+        ``interferer_poses`` are the poses of ``self.interferers`` (default:
+        their mounts' poses, which needs mounts fixed in the world).
+        """
         t = V.time("t", t)  # no mount here to check it (capture checks it there)
         cfg = self.config
         if rng is None:
             rng = np.random.default_rng(round(t * 1e6) & 0xFFFFFFFF)
-        sig = self._signal(scatterers)
-        sig = (sig + effects.leakage(cfg)) * cfg.if_chain.voltage_gain
+        # The noise is drawn first: the impairments' draws then leave it unchanged.
         noise = effects.shape_noise(effects.thermal_noise(cfg, rng), cfg)
+        imp = cfg.impairments
+        if imp.delay_dependent:
+            sig = self._impaired_signal(scatterers, rng)
+        else:
+            sig = self._signal(scatterers) + effects.leakage(cfg)
+        pose = pose or self.mount.pose
+        if self.interferers:
+            if interferer_poses is None:
+                interferer_poses = [i.radar.mount.pose_at(None, t) for i in self.interferers]
+            for item, ipose in zip(self.interferers, interferer_poses, strict=True):
+                part = interference(cfg, pose, t, item.radar.config, ipose, item.time_offset, rng)
+                sig = sig + (part if cfg.if_chain.complex_if else part.real)
+        if imp.iq_imbalance:
+            sig = apply_iq_imbalance(sig, imp.iq_gain_imbalance, imp.iq_phase_imbalance_deg)
+        sig = sig * cfg.if_chain.voltage_gain
         # The DC offset sits on every real channel (on I and on Q alike).
         dc = cfg.if_chain.dc_offset * ((1 + 1j) if cfg.if_chain.complex_if else 1.0)
         adc = effects.adc(sig + noise + dc, cfg.if_chain)
-        pose = pose or self.mount.pose
         frame = RadarFrame(float(t), adc, sig, noise, cfg, pose, scatterers)
         if self.process:
             frame = RadarFrame(frame.t, adc, sig, noise, cfg, pose, scatterers,
@@ -246,6 +304,39 @@ class FMCWRadar:
         self._static_base = _StaticBase(cfg, self.eps, p.copy(), s.rcs.copy(), w, moving, static)
         return static + self._moving_signal(p, v, w, moving)
 
+    def _impaired_signal(self, s: Scatterers, rng: np.random.Generator) -> np.ndarray:
+        """IF cube with the delay-dependent impairments (phase noise, ramp error), leakage included.
+
+        Scatterers are grouped by path delay (see :mod:`twinsense.radar.impairments`);
+        each group is synthesised as an analytic (complex) IF signal and
+        multiplied by its group's phase error.
+        """
+        cfg = self.config
+        ccfg = complex_config(cfg)
+        w = self._weights(s)
+        keep = np.flatnonzero(w != 0)
+        bistatic = s.is_bistatic
+        tau = path_delays(np.take(s.points, keep, axis=0),
+                          np.take(s.points_rx, keep, axis=0) if bistatic else None)
+        ifc = cfg.if_chain
+        tau_leak = ifc.leakage_path / SPEED_OF_LIGHT if ifc.leakage_dbc is not None else None
+        max_delay = max(float(tau.max()) if len(tau) else 0.0, tau_leak or 0.0)
+        errors = delay_impairment(cfg, rng, max_delay)
+        cube = np.zeros(cfg.cube_shape, dtype=complex)
+        for tau_g, rows in delay_groups(tau, errors.max_span(cfg.impairments.group_phase_error)):
+            r = keep[rows]
+
+            def pick(a, r=r):
+                return None if a is None else np.take(a, r, axis=0)
+
+            part = synthesize(pick(s.points), pick(s.velocities), np.take(w, r), ccfg,
+                              points_rx=pick(s.points_rx), velocities_rx=pick(s.velocities_rx),
+                              eps=self.eps, workers=self.workers)
+            cube += part * np.exp(1j * errors.phase(tau_g))
+        if tau_leak is not None:
+            cube += effects.leakage(ccfg) * np.exp(1j * errors.phase(tau_leak))
+        return cube if ifc.complex_if else cube.real
+
     def _moving_signal(self, p, v, w, moving):
         # Zero weights (behind the antennas) add nothing; only movers cost per point.
         mv = np.flatnonzero(moving & (w != 0))
@@ -273,7 +364,7 @@ class FMCWRadar:
 
 
 _SENSOR_KEYS = ("name", "mount", "processing", "process", "backend", "eps", "workers",
-                "reuse_static")
+                "reuse_static", "interferers")
 
 
 def make_radar(preset: str, /, **overrides: Any) -> FMCWRadar:
