@@ -185,6 +185,7 @@ class RecordingWriter:
         a["complete"] = False
         a["scenario"] = _json(dict(scenario or {}))
         self._counts: dict[str, int] = {}
+        self._datasets: dict[str, tuple[h5py.Dataset, dict[str, h5py.Dataset]]] = {}
         self._closed = False
         # One lock around every HDF5 call: the flusher thread flushes only
         # between whole frames, so each flush leaves every sensor's datasets
@@ -223,8 +224,11 @@ class RecordingWriter:
             g.attrs["kind"] = kind
             g.attrs["frame_rate"] = float(frame_rate)
             g.attrs["config"] = _json(dict(config or {}))
-            g.create_dataset("timestamps", shape=(0,), maxshape=(None,), dtype="f8", chunks=(1024,))
+            ts = g.create_dataset("timestamps", shape=(0,), maxshape=(None,), dtype="f8", chunks=(1024,))
             self._counts[name] = 0
+            # Dataset handles kept per sensor: looking them up in the group on
+            # every append costs more than the write of a small frame.
+            self._datasets[name] = (ts, {})
             self._dirty = True
 
     def append(self, name: str, t: float, streams: Mapping[str, np.ndarray]) -> None:
@@ -232,35 +236,35 @@ class RecordingWriter:
         if name not in self._counts:
             raise UnknownNameError("recording sensor", name, list(self._counts))
         with self._lock:
-            g = self._f[name]
+            ts, dsets = self._datasets[name]
             k = self._counts[name]
             arrays = {}
             for key, value in streams.items():
                 arr = np.asarray(value)
                 if key == "timestamps":
                     raise RecordingError(f"{name}: 'timestamps' is reserved and cannot be a stream name")
-                if key not in g:
+                ds = dsets.get(key)
+                if ds is None:
                     if k:
                         raise RecordingError(f"{name}: stream {key!r} appeared after {k} frames without it")
-                    self._create_stream(g, key, arr)
-                elif g[key].shape[1:] != arr.shape:
+                    dsets[key] = self._create_stream(self._f[name], key, arr)
+                elif ds.shape[1:] != arr.shape:
                     raise RecordingError(f"{name}/{key}: frame shape {arr.shape} differs from earlier "
-                                         f"{g[key].shape[1:]}")
+                                         f"{ds.shape[1:]}")
                 arrays[key] = arr
-            missing = sorted(set(g) - set(arrays) - {"timestamps"})
-            if missing:
+            if len(arrays) != len(dsets):
+                missing = sorted(set(dsets) - set(arrays))
                 raise RecordingError(f"{name}: frame {k} lacks stream(s) {', '.join(map(repr, missing))}")
             for key, arr in arrays.items():
-                ds = g[key]
+                ds = dsets[key]
                 ds.resize(k + 1, axis=0)
                 ds[k] = arr
-            ts = g["timestamps"]
             ts.resize(k + 1, axis=0)
             ts[k] = float(t)
             self._counts[name] = k + 1
             self._dirty = True
 
-    def _create_stream(self, g: h5py.Group, key: str, arr: np.ndarray) -> None:
+    def _create_stream(self, g: h5py.Group, key: str, arr: np.ndarray) -> h5py.Dataset:
         if arr.nbytes > SMALL_FRAME_BYTES:
             # One frame per chunk: a chunk is complete when written and never
             # rewritten, so compressing it cannot move data a flushed index points at.
@@ -270,8 +274,8 @@ class RecordingWriter:
             # size and place on disk as it fills.
             chunks = (min(256, max(1, 65536 // max(1, arr.nbytes))), *arr.shape)
             compression = None
-        g.create_dataset(key, shape=(0, *arr.shape), maxshape=(None, *arr.shape), dtype=arr.dtype,
-                         chunks=chunks, compression=compression)
+        return g.create_dataset(key, shape=(0, *arr.shape), maxshape=(None, *arr.shape), dtype=arr.dtype,
+                                chunks=chunks, compression=compression)
 
     @property
     def frame_counts(self) -> dict[str, int]:
