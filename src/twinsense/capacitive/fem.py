@@ -2,9 +2,10 @@
 
 The global stiffness is ``K = eps0 * sum_e eps_r[e] * K_e`` with ``K_e`` the
 unit-permittivity element matrix of simplex ``e`` (computed once for the
-static mesh). The sparsity pattern and the position of every element entry in
-the CSR data array are computed once too, so a permittivity change of a few
-elements is a scatter-add into ``K.data`` and never a re-assembly.
+static mesh, :mod:`twinsense.capacitive.assembly`). The sparsity pattern and
+the position of every element entry in the CSR data array are computed once
+too, so a permittivity change of a few elements is a scatter-add into
+``K.data`` and never a re-assembly.
 
 Conductors are Dirichlet node sets. Unlike the textbook elimination, fixed
 nodes stay in the system as identity rows (``A_ii = K_ii``, row and column
@@ -24,11 +25,11 @@ unknown floating potentials from ``Q = C V`` with ``Q_f = 0``).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 
+from twinsense.capacitive.assembly import AssemblyPattern, element_stiffness
 from twinsense.capacitive.mesh import SimplexMesh, check_disjoint
 from twinsense.constants import EPS0
 from twinsense.errors import ConfigError, UnknownNameError
@@ -47,92 +48,6 @@ __all__ = [
 
 OUTER_BOUNDARIES = ("open", "grounded", "neumann")
 """Outer boundary conditions: Robin open space, 0 V, or zero normal field."""
-
-
-def element_stiffness(mesh: SimplexMesh) -> np.ndarray:
-    """Unit-permittivity P1 stiffness matrices ``vol * G G^T``.
-
-    Returns
-    -------
-    (m, d + 1, d + 1) float [m] (3-D) or [1] (2-D, per unit length).
-    """
-    p = mesh.points[mesh.cells]  # (m, d+1, d)
-    edges = p[:, 1:, :] - p[:, :1, :]  # (m, d, d), rows p_i - p_0
-    inv = np.linalg.inv(edges)  # grad(lambda_i) = column i of inv(edges)
-    g = np.empty_like(p)
-    g[:, 1:, :] = np.transpose(inv, (0, 2, 1))
-    g[:, 0, :] = -g[:, 1:, :].sum(axis=1)
-    return mesh.volumes[:, None, None] * np.einsum("mid,mjd->mij", g, g)
-
-
-@dataclass(frozen=True, eq=False)
-class AssemblyPattern:
-    """CSR pattern of the P1 stiffness and the CSR slot of every element entry.
-
-    Attributes
-    ----------
-    n : int
-        Number of nodes.
-    indptr, indices : CSR structure of the (n, n) matrix.
-    slots : (m, k, k) int64
-        ``slots[e, a, b]`` is the index in the CSR data array of the entry
-        (cells[e, a], cells[e, b]).
-    rows : (nnz,) int64
-        Row of every CSR entry.
-    diag : (n,) int64
-        CSR slot of every diagonal entry.
-    """
-
-    n: int
-    indptr: np.ndarray
-    indices: np.ndarray
-    slots: np.ndarray
-    rows: np.ndarray
-    diag: np.ndarray
-
-    @classmethod
-    def of(cls, mesh: SimplexMesh) -> AssemblyPattern:
-        """Build the pattern of ``mesh``."""
-        n = mesh.n_nodes
-        c = mesh.cells
-        k = c.shape[1]
-        r = np.repeat(c, k, axis=1).ravel()
-        q = np.tile(c, (1, k)).ravel()
-        keys = r * n + q
-        uniq, inverse = np.unique(keys, return_inverse=True)
-        rows = uniq // n
-        cols = uniq % n
-        indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=n))]).astype(np.int64)
-        slots = inverse.reshape(len(c), k, k).astype(np.int64)
-        diag_keys = np.arange(n, dtype=np.int64) * (n + 1)
-        diag = np.searchsorted(uniq, diag_keys)
-        return cls(n, indptr, cols.astype(np.int32), slots, rows.astype(np.int64), diag)
-
-    @property
-    def nnz(self) -> int:
-        return len(self.indices)
-
-    def assemble(self, local: np.ndarray, weights: np.ndarray) -> np.ndarray:
-        """CSR data of ``sum_e weights[e] * local[e]``.
-
-        Parameters
-        ----------
-        local : (m, k, k) float
-        weights : (m,) float
-        """
-        vals = (weights[:, None, None] * local).ravel()
-        return np.bincount(self.slots.ravel(), weights=vals, minlength=self.nnz)
-
-    def scatter_add(self, data: np.ndarray, cells: np.ndarray, local: np.ndarray, delta: np.ndarray) -> None:
-        """Add ``delta[i] * local[i]`` of elements ``cells`` to ``data`` in place."""
-        if len(cells) == 0:
-            return
-        vals = (delta[:, None, None] * local).ravel()
-        np.add.at(data, self.slots[cells].ravel(), vals)
-
-    def matrix(self, data: np.ndarray) -> sp.csr_matrix:
-        """A CSR matrix sharing the pattern (the data array is used as is)."""
-        return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
 
 
 def robin_matrix(mesh: SimplexMesh, center, skip_nodes: np.ndarray | None = None) -> sp.csr_matrix:
