@@ -24,6 +24,8 @@ BUILTIN_KINDS: dict[str, str] = {
     "tof": "twinsense.tof",
     "radar": "twinsense.radar",
     "capacitive": "twinsense.capacitive",
+    "ultrasonic": "twinsense.ultrasonic",
+    "lidar": "twinsense.lidar",
 }
 
 _Entry = tuple[Callable[..., Any], str]

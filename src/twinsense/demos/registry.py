@@ -24,6 +24,8 @@ DEMOS: dict[str, tuple[str, str, str]] = {
                            "electrode"),
     "depth": ("twinsense.demos.depth", "run_depth_demo",
               "office scene, ideal depth camera: depth PNG and recording"),
+    "lidar": ("twinsense.demos.lidar", "run_lidar_demo",
+              "robot cell, Velodyne VLP-16: top view and range image by intensity, walking person, recording"),
 }
 
 
