@@ -227,7 +227,7 @@ class ObjectSpec(_Model):
     material: str = "plastic"
     pose: PoseSpec = PoseSpec()
     motion: MotionSpec | None = None
-    layers: list[Literal["tof", "radar", "capacitive", "camera", "lidar"]] = list(SENSOR_KINDS)
+    layers: list[Literal["tof", "radar", "capacitive", "camera", "lidar", "ultrasonic"]] = list(SENSOR_KINDS)
 
 
 class MountSpec(_Model):
