@@ -11,7 +11,6 @@ module to finish in a few seconds.
 from __future__ import annotations
 
 import copy
-import json
 from pathlib import Path
 
 import h5py
@@ -329,4 +328,7 @@ def test_strategies_reach_both_outcomes():
     assert guarded(Box, (1.0, 2.0, 3.0)) is not None and guarded(Box, (1e-300, 1, 1)) is None
     assert guarded(scenario_from_dict, copy.deepcopy(BASE)) is not None
     assert guarded(scenario_from_dict, {**BASE, "duration": float("nan")}) is None
-    assert json.dumps(PATHS[1:3])  # the mutation paths cover the example's fields
+    # The mutation paths reach down to single numbers in every section.
+    for path in (("duration",), ("objects", 2, "motion", "speed"), ("objects", 0, "pose", "rpy_deg", 1),
+                 ("materials", 0, "nir_reflectance"), ("sensors", 0, "mount", "pose", "look_at", "eye", 2)):
+        assert path in PATHS
