@@ -38,8 +38,11 @@ class UltrasonicFrame:
     envelope : (N, S) float32
         Envelope of ``ascan`` [Pa].
     first_echo_distance : (N,) float32
-        Distance of the first echo, c t / 2 at the first threshold crossing
-        after the ring-down [m]; NaN where nothing crossed.
+        Distance of the first echo, c t / 2 at the first upward threshold
+        crossing after the blanking time (the ring-down's end, see
+        ``UltrasonicConfig.min_range``) [m]; NaN where nothing crossed. An
+        echo still above the threshold when blanking ends is not reported
+        until the envelope has fallen below the threshold once.
     fire_time : (N,) float64
         Firing time of each transducer [s].
     """
@@ -179,7 +182,8 @@ class UltrasonicSensor:
             rf += S.band_noise((n, ns), fs, cfg.frequency, cfg.q_factor, cfg.noise_pa, rng)
         env = S.envelope(rf)
         thr = S.threshold_curve(ns, fs, cfg.speed_of_sound, cfg.threshold)
-        t_first = S.first_crossing(env, thr, fs, start=math.ceil(cfg.burst_duration * fs))
+        # Blanking: the search starts where the ring-down meets the threshold (the minimum range).
+        t_first = S.first_crossing(env, thr, fs, start=math.ceil(2 * cfg.min_range / cfg.speed_of_sound * fs))
         dist = 0.5 * cfg.speed_of_sound * t_first
         fire = t + np.arange(n) * cfg.firing_interval
         return UltrasonicFrame(float(t), rf.astype(np.float32), env.astype(np.float32), dist.astype(np.float32),
