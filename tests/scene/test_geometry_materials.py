@@ -107,7 +107,7 @@ def test_material_library_and_errors():
 
 def test_layers_validated():
     with pytest.raises(ConfigError, match="layers"):
-        SceneObject("o", Box(), "wood", layers=["lidar"])
+        SceneObject("o", Box(), "wood", layers=["sonar"])
     assert not SceneObject("o", Box(), "wood", layers=["tof"]).visible_to("radar")
 
 
