@@ -31,6 +31,8 @@ from twinsense.radar.formats import (
     read_ti_cfg,
     save_infineon_config,
 )
+from twinsense.radar.impairments import ChirpNonlinearity, Impairments, PhaseNoiseMask
+from twinsense.radar.interference import Interferer
 from twinsense.radar.presets import PRESET_CONFIGS, preset_config
 from twinsense.radar.processing import *  # noqa: F403
 from twinsense.radar.processing import __all__ as _processing_all
@@ -43,12 +45,16 @@ __all__ = [
     "PRESET_CONFIGS",
     "AntennaArray",
     "ChirpConfig",
+    "ChirpNonlinearity",
     "ElementPattern",
     "FMCWRadar",
     "IFChain",
+    "Impairments",
     "InfineonConfig",
     "InfineonRecording",
+    "Interferer",
     "NoiseConfig",
+    "PhaseNoiseMask",
     "RadarConfig",
     "RadarFrame",
     "SENSOR_PRESETS",
