@@ -170,7 +170,7 @@ class LidarConfig:
         Meteorological visibility [m] (inf: clear air); extinction by the
         Kim model at ``wavelength``.
     rain_rate : float
-        Rain rate [mm/h]; extinction 0.01 R^0.6 [1/m].
+        Rain rate [mm/h]; extinction 1.076 R^0.67 dB/km (Carbonneau, ITU-R P.1814).
 
     Receiver
     --------
