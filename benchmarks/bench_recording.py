@@ -86,7 +86,7 @@ def main() -> None:
     rng = np.random.default_rng(0)
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        for kind, n in (("small", 20000), ("large", 60)):
+        for kind, n in (("small", 5000), ("large", 40)):
             data = frames(kind, n, rng)
             size = sum(a.nbytes for a in data[0].values())
             print(f"{kind} frames: {size:,} B each, {n} frames")
