@@ -1,0 +1,50 @@
+"""Ultrasonic ring throughput: ring8_40khz (8 x 15 Hz = 120 firings/s) in the robot cell, person walking.
+
+Measures firing cycles per second of ``UltrasonicSensor.capture`` (echo
+geometry of every firing in the cycle plus the earlier firings whose late
+echoes reach it, visibility rays through the render stage, A-scan synthesis,
+noise, envelope, detection) over the person's walk, and the real-time factor
+(the ring needs 15 cycles/s). Same-run anchor: a bare single-thread Embree
+cast of the same number of rays (two visibility rays per candidate echo of
+one cycle) against the same scene.
+
+Run:  .venv/bin/python benchmarks/bench_ultrasonic.py
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+from _timing import best_and_median, embree_anchor, print_anchor, print_load_at_end, print_machine
+
+from twinsense.demos.ultrasonic import build_cell
+
+
+def main() -> None:
+    print_machine()
+    scene, ring = build_cell()
+    cfg = ring.config
+    print(f"scene: robot cell + ring pillar, {len(scene)} objects; sensor: ring8_40khz, "
+          f"{cfg.n_transducers} transducers x {cfg.frame_rate:g} Hz = {cfg.n_transducers * cfg.frame_rate:g} "
+          f"firings/s, {cfg.n_samples} samples per A-scan at {cfg.sample_rate / 1e3:g} kHz")
+    times = itertools.cycle(np.arange(75) / cfg.frame_rate)  # the person's 5 s walk
+    rng = np.random.default_rng(0)
+    best, med = best_and_median(lambda: ring.capture(scene, next(times), rng), repeats=30)
+    cycles = 1.0 / med
+    print(f"  capture (one firing cycle)                  {best * 1e3:7.1f} ms best {med * 1e3:7.1f} ms median")
+    print(f"  -> {cycles:6.1f} cycles/s = {cycles * cfg.n_transducers:7.1f} firings/s; "
+          f"real time x {cycles / cfg.frame_rate:5.2f}")
+    n_echo = sum(len(d) for d, _ in ring.echoes(scene, 1.0))
+    # Visibility rays of one cycle: two per candidate echo; at least one per firing.
+    n_rays = max(2 * 4 * n_echo, 64)
+    pose = ring.transducer_poses(scene, 1.0)[0]
+    d = np.random.default_rng(1).normal(size=(n_rays, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    _, anchor = embree_anchor(scene, "ultrasonic", 1.0, pose.position, d, repeats=30)
+    print_anchor(f"bare Embree cast of {n_rays} rays", anchor, med)
+    print_load_at_end()
+
+
+if __name__ == "__main__":
+    main()
