@@ -1,21 +1,10 @@
-"""Small sensors shared by the capacitive tests (meshes of a few 10k cells)."""
+"""Fixtures of the capacitive tests: a private mesh cache per test."""
 
 from __future__ import annotations
 
 import pytest
 
-from twinsense.capacitive import layouts as L
-from twinsense.capacitive.mesh import MeshSettings
-from twinsense.capacitive.sensor import CapacitiveConfig
-
 
 @pytest.fixture(autouse=True)
 def _private_mesh_cache(tmp_path, monkeypatch):
     monkeypatch.setenv("TWINSENSE_CACHE_DIR", str(tmp_path / "cache"))
-
-
-def two_pad_config(**kw) -> CapacitiveConfig:
-    """Two 10 mm pads at 16 mm pitch on FR-4, ~20k tetrahedra."""
-    layout = L.Layout(L.pad_grid(2, 1, 0.010, 0.016), L.Substrate(1.6e-3, 4.4, extent=(-0.02, 0.02, -0.012, 0.012)))
-    mesh = MeshSettings(margin=0.01, height=0.02, depth=0.006, h_min=2e-3, h_max=6e-3, growth=1.4)
-    return CapacitiveConfig(layout, mesh, **kw)

@@ -6,8 +6,8 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from two_pad import two_pad_config
 
-from conftest import two_pad_config
 from twinsense.capacitive.sensor import CapacitiveSensor
 from twinsense.capacitive.solver import SolverConfig
 from twinsense.errors import ConfigError

@@ -8,8 +8,8 @@ import sys
 
 import h5py
 import numpy as np
+from two_pad import two_pad_config
 
-from conftest import two_pad_config
 from twinsense.capacitive.amg import BlockAMG
 from twinsense.capacitive.sensor import CapacitiveSensor
 

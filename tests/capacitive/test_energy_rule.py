@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from two_pad import two_pad_config
 
-from conftest import two_pad_config
 from twinsense.capacitive.fem import ElectrostaticSystem
 from twinsense.capacitive.sensor import CapacitiveSensor
 from twinsense.capacitive.solver import MaxwellSolver, SolverConfig

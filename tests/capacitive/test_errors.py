@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from two_pad import two_pad_config
 
-from conftest import two_pad_config
 from twinsense.capacitive import layouts as L
 from twinsense.capacitive.coupling import Inclusion
 from twinsense.capacitive.fem import ElectrostaticSystem

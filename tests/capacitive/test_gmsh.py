@@ -8,8 +8,8 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from two_pad import two_pad_config
 
-from conftest import two_pad_config
 from twinsense.capacitive import layouts as L
 from twinsense.capacitive.fem import ElectrostaticSystem
 from twinsense.capacitive.gmsh_mesher import _cache_key
