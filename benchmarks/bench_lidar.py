@@ -46,7 +46,7 @@ def main() -> None:
           f"-> {1 / med:5.1f} rev/s (real time: >= 10)")
     fir = firings(fixed.config, 0.0)
     o, d, _ = fixed._world_rays(scene, fir)
-    a_best, a_med = embree_anchor(scene, "lidar", 0.0, np.asarray(o[0]), np.asarray(d), repeats=5)
+    _, a_med = embree_anchor(scene, "lidar", 0.0, np.asarray(o[0]), np.asarray(d), repeats=5)
     print_anchor("bare single-thread Embree, same 259,200 rays", a_med, med)
 
     scene.add_object("cart", _tiny_box(), "metal", motion=ConstantVelocity(Pose((-0.8, 0.0, 1.6)), (0.5, 0, 0)),
