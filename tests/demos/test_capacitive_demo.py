@@ -19,6 +19,7 @@ def test_printer_demo_small(tmp_path):
         growth=2.0,
         refine=((-0.1, 0.1, -0.03, 0.03, 0.0, 0.046),),
         h_refine=0.01,
+        object_cells=0,  # coarse on purpose: this checks the demo's chain, not its accuracy
     )
     # Straight across the stripes (centres at x = -75, -45, ..., 75 mm), 4 s at 40 mm/s.
     paths = {"T1": np.array([[-0.08, 0.0], [0.08, 0.0]])}
