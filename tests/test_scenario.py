@@ -252,3 +252,18 @@ def test_yaml_numbers_without_exponent_sign_and_booleans(tmp_path):
     p.write_text(text.replace("radius: 2e-1", "radius: true"))
     with pytest.raises(ScenarioError, match=r"objects\[3\].geometry.radius = True: Input should be a valid number"):
         load_scenario(p)
+
+
+def test_robot_cell_example_and_demo_scene_agree():
+    # The demos build the robot cell in Python (a pip install has no examples/);
+    # the example file must describe the very same scene.
+    from twinsense.demos.robot_cell import build_robot_cell_scene
+
+    sc = load_scenario(EXAMPLE.parent / "robot_cell.yaml")
+    ref = build_robot_cell_scene()
+    a, b = sc.scene.to_dict(), ref.to_dict()
+    a.pop("name", None), b.pop("name", None)
+    assert a == b
+    for t in (0.0, 0.7, 1.9):
+        for obj in ref.objects:
+            np.testing.assert_array_equal(sc.scene.object(obj.name).pose_at(t).matrix, obj.pose_at(t).matrix)

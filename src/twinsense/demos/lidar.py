@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from twinsense.demos.robot_cell import build_robot_cell_scene
 from twinsense.errors import ConfigError
 from twinsense.lidar import Lidar
 from twinsense.plotting import pyplot, save_figure
@@ -13,8 +14,6 @@ from twinsense.scenario import load_scenario
 from twinsense.scene import Mount, Pose
 from twinsense.simulate import simulate
 
-#: The robot cell of the examples folder (a source checkout).
-ROBOT_CELL = Path(__file__).resolve().parents[3] / "examples" / "robot_cell.yaml"
 #: The LiDAR sits behind the cell's near edge, 1.6 m up, tilted 12 deg down towards the back wall.
 EYE = (-0.8, 0.0, 1.6)
 TARGET = (2.0, 0.0, 1.6 - 2.8 * np.tan(np.deg2rad(12.0)))
@@ -27,14 +26,18 @@ def run_lidar_demo(out_dir, duration: float = 0.3, progress: bool = False, scena
     frame, coloured by intensity, with the person's true position),
     ``lidar_range_image.png`` (ring x azimuth image of intensity and range)
     and ``lidar_recording.h5``. ``scenario``: another scenario file with a
-    ``person`` object (default: examples/robot_cell.yaml).
+    ``person`` object (default: the robot cell of examples/robot_cell.yaml,
+    built by :func:`twinsense.demos.robot_cell.build_robot_cell_scene`).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    path = Path(scenario) if scenario is not None else ROBOT_CELL
-    if not path.is_file():
-        raise ConfigError("scenario", str(path), "an existing scenario file (the robot cell of examples/)")
-    scene = load_scenario(path).scene
+    if scenario is None:
+        scene = build_robot_cell_scene()
+    else:
+        path = Path(scenario)
+        if not path.is_file():
+            raise ConfigError("scenario", str(path), "an existing scenario file with a 'person' object")
+        scene = load_scenario(path).scene
     lidar = Lidar.preset("velodyne_vlp16", name="vlp16", mount=Mount(Pose.look_at(EYE, TARGET)))
     res = simulate(scene, [lidar], duration, out=out / "lidar_recording.h5", progress=progress, keep_frames=True)
     frame = res.frames["vlp16"][-1]
