@@ -257,3 +257,15 @@ def test_approx_scan_finds_a_missing_abs(tmp_path):
     f.write_text("import pytest\nfrom pytest import approx\n"
                  "a = pytest.approx(1e-13, rel=1e-3)\nb = approx(2.0, rel=1e-3, abs=0)\nc = approx(3, rel=1)\n")
     assert _approx_without_abs(f) == [3, 5]
+
+
+def test_test_modules_have_unique_basenames():
+    # tests/ folders are not packages: pytest imports every test file under its
+    # basename, so two files of one name in different folders cannot both run.
+    root = Path(__file__).resolve().parent
+    seen: dict[str, Path] = {}
+    for path in sorted(root.rglob("*.py")):
+        if path.name in ("conftest.py", "__init__.py"):
+            continue
+        assert path.name not in seen, f"{path.relative_to(root)} and {seen[path.name].relative_to(root)}"
+        seen[path.name] = path
