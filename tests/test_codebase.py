@@ -30,7 +30,7 @@ LAYERS: list[tuple[str, frozenset[str]]] = [
     ("scene", frozenset({"scene"})),
     ("render", frozenset({"render"})),
     ("sensor interface", frozenset({"sensors"})),
-    ("sensor packages", frozenset({"tof", "radar", "capacitive", "depthcam", "lidar", "ultrasonic"})),
+    ("sensor packages", frozenset({"tof", "radar", "capacitive", "depthcam", "lidar", "ultrasonic", "magnetic"})),
     ("preset registry", frozenset({"presets"})),
     ("io", frozenset({"io"})),
     ("simulate", frozenset({"simulate"})),

@@ -26,6 +26,7 @@ BUILTIN_KINDS: dict[str, str] = {
     "capacitive": "twinsense.capacitive",
     "ultrasonic": "twinsense.ultrasonic",
     "lidar": "twinsense.lidar",
+    "magnetic": "twinsense.magnetic",
 }
 
 _Entry = tuple[Callable[..., Any], str]

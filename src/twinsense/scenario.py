@@ -44,6 +44,7 @@ from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationEr
 from twinsense.errors import ConfigError, GeometryError, TwinsenseError
 from twinsense.scene import geometry as G
 from twinsense.scene import motion as M
+from twinsense.scene.magnet import Magnet
 from twinsense.scene.materials import Material, get_material, material_names
 from twinsense.scene.pose import Pose
 from twinsense.scene.scene import SENSOR_KINDS, Mount, Scene, SceneObject
@@ -221,13 +222,25 @@ class MaterialSpec(_Model):
     conductor: Literal["none", "grounded", "floating"] | None = None
 
 
+class MagnetSpec(_Model):
+    """A permanent magnet on the object: shape, size [m], remanence [T], direction (magnet frame), pose."""
+
+    shape: Literal["cylinder", "block", "ring"] = "cylinder"
+    size: list[Finite]
+    remanence: Finite
+    direction: Vec3 = (0.0, 0.0, 1.0)
+    pose: PoseSpec = PoseSpec()
+
+
 class ObjectSpec(_Model):
     name: str = Field(min_length=1)
     geometry: GeometrySpec
     material: str = "plastic"
     pose: PoseSpec = PoseSpec()
     motion: MotionSpec | None = None
-    layers: list[Literal["tof", "radar", "capacitive", "camera", "lidar", "ultrasonic"]] = list(SENSOR_KINDS)
+    layers: list[Literal["tof", "radar", "capacitive", "camera", "lidar", "ultrasonic", "magnetic"]] = list(
+        SENSOR_KINDS)
+    magnet: MagnetSpec | None = None
 
 
 class MountSpec(_Model):
@@ -468,8 +481,18 @@ def scenario_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None 
                 parts.append(build(*args))
             except ConfigError as e:
                 problems.append((e.field, e.value, e.allowed))
+        magnet = None
+        if os_.magnet is not None:
+            ms = os_.magnet
+            try:
+                magnet = Magnet(ms.shape, tuple(ms.size), ms.remanence, ms.direction,
+                                ms.pose.build(f"objects[{i}].magnet.pose"))
+            except ConfigError as e:
+                field_ = e.field if e.field.startswith("objects[") else f"objects[{i}].{e.field}"
+                problems.append((field_, e.value, e.allowed))
+                continue
         if len(parts) == 2:
-            scene.add(SceneObject(os_.name, parts[0], mat, parts[1], frozenset(os_.layers)))
+            scene.add(SceneObject(os_.name, parts[0], mat, parts[1], frozenset(os_.layers), magnet))
     sensors = []
     for i, ss in enumerate(spec.sensors):
         if ss.mount.parent is not None and ss.mount.parent not in {o.name for o in spec.objects}:

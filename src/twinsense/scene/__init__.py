@@ -10,6 +10,7 @@ from twinsense.scene.geometry import (
     Sphere,
     TriangleMesh,
 )
+from twinsense.scene.magnet import MAGNET_SHAPES, Magnet
 from twinsense.scene.materials import Material, get_material, material_names, register_material
 from twinsense.scene.motion import (
     ConstantVelocity,
@@ -24,8 +25,8 @@ from twinsense.scene.pose import Pose
 from twinsense.scene.scene import SENSOR_KINDS, Mount, Scene, SceneObject
 
 __all__ = [
-    "SENSOR_KINDS", "Box", "Capsule", "ConstantVelocity", "Cylinder", "Geometry", "Keyframes",
-    "Material", "MeshFile", "Motion", "MotionState", "Mount", "Oscillation", "Plane", "Pose",
+    "MAGNET_SHAPES", "SENSOR_KINDS", "Box", "Capsule", "ConstantVelocity", "Cylinder", "Geometry", "Keyframes",
+    "Magnet", "Material", "MeshFile", "Motion", "MotionState", "Mount", "Oscillation", "Plane", "Pose",
     "Scene", "SceneObject", "Sphere", "Static", "TriangleMesh", "Waypoints", "get_material",
     "material_names", "register_material",
 ]

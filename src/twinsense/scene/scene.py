@@ -8,11 +8,12 @@ import numpy as np
 
 from twinsense.errors import ConfigError, UnknownNameError
 from twinsense.scene.geometry import Geometry
+from twinsense.scene.magnet import Magnet
 from twinsense.scene.materials import Material, get_material
 from twinsense.scene.motion import Motion, MotionState, Static, check_time
 from twinsense.scene.pose import Pose
 
-SENSOR_KINDS = ("tof", "radar", "capacitive", "camera", "lidar", "ultrasonic")
+SENSOR_KINDS = ("tof", "radar", "capacitive", "camera", "lidar", "ultrasonic", "magnetic")
 
 
 @dataclass(frozen=True, eq=False)
@@ -30,6 +31,8 @@ class SceneObject:
         A Pose means a static object there; default: static at the origin.
     layers : iterable of str, optional
         Sensor kinds that see this object (default: all of SENSOR_KINDS).
+    magnet : Magnet, optional
+        A permanent magnet the object carries (seen by sensors of kind "magnetic").
     """
 
     name: str
@@ -37,6 +40,7 @@ class SceneObject:
     material: Material | str = "plastic"
     motion: Motion | Pose = field(default_factory=Static)
     layers: frozenset = frozenset(SENSOR_KINDS)
+    magnet: Magnet | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
@@ -58,6 +62,8 @@ class SceneObject:
         if bad:
             raise ConfigError(f"{self.name}.layers", sorted(bad), "sensor kinds among: " + ", ".join(SENSOR_KINDS))
         object.__setattr__(self, "layers", layers)
+        if self.magnet is not None and not isinstance(self.magnet, Magnet):
+            raise ConfigError(f"{self.name}.magnet", self.magnet, "a Magnet or None")
 
     @property
     def is_static(self) -> bool:
@@ -83,7 +89,8 @@ class SceneObject:
 
     def to_dict(self) -> dict:
         return {"name": self.name, "geometry": self.geometry.to_dict(), "material": self.material.name,
-                "motion": self.motion.to_dict(), "layers": sorted(self.layers)}
+                "motion": self.motion.to_dict(), "layers": sorted(self.layers),
+                **({"magnet": self.magnet.to_dict()} if self.magnet is not None else {})}
 
 
 class Scene:
@@ -106,11 +113,13 @@ class Scene:
         return obj
 
     def add_object(self, name: str, geometry: Geometry, material="plastic", motion=None, layers=None,
-                   pose: Pose | None = None) -> SceneObject:
+                   pose: Pose | None = None, magnet: Magnet | None = None) -> SceneObject:
         """Convenience: build and add a SceneObject (``pose`` for a static one, or ``motion``)."""
         if motion is None:
             motion = Static(pose if pose is not None else Pose())
         kw = {} if layers is None else {"layers": layers}
+        if magnet is not None:
+            kw["magnet"] = magnet
         return self.add(SceneObject(name, geometry, material, motion, **kw))
 
     @property
