@@ -29,6 +29,9 @@ DEMOS: dict[str, tuple[str, str, str]] = {
     "ultrasonic": ("twinsense.demos.ultrasonic", "run_ultrasonic_demo",
                    "robot cell, 8-transducer 40 kHz ring on a pillar: A-scans and first-echo distances vs the "
                    "walking person, recording"),
+    "magnetic": ("twinsense.demos.magnetic", "run_magnetic_demo",
+                 "angle encoder (error vs angle for an eccentric sensor, against theory) and a Hall end stop "
+                 "with hysteresis on a moving axis, recording"),
 }
 
 

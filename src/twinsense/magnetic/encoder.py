@@ -17,6 +17,10 @@ level sensor reads the disc angle + pi with no error. Errors:
   B0 (cos theta, sin theta, 0) is read as (cos theta, cos tau sin theta), so
       angle error = atan2(cos tau sin theta, cos theta) - theta (exact),
   ~ -(tau^2 / 4) sin(2 theta) for a small tilt.
+- A uniform in-plane background field B_a (the Earth's) adds to the disc's
+  field B0 (cos theta, sin theta) (B0 < 0: antiparallel); to first order in
+  |B_a| / |B0| the reading turns by the component of B_a across the disc's field:
+      angle error = (B_a,y cos theta - B_a,x sin theta) / B0.
 """
 
 from __future__ import annotations
@@ -69,3 +73,10 @@ def tilt_error(theta, tilt: float) -> np.ndarray:
     """Angle error [rad] of a sensor tilted by ``tilt`` [rad] about its x axis, on the disc's axis (exact)."""
     th = np.asarray(theta, dtype=float)
     return wrap(np.arctan2(np.cos(tilt) * np.sin(th), np.cos(th)) - th)
+
+
+def ambient_error(theta, ambient_xy, b0: float) -> np.ndarray:
+    """First-order angle error [rad] from a uniform in-plane field ``ambient_xy`` (2,) [T] in the sensor frame;
+    ``b0`` [T] is the disc's on-axis B_x (negative: antiparallel to the magnetisation)."""
+    th = np.asarray(theta, dtype=float)
+    return (ambient_xy[1] * np.cos(th) - ambient_xy[0] * np.sin(th)) / b0
