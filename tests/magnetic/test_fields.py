@@ -138,9 +138,8 @@ def _diametric_reference(p, r, ln, br):
 @pytest.mark.parametrize("point", [(0.0, 0.0, -0.004), (0.0025, 0.001, -0.003), (0.005, -0.002, 0.0005),
                                    (0.01, 0.02, 0.01)])
 def test_diametric_against_quadrature(point):
-    # The trapezoidal rule in phi (128 nodes) against scipy's adaptive dblquad (epsrel 1e-11). The closest
-    # point sits 1 mm = R / 3 from the curved surface, where the geometric error bound exp(-128 / 3) is far
-    # below the 1e-9 tolerance, which is set by the quadrature's own accuracy on components that cancel.
+    # The adaptive trapezoidal rule in phi (error ~exp(-40)) against scipy's adaptive dblquad (epsrel 1e-11);
+    # the tolerance 1e-9 is set by the quadrature's own accuracy on components that cancel.
     r, ln = 0.003, 0.0025
     p = np.array(point)
     got = F.cylinder_diametric(p, r, ln, BR)
@@ -159,7 +158,7 @@ def test_diametric_equals_turned_axial_far_field_and_rotation():
     dip = F.dipole(p, (m, 0, 0))
     assert np.max(np.linalg.norm(b - dip, axis=1) / np.linalg.norm(dip, axis=1)) < 1e-3
     # Magnetisation along y equals the x one turned by 90 degrees about z (exact symmetry; the trapezoid
-    # nodes map onto themselves for n_phi divisible by 4): equal to rounding.
+    # nodes map onto themselves: n_phi is a multiple of 4): equal to rounding.
     q = np.array([[0.002, 0.001, -0.003], [0.004, -0.002, 0.001]])
     rot = np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1.0]])
     by = F.cylinder(q @ rot.T, r, ln, (0, BR, 0))
@@ -204,3 +203,25 @@ def test_inside_a_block_b_is_mu0_h_plus_m():
     # face gives a normal field sigma Omega / (4 pi): H = -2 M / 6, so B = mu0 (H + M) = 2/3 B_r exactly.
     b = F.block(np.zeros(3), (0.01, 0.01, 0.01), (0, 0, BR))
     assert b[2] == pytest.approx(BR * 2 / 3, rel=1e-12, abs=0)
+
+
+def test_diametric_adaptive_nodes_against_many_nodes():
+    # The adaptive rule (N = 40 / alpha nodes, error ~exp(-40)) against 4096 nodes, whose own error is
+    # exp(-4096 alpha) (negligible for alpha > 0.02, i.e. points more than ~2 % of R from the curved surface).
+    # Points from 0.05 R to 20 R off the surface, beside and beyond the faces; agreement to 1e-12 of |B|
+    # (kernel rounding; the trapezoid errors themselves are far below).
+    r, ln = 0.003, 0.0025
+    g = np.random.default_rng(4)
+    rho = r + np.concatenate([g.uniform(0.05, 1, 30) * r, -g.uniform(0.05, 0.9, 10) * r, g.uniform(1, 20, 20) * r])
+    z = g.uniform(-3 * ln, 3 * ln, len(rho))
+    phi = g.uniform(0, 2 * np.pi, len(rho))
+    pts = np.stack([rho * np.cos(phi), rho * np.sin(phi), z], axis=-1)
+    for p in pts:
+        n = F.diametric_nodes(p, r, ln)
+        assert F.N_PHI_MIN <= n <= F.N_PHI_MAX and n % 4 == 0
+        got = F.cylinder_diametric(p, r, ln, BR)
+        ref = F.cylinder_diametric(p, r, ln, BR, n_phi=4096)
+        np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12 * np.linalg.norm(ref))
+    # Far points need few nodes, near ones many.
+    assert F.diametric_nodes(np.array([0.1, 0, 0]), r, ln) == F.N_PHI_MIN
+    assert F.diametric_nodes(np.array([1.01 * r, 0, 0]), r, ln) > 1000

@@ -253,3 +253,11 @@ def test_bad_inputs_name_the_field():
         MagneticSensor.preset("tle493d", gain=3)
     with pytest.raises(UnknownNameError, match="one of: "):
         MagneticSensor.preset("no_such_device")
+
+
+def test_bad_times_are_refused():
+    s = MagneticSensor.preset("tle493d")
+    with pytest.raises(ConfigError, match="t = nan"):
+        s.capture_many(Scene(), [0.0, np.nan], np.random.default_rng(0))
+    with pytest.raises(ConfigError, match="t = inf"):
+        s.capture(Scene(), np.inf)

@@ -65,7 +65,7 @@ def _magnet_transforms(obj, times):
     return r_o @ mp.rotation, p_o + r_o @ mp.position
 
 
-def magnet_field(magnet, points_local, n_phi: int = F.N_PHI) -> np.ndarray:
+def magnet_field(magnet, points_local, n_phi: int | None = F.N_PHI) -> np.ndarray:
     """B (..., 3) [T] of one ``Magnet`` at points in its own frame."""
     m = magnet.remanence * np.asarray(magnet.direction)
     s = magnet.size
@@ -76,7 +76,7 @@ def magnet_field(magnet, points_local, n_phi: int = F.N_PHI) -> np.ndarray:
     return F.ring(points_local, 0.5 * s[0], 0.5 * s[1], s[2], m, n_phi)
 
 
-def scene_field(scene: Scene, points, times, n_phi: int = F.N_PHI) -> np.ndarray:
+def scene_field(scene: Scene, points, times, n_phi: int | None = F.N_PHI) -> np.ndarray:
     """B (T, P, 3) [T] of every magnet of ``scene`` at world ``points`` (P, 3) or (T, P, 3), ``times`` (T,).
 
     The ambient (Earth) field is not included: it belongs to the sensor's site

@@ -29,6 +29,7 @@ from twinsense.magnetic.presets import magnetic_config
 from twinsense.magnetic.scene_field import scene_field
 from twinsense.scene.motion import check_time
 from twinsense.scene.scene import Mount, Scene
+from twinsense.validation import TIME_MAX
 
 
 @dataclass(frozen=True, eq=False)
@@ -62,7 +63,7 @@ class MagneticSensor:
     kind = "magnetic"
 
     def __init__(self, name: str = "hall", config: MagneticConfig | None = None, mount: Mount | None = None,
-                 n_phi: int = N_PHI):
+                 n_phi: int | None = N_PHI):
         if config is not None and not isinstance(config, MagneticConfig):
             raise ConfigError("MagneticSensor.config", config, "a MagneticConfig")
         if mount is not None and not isinstance(mount, Mount):
@@ -100,8 +101,9 @@ class MagneticSensor:
         pos = np.asarray(self.config.positions)
         if self.mount.parent is None:
             pose = self.mount.pose_at(scene, float(t[0]))
-            for tk in t:
-                check_time(tk)
+            bad = ~(np.abs(t) <= TIME_MAX)  # NaN too
+            if bad.any():
+                check_time(float(t[np.argmax(bad)]))  # raises the standard error for that time
             rot = np.broadcast_to(pose.rotation, (len(t), 3, 3))
             pts = pose.apply(pos)[None]
         else:
