@@ -82,6 +82,9 @@ class MagneticConfig:
         Operating temperature of the device, and the one its figures refer to.
     ambient_field : (3,) [T]
         Uniform background field at the site, world frame (default: the Earth's).
+    soft_iron : bool
+        Add the approximate field of permeable objects magnetised by the magnets and the
+        ambient field (one induced dipole each, twinsense.magnetic.soft_iron).
     frame_rate : float [Hz]
     """
 
@@ -102,6 +105,7 @@ class MagneticConfig:
     output_max: float = 5.0
     switch: HallSwitch | None = None
     ambient_field: tuple = EARTH_FIELD
+    soft_iron: bool = False
     frame_rate: float = 1000.0
 
     def __post_init__(self):
@@ -139,6 +143,8 @@ class MagneticConfig:
             raise ConfigError("MagneticConfig.switch", self.switch, "a HallSwitch or None")
         object.__setattr__(self, "ambient_field", tuple(float(v) for v in V.bounded_vector(
             "MagneticConfig.ambient_field", self.ambient_field, B_LIMIT, "T")))
+        if not isinstance(self.soft_iron, bool):
+            raise ConfigError("MagneticConfig.soft_iron", self.soft_iron, "true or false")
         V.positive("MagneticConfig.frame_rate", self.frame_rate, "Hz")
 
     @property

@@ -27,6 +27,7 @@ from twinsense.magnetic.config import MagneticConfig
 from twinsense.magnetic.fields import N_PHI
 from twinsense.magnetic.presets import magnetic_config
 from twinsense.magnetic.scene_field import scene_field
+from twinsense.magnetic.soft_iron import soft_iron_field
 from twinsense.scene.motion import check_time
 from twinsense.scene.scene import Mount, Scene
 from twinsense.validation import TIME_MAX
@@ -111,6 +112,8 @@ class MagneticSensor:
             rot = np.array([p.rotation for p in poses])
             pts = np.array([p.apply(pos) for p in poses])
         b_world = scene_field(scene, pts, t, self.n_phi) + np.asarray(self.config.ambient_field)
+        if self.config.soft_iron:
+            b_world = b_world + soft_iron_field(scene, pts, t, self.config.ambient_field, n_phi=self.n_phi)
         return np.einsum("tji,tpj->tpi", rot, b_world)
 
     # --- device ----------------------------------------------------------------
