@@ -11,8 +11,9 @@ from twinsense.capacitive.mesh import MeshSettings
 from twinsense.capacitive.sensor import CapacitiveConfig
 
 
-def two_pad_config(**kw) -> CapacitiveConfig:
-    """Two 10 mm pads at 16 mm pitch on FR-4, ~20k tetrahedra."""
+def two_pad_config(mesh: MeshSettings | None = None, **kw) -> CapacitiveConfig:
+    """Two 10 mm pads at 16 mm pitch on FR-4, ~20k tetrahedra (``mesh`` replaces the mesh settings)."""
     layout = L.Layout(L.pad_grid(2, 1, 0.010, 0.016), L.Substrate(1.6e-3, 4.4, extent=(-0.02, 0.02, -0.012, 0.012)))
-    mesh = MeshSettings(margin=0.01, height=0.02, depth=0.006, h_min=2e-3, h_max=6e-3, growth=1.4)
+    if mesh is None:
+        mesh = MeshSettings(margin=0.01, height=0.02, depth=0.006, h_min=2e-3, h_max=6e-3, growth=1.4)
     return CapacitiveConfig(layout, mesh, **kw)
