@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -39,3 +41,16 @@ def test_quantiser_rounds_to_the_nearest_step():
     err = measured - values
     assert np.abs(err).max() <= 0.5 * lsb * (1 + 1e-6)
     assert abs(err.mean()) < 0.01 * lsb
+
+
+def test_default_readout_is_ideal_and_frozen():
+    # The bare ReadoutConfig is an ideal converter (the presets carry the real
+    # front ends' noise): the true values come out unchanged, noise-free, and
+    # the config cannot be changed after a sensor was built from it.
+    cfg = ReadoutConfig()
+    values = np.array([1.25e-12, 3.5e-13])
+    measured, delta = read_out(values, values * 0.5, cfg, np.random.default_rng(0))
+    np.testing.assert_array_equal(measured, values)
+    np.testing.assert_array_equal(delta, values - values * 0.5)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        cfg.noise_rms = 1e-15
