@@ -220,6 +220,8 @@ class MaterialSpec(_Model):
     radar_specular: Annotated[Num, Field(ge=0, le=1, allow_inf_nan=False)] | None = None
     permittivity: Annotated[Num, Field(ge=1, allow_inf_nan=False)] | None = None
     conductor: Literal["none", "grounded", "floating"] | None = None
+    sigma: Annotated[Num, Field(ge=0, allow_inf_nan=False)] | None = None
+    mu_r: Annotated[Num, Field(ge=1, allow_inf_nan=False)] | None = None
 
 
 class MagnetSpec(_Model):
@@ -238,8 +240,8 @@ class ObjectSpec(_Model):
     material: str = "plastic"
     pose: PoseSpec = PoseSpec()
     motion: MotionSpec | None = None
-    layers: list[Literal["tof", "radar", "capacitive", "camera", "lidar", "ultrasonic", "magnetic"]] = list(
-        SENSOR_KINDS)
+    layers: list[Literal["tof", "radar", "capacitive", "camera", "lidar", "ultrasonic", "magnetic",
+                         "inductive"]] = list(SENSOR_KINDS)
     magnet: MagnetSpec | None = None
 
 

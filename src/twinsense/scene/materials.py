@@ -1,8 +1,8 @@
 """Materials: optical (NIR), radar and electrical properties, and a named library.
 
 Values are representative figures for the sensing bands twinsense models
-(850-940 nm NIR, 60-80 GHz radar, kHz-MHz capacitive); users override them
-with their own measured materials through :func:`register_material` or the
+(850-940 nm NIR, 60-80 GHz radar, kHz-MHz capacitive and inductive); users
+override them with their own measured materials through :func:`register_material` or the
 ``materials`` section of a scenario.
 """
 
@@ -39,6 +39,12 @@ class Material:
     conductor : str
         "none" (dielectric), "grounded" (held at 0 V) or "floating"
         (isolated equipotential with zero net charge).
+    sigma : float
+        Electrical conductivity [S/m], >= 0 (0: not a metal; eddy currents
+        for inductive sensing).
+    mu_r : float
+        Relative magnetic permeability (>= 1; the effective low-field value
+        for ferromagnetic metals).
     """
 
     name: str
@@ -49,6 +55,8 @@ class Material:
     radar_specular: float = 0.0
     permittivity: float = 1.0
     conductor: str = "none"
+    sigma: float = 0.0
+    mu_r: float = 1.0
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
@@ -59,6 +67,8 @@ class Material:
         V.number(f"{p}.radar_reflectivity", self.radar_reflectivity, lo=0)
         V.number(f"{p}.radar_specular", self.radar_specular, lo=0, hi=1)
         V.number(f"{p}.permittivity", self.permittivity, lo=1.0, unit="relative, vacuum = 1")
+        V.number(f"{p}.sigma", self.sigma, lo=0.0, hi=1e9, unit="S/m")
+        V.number(f"{p}.mu_r", self.mu_r, lo=1.0, hi=1e6, unit="relative, vacuum = 1")
         if not isinstance(self.nir_retroreflective, bool):
             raise ConfigError(f"{p}.nir_retroreflective", self.nir_retroreflective, "true or false")
         if self.conductor not in CONDUCTOR_KINDS:
@@ -95,13 +105,26 @@ def material_names() -> list[str]:
     return sorted(_LIBRARY)
 
 
+# Conductivities at 20 deg C (ASM Metals Handbook resistivities): mild steel
+# (low-carbon, AISI 1010, 0.143 uOhm m) 7.0e6 S/m; stainless steel 304
+# (0.72 uOhm m) 1.39e6 S/m; aluminium (1xxx / 6063, ~0.029 uOhm m) 3.5e7 S/m;
+# brass (C26000 cartridge brass, 28 % IACS) 1.5e7 S/m (1.6e7 by the IACS
+# figure); copper 5.8e7 S/m (100 % IACS, the definition). Permeability of
+# mild steel: the effective low-field (initial) value of low-carbon steel is
+# ~100-200 (Bozorth, Ferromagnetism, 1951); 100 is taken. Annealed 304 is
+# austenitic, mu_r ~1.0. "metal" (and "floating_metal") are taken as mild steel.
+_MILD_STEEL = (7.0e6, 100.0)
 # NIR albedo at 850 nm: Bulczak et al. 2018 and common ToF target charts;
 # radar sigma0 at 60 GHz: order-of-magnitude values for smooth/rough surfaces;
 # permittivities: handbook values at kHz-MHz.
 for _m in (
-    Material("metal", 0.55, 0.6, False, 1.0, 0.9, 1.0, "grounded"),
-    Material("aluminium", 0.70, 0.7, False, 1.0, 0.9, 1.0, "grounded"),
-    Material("floating_metal", 0.55, 0.6, False, 1.0, 0.9, 1.0, "floating"),
+    Material("metal", 0.55, 0.6, False, 1.0, 0.9, 1.0, "grounded", *_MILD_STEEL),
+    Material("aluminium", 0.70, 0.7, False, 1.0, 0.9, 1.0, "grounded", 3.5e7, 1.0),
+    Material("floating_metal", 0.55, 0.6, False, 1.0, 0.9, 1.0, "floating", *_MILD_STEEL),
+    Material("mild_steel", 0.55, 0.6, False, 1.0, 0.9, 1.0, "grounded", *_MILD_STEEL),
+    Material("stainless_steel", 0.60, 0.7, False, 1.0, 0.9, 1.0, "grounded", 1.39e6, 1.0),
+    Material("brass", 0.65, 0.7, False, 1.0, 0.9, 1.0, "grounded", 1.5e7, 1.0),
+    Material("copper", 0.65, 0.7, False, 1.0, 0.9, 1.0, "grounded", 5.8e7, 1.0),
     Material("wood", 0.45, 0.05, False, 0.08, 0.2, 2.5, "none"),
     Material("drywall", 0.80, 0.02, False, 0.05, 0.1, 2.8, "none"),
     Material("concrete", 0.35, 0.02, False, 0.15, 0.1, 5.0, "none"),
