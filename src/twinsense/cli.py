@@ -1,4 +1,4 @@
-"""Command line: ``twinsense run | validate | recover | presets | demo | sweep | info``.
+"""Command line: ``twinsense run | validate | recover | convert | presets | demo | sweep | info``.
 
 A thin layer over the Python API; every command has ``--help``.
 """
@@ -87,13 +87,16 @@ def run(scenario: Path = typer.Argument(..., help="scenario YAML file"),
         out: Path = typer.Option(Path("out"), "-o", "--out", help="output directory"),
         progress: bool = typer.Option(True, help="show a progress bar"),
         duration: float = _DURATION, seed: int = _SEED, max_frames: int = _MAX_FRAMES,
-        max_frame_bytes: int = _MAX_FRAME_BYTES) -> None:
+        max_frame_bytes: int = _MAX_FRAME_BYTES,
+        fmt: str = typer.Option("h5", "--format", help="h5, or mcap: also write the ROS 2 MCAP file")) -> None:
     """Simulate a scenario and write its recording under OUT.
 
     Ctrl-C, SIGTERM and SIGHUP stop the run after the frame in progress and
     keep every frame so far in <name>.partial.h5 (exit status 128 + signal
     number); a second signal stops at once.
     """
+    if fmt not in ("h5", "mcap"):
+        _fail(ValueError(f"--format {fmt!r}: expected h5 or mcap"))
     try:
         sc = _load(scenario, duration, seed, max_frames, max_frame_bytes)
     except TwinsenseError as exc:
@@ -112,6 +115,8 @@ def run(scenario: Path = typer.Argument(..., help="scenario YAML file"),
         typer.echo(f"no recording written (outputs.recording is null); captured {counts} frames")
     else:
         typer.echo(f"wrote {res.path} ({counts} frames)")
+        if fmt == "mcap":
+            _convert(res.path, res.path.with_suffix(".mcap"))
     for p in res.removed:
         typer.echo(f"removed {p} (an earlier run's partial recording, superseded)")
     for p in res.stale:
@@ -168,6 +173,28 @@ def recover(path: Path = typer.Argument(..., help="a killed run's '.<name>.h5.<p
         _fail(exc)
     kept = ", ".join(f"{k}: {v}" for k, v in counts.items()) or "no sensors"
     typer.echo(f"recovered {sum(counts.values())} frames ({kept}) into {dest}")
+
+
+def _convert(src: Path, dest: Path) -> None:
+    from twinsense.io.mcap import convert as to_mcap
+    from twinsense.scenario import scenario_from_dict
+
+    try:
+        path = to_mcap(src, dest, lambda d: scenario_from_dict(d, source=f"{src} (scenario)").scene)
+    except (TwinsenseError, ImportError) as exc:
+        _fail(exc)
+    typer.echo(f"wrote {path} (ROS 2 MCAP)")
+
+
+@app.command()
+def convert(recording: Path = typer.Argument(..., help="a twinsense HDF5 recording"),
+            out: Path = typer.Argument(..., help="the MCAP file to write (.mcap)")) -> None:
+    """Convert a recording into a ROS 2 MCAP file (needs the 'ros2' extra).
+
+    Topics and frames are described in docs/ros2-mcap.md; the scene's object
+    frames on /tf come from the scenario stored in the recording.
+    """
+    _convert(recording, out)
 
 
 @app.command()
