@@ -163,3 +163,20 @@ def test_ring_geometry_and_fresnel_limits():
     w = 1e-3
     assert float(fresnel_factor(10.0, -w / 2, w / 2)) == pytest.approx(w * math.sqrt(10.0 / math.pi), rel=1e-5,
                                                                        abs=0)
+
+
+def test_ring_in_the_robot_cell_has_no_invalid_spreading_factor():
+    # At t = 1.4 s the walking person (a capsule) stands where some transducer
+    # pairs have no specular point on its cylinder; those rows are dropped and
+    # must not pass a negative ratio through sqrt on the way (RuntimeWarning,
+    # an error in this suite) nor leave NaN in the frame.
+    import warnings
+
+    from twinsense.demos.ultrasonic import build_cell
+
+    scene, ring = build_cell()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        for t in (1.267, 1.4, 3.333):
+            f = ring.capture(scene, t, np.random.default_rng(0))
+            assert np.isfinite(f.envelope).all() and np.isfinite(f.ascan).all()

@@ -343,7 +343,7 @@ def _sphere_echoes(el: Elements, tx, rx, k):
     gain = np.ones(ok.shape)
     for t in (t1, t2):
         qf = _q(k, t, d1, d2, r1s, r2s)
-        gain = gain * np.sqrt(qf / (qf + sag))
+        gain = gain * _spreading(qf, sag, ok)
     gain = gain / (r1s + r2s)
     shape = ok.shape
     rxi = np.broadcast_to(np.arange(shape[1]), shape)
@@ -351,6 +351,19 @@ def _sphere_echoes(el: Elements, tx, rx, k):
     obj = np.broadcast_to(el.sph_obj[:, None], shape)
     return _finish(ok, rxi.ravel(), p.reshape(-1, 3), (r1 + r2).ravel(), gain.ravel(), refl.ravel(),
                    obj.ravel())
+
+
+def _spreading(qf: np.ndarray, sag: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """sqrt(qf / (qf + sag)): the curved surface's spreading factor along one
+    principal direction, where the specular point exists (``ok``), else 0.
+
+    Outside ``ok`` (a transducer inside the body's radius, no stationary point)
+    the ratio is meaningless and may be negative or 0/0; those rows are dropped
+    by the caller, and must not produce NaN on the way.
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(ok, qf / (qf + sag), 0.0)
+    return np.sqrt(np.clip(ratio, 0.0, None))
 
 
 def _cyl_echoes(el: Elements, tx, rx, k):
@@ -381,7 +394,7 @@ def _cyl_echoes(el: Elements, tx, rx, k):
     f_axis = fresnel_factor(_q(k, np.broadcast_to(w, b.shape), d1, d2, r1s, r2s), -h - zs, h - zs)
     inside = np.abs(zs) <= h
     ok &= inside | el.cyl_edge[:, None]
-    gain = np.sqrt(qf / (qf + sag)) * f_axis / (r1s + r2s)
+    gain = _spreading(qf, sag, ok) * f_axis / (r1s + r2s)
     e = c + q0 + np.clip(zs, -h, h)[..., None] * w
     path = np.linalg.norm(tx - e, axis=-1) + np.linalg.norm(rx - e, axis=-1)
     shape = ok.shape
