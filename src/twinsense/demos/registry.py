@@ -26,6 +26,9 @@ DEMOS: dict[str, tuple[str, str, str]] = {
               "office scene, ideal depth camera: depth PNG and recording"),
     "lidar": ("twinsense.demos.lidar", "run_lidar_demo",
               "robot cell, Velodyne VLP-16: top view and range image by intensity, walking person, recording"),
+    "inductive": ("twinsense.demos.inductive", "run_inductive_demo",
+                  "gripper jaws with steel and aluminium plates closing onto M18 inductive switches: switching "
+                  "points per material, impedance change vs distance, recording"),
     "ultrasonic": ("twinsense.demos.ultrasonic", "run_ultrasonic_demo",
                    "robot cell, 8-transducer 40 kHz ring on a pillar: A-scans and first-echo distances vs the "
                    "walking person, recording"),

@@ -1,28 +1,32 @@
-"""Run-time response: impedance change of general targets from the disc tables, by rings and sectors.
+"""Run-time response: impedance change of general targets from the disc tables, per sector.
 
 The sensing face is split into rings at the table's disc radii
 ``0 = a_0 < a_1 < ... < a_K`` and every ring into ``S`` equal sectors. A
 ray parallel to the sensor axis from the middle of each cell (area-weighted
 ring radius, sector centre angle) finds the nearest metal and its distance.
-The model is the superposition of ring responses taken from the tables:
+Each sector is then treated as a sector of a disc:
 
-    delta Z = sum_k sum_s (1 / S) [dZ(m_ks, d_ks, a_k) - dZ(m_ks, d_ks, a_{k-1})],
+    delta Z = (1 / S) sum_s f_s dZ(m_s, d_s, a_{o_s}),
 
-where ``dZ(m, d, a)`` is the FEM impedance change of a disc of material
-``m`` and radius ``a`` at distance ``d``. For a centred disc of a table
-radius it returns the table exactly; for a smaller or offset target, a
-target with holes or several targets at other distances it adds the ring
-pieces each covers. It neglects the interaction between the pieces (eddy
-currents in one ring screen the next; tests/inductive measure the error on a
-washer against the FEM) and treats every plate as having the table's
-thickness (1 mm: > 3 skin depths for steel, brass, aluminium and copper at
-these frequencies, ~1 skin depth for stainless steel at 150-300 kHz). Beyond
-the largest table radius and the largest table distance a target counts
-nothing; closer than the smallest distance it counts as at that distance.
+with ``o_s`` the outermost ring of sector ``s`` that sees metal, ``f_s``
+the share of the area inside ``a_{o_s}`` that the hit cells cover, ``d_s``
+the area-weighted mean distance of the hits, ``m_s`` the material of the
+outermost hit and ``dZ(m, d, a)`` the FEM impedance change of a disc of
+material ``m`` and radius ``a`` at distance ``d``. A centred disc of a table
+radius gives the table exactly; a plate offset sideways covers the sectors
+towards it further out than the others. Why the extent and a covered
+share rather than a sum of ring responses: the eddy currents of a disc run
+mostly under the winding, and an inner disc screens the ring around it, so
+ring responses do not add (tests/inductive measure both on a washer against
+the FEM: the ring sum is off by 54-64 %, this model by the figures in
+docs/inductive.md). Every plate is taken with the table's thickness (1 mm:
+> 3 skin depths for steel, brass, aluminium and copper at these
+frequencies, ~1 skin depth for stainless steel at 150-300 kHz). Beyond the
+largest table radius and distance a target counts nothing; closer than the
+smallest distance it counts as at that distance.
 
-In distance the table is interpolated by a cubic spline of each ring
-increment (real and imaginary part), resampled once onto a fine grid so a
-capture is a linear lookup.
+In distance the table is interpolated by a cubic spline (real and imaginary
+part), resampled once onto a fine grid so a capture is a linear lookup.
 """
 
 from __future__ import annotations
@@ -36,7 +40,7 @@ _DENSE = 512  # resampled distances: linear interpolation between them adds < 1e
 
 
 class ResponseModel:
-    """Impedance change [ohm] of targets seen through a ring/sector ray pattern.
+    """Impedance change [ohm] of targets seen through a ring/sector ray pattern (see the module notes).
 
     Parameters
     ----------
@@ -51,12 +55,18 @@ class ResponseModel:
         self.edges = np.concatenate([[0.0], np.asarray(spec.radii, dtype=float)])
         self.sectors = int(sectors)
         table = np.asarray(table, dtype=complex)
-        inc = np.diff(np.concatenate([np.zeros((*table.shape[:2], 1)), table], axis=2), axis=2)
         self.grid = np.linspace(self.distances[0], self.distances[-1], _DENSE)
-        re = CubicSpline(self.distances, inc.real, axis=1)(self.grid)
-        im = CubicSpline(self.distances, inc.imag, axis=1)(self.grid)
+        re = CubicSpline(self.distances, table.real, axis=1)(self.grid)
+        im = CubicSpline(self.distances, table.imag, axis=1)(self.grid)
         self._dense = (re + 1j * im)  # (M, G, K)
         self._step = self.grid[1] - self.grid[0]
+        self._ring_area = np.pi * np.diff(self.edges ** 2)
+        self._cum_area = np.cumsum(self._ring_area)
+        ang = (np.arange(self.sectors) + 0.5) * 2 * np.pi / self.sectors
+        r = self.ring_radii[:, None]
+        pts = np.stack([r * np.cos(ang), r * np.sin(ang), np.zeros_like(r * ang)], axis=-1).reshape(-1, 3)
+        pts.setflags(write=False)
+        self._face_points = pts
 
     @property
     def ring_radii(self) -> np.ndarray:
@@ -65,35 +75,38 @@ class ResponseModel:
         return np.sqrt(0.5 * (e[:-1] ** 2 + e[1:] ** 2))
 
     def face_points(self) -> np.ndarray:
-        """(K * S, 3) ray origins on the sensing face in the sensor frame (ring-major), z = 0."""
-        ang = (np.arange(self.sectors) + 0.5) * 2 * np.pi / self.sectors
-        r = self.ring_radii[:, None]
-        return np.stack([r * np.cos(ang), r * np.sin(ang), np.zeros_like(r * ang)], axis=-1).reshape(-1, 3)
-
-    def ring_increments(self, material: np.ndarray, distance: np.ndarray) -> np.ndarray:
-        """Per-ray contribution [ohm] (K * S,), for material indices (-1: none) and distances [m]."""
-        material = np.asarray(material)
-        d = np.asarray(distance, dtype=float)
-        k = np.repeat(np.arange(len(self.edges) - 1), self.sectors)
-        ok = (material >= 0) & (d <= self.distances[-1])
-        out = np.zeros(d.shape, dtype=complex)
-        if not np.any(ok):
-            return out
-        x = (np.clip(d[ok], self.distances[0], self.distances[-1]) - self.grid[0]) / self._step
-        i0 = np.minimum(x.astype(np.int64), _DENSE - 2)
-        w = x - i0
-        m, kk = material[ok], k[ok]
-        out[ok] = ((1 - w) * self._dense[m, i0, kk] + w * self._dense[m, i0 + 1, kk]) / self.sectors
-        return out
+        """(K * S, 3) ray origins on the sensing face in the sensor frame (ring-major), z = 0; read-only."""
+        return self._face_points
 
     def delta_z(self, material: np.ndarray, distance: np.ndarray) -> complex:
-        """Total impedance change [ohm] of the hits ``material`` (index, -1 none), ``distance`` [m] per ray."""
-        return complex(np.sum(self.ring_increments(material, distance)))
+        """Impedance change [ohm] of the hits: ``material`` index (-1: none) and ``distance`` [m] per ray.
+
+        Rays are ring-major, (K * S,) as :meth:`face_points`.
+        """
+        K, S = len(self.edges) - 1, self.sectors
+        mat = np.asarray(material).reshape(K, S)
+        d = np.asarray(distance, dtype=float).reshape(K, S)
+        hit = (mat >= 0) & (d <= self.distances[-1])
+        if not hit.any():
+            return 0j
+        cols = np.flatnonzero(hit.any(axis=0))
+        h = hit[:, cols]
+        outer = K - 1 - np.argmax(h[::-1], axis=0)  # outermost hit ring per sector
+        w = np.where(h, self._ring_area[:, None], 0.0)
+        frac = w.sum(axis=0) / self._cum_area[outer]
+        dist = (w * np.where(h, d[:, cols], 0.0)).sum(axis=0) / w.sum(axis=0)
+        m = mat[outer, cols]
+        x = (np.clip(dist, self.distances[0], self.distances[-1]) - self.grid[0]) / self._step
+        i0 = np.minimum(x.astype(np.int64), _DENSE - 2)
+        t = x - i0
+        val = (1 - t) * self._dense[m, i0, outer] + t * self._dense[m, i0 + 1, outer]
+        return complex(np.sum(frac * val) / S)
 
     def disc(self, material: int, distance, radius_index: int) -> np.ndarray:
         """``delta Z`` [ohm] of a centred disc of table radius ``radius_index`` at each ``distance`` [m]."""
-        n_rays = self.sectors * (len(self.edges) - 1)
-        mats = np.full(n_rays, -1)
-        mats[: self.sectors * (radius_index + 1)] = material
-        return np.array([self.delta_z(mats, np.full(n_rays, float(d)))
-                         for d in np.atleast_1d(np.asarray(distance, dtype=float))])
+        d = np.atleast_1d(np.asarray(distance, dtype=float))
+        x = (np.clip(d, self.distances[0], self.distances[-1]) - self.grid[0]) / self._step
+        i0 = np.minimum(x.astype(np.int64), _DENSE - 2)
+        t = x - i0
+        val = (1 - t) * self._dense[material, i0, radius_index] + t * self._dense[material, i0 + 1, radius_index]
+        return np.where(d <= self.distances[-1], val, 0.0)

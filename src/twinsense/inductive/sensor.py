@@ -93,8 +93,14 @@ class InductiveSensor:
 
     # ---------------------------------------------------------------- calibration
 
-    def prepare(self) -> None:
-        """Load (or compute) the tables and calibrate the coil, tank and switching thresholds."""
+    def prepare(self, scene: Scene | None = None, times=None) -> None:
+        """Load (or compute) the tables and calibrate the coil, tank and switching thresholds.
+
+        ``simulate`` calls it with the scene and frame times at the start of a
+        run: the output then starts released, as at power-up.
+        """
+        if scene is not None:
+            self.reset()
         if self._prepared:
             return
         cfg = self.config
@@ -108,13 +114,13 @@ class InductiveSensor:
         self.r0 = omega * self.l0 / cfg.coil_q + z0.real  # [ohm] winding + core loss + housing eddy loss
         # The standard target: mild steel (material 0), the disc of the standard target's area.
         self._std = (0, RADIUS_FACTORS.index(1.0))
-        self.a_on = float(self.standard_quality(self.switching_distance()))
-        self.a_off = float(self.standard_quality(self.switching_distance() * (1 + cfg.hysteresis)))
+        self.a_on = float(self.standard_quality(self.switching_distance())[0])
+        self.a_off = float(self.standard_quality(self.switching_distance() * (1 + cfg.hysteresis))[0])
         # Repeatability: 3 sigma of the switching distance -> sigma of the quality through its slope at s_n.
         h = 1e-3 * cfg.rated_distance
         slope = (self.standard_quality(cfg.rated_distance + h) - self.standard_quality(cfg.rated_distance - h)) / (
             2 * h)
-        self.quality_noise = float(abs(slope) * cfg.repeatability * cfg.rated_distance / 3)
+        self.quality_noise = float(abs(slope[0]) * cfg.repeatability * cfg.rated_distance / 3)
         self._prepared = True
 
     def switching_distance(self) -> float:
@@ -134,7 +140,8 @@ class InductiveSensor:
 
     def standard_quality(self, distance) -> np.ndarray:
         """Q / Q0 with the standard target (mild steel, standard area) at ``distance`` [m]."""
-        self.prepare()
+        if not hasattr(self, "model"):
+            self.prepare()
         m, k = self._std
         return self.quality(self.model.disc(m, distance, k))
 
@@ -147,6 +154,10 @@ class InductiveSensor:
             table, _ = load_or_compute(spec, use_cache=self.use_cache)
             self._models[key] = (ResponseModel(spec, table, self.config.sectors), 0)
         return self._models[key]
+
+    def reset(self) -> None:
+        """Release the output (the state at power-up)."""
+        self._output = False
 
     # ---------------------------------------------------------------- capture
 
@@ -170,6 +181,10 @@ class InductiveSensor:
         dirs = np.broadcast_to(pose.apply_vectors(np.array([[0.0, 0.0, 1.0]])), pts.shape)
         hits = cast(sub, Rays(pose.apply(pts), np.ascontiguousarray(dirs)), t, kind=self.kind, fields=("distance",))
         ids = np.asarray(hits.object_id)
+        if len(sub) == 1:  # one metal object: no split by object
+            mat = sub.objects[0].material
+            model, index = self.model_for(mat.sigma, mat.mu_r)
+            return model.delta_z(np.where(ids == 0, index, -1), hits.distance)
         total = 0j
         for oid in np.unique(ids[ids >= 0]):
             mat = sub.objects[int(oid)].material
