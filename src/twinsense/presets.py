@@ -27,6 +27,7 @@ BUILTIN_KINDS: dict[str, str] = {
     "ultrasonic": "twinsense.ultrasonic",
     "lidar": "twinsense.lidar",
     "magnetic": "twinsense.magnetic",
+    "inductive": "twinsense.inductive",
 }
 
 _Entry = tuple[Callable[..., Any], str]
