@@ -59,7 +59,7 @@ class SolverConfig:
         region per frame. Needs the active cells (the sensor's
         ``active_boxes`` or :meth:`CapacitiveSensor.prepare`). Exact; faster
         only when the active region is a small part of the mesh (see
-        docs/benchmarks/capacitive.md), hence off by default.
+        BENCHMARKS.md), hence off by default.
     """
 
     preconditioner: str = "amg"
