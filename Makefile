@@ -13,6 +13,9 @@ $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e ".[dev]"
+	# robosuite's MIT-licensed MJCF robots (UR5e, Panda) for the tests and examples: only its
+	# files are read, never imported, so its dependencies (which pin numpy < 2) are left out.
+	$(BIN)/python -m pip install --quiet --no-deps "robosuite>=1.5"
 	touch $(STAMP)
 
 demo: $(STAMP)
