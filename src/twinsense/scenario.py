@@ -604,7 +604,44 @@ def load_scenario(path, overrides: dict[str, Any] | None = None, limits=None) ->
             ch = exc.character
             problem = f"unacceptable character U+{ch if isinstance(ch, int) else ord(ch):04X}"
         raise ScenarioError(str(p), [(f"(YAML syntax, {where})", problem, "valid YAML")]) from None
+    n_nodes = yaml_expanded_size(data)
+    if n_nodes > MAX_YAML_NODES:
+        raise ScenarioError(str(p), [("(YAML aliases)", f"over {MAX_YAML_NODES} values once aliases are expanded",
+                                      f"at most {MAX_YAML_NODES} (aliases that multiply each other, "
+                                      "'billion laughs', are refused)")])
     if overrides and isinstance(data, dict):
         data = {**data, **overrides}
     return scenario_from_dict(data, source=str(p), base_dir=p.parent, limits=limits)
+
+
+#: Values a scenario may hold once YAML aliases are expanded. A few aliases
+#: can stand for exponentially many values (``a: &a [x, x]``, ``b: &b [*a, *a]``,
+#: ...), which PyYAML shares but validation would walk one by one.
+MAX_YAML_NODES = 1_000_000
+
+
+def yaml_expanded_size(data) -> int:
+    """Number of values in ``data`` with every shared (aliased) list or mapping counted each time it is used.
+
+    A recursive alias counts once where it closes the loop. Iterative, so deep
+    nesting cannot exhaust the interpreter's stack.
+    """
+    sizes: dict[int, int] = {}
+    stack: list[tuple[Any, bool]] = [(data, False)]
+    while stack:
+        node, done = stack.pop()
+        if not isinstance(node, (dict, list)):
+            continue
+        key = id(node)
+        children = [*node.keys(), *node.values()] if isinstance(node, dict) else node
+        if done:
+            sizes[key] = min(1 + sum(sizes.get(id(c), 1) if isinstance(c, (dict, list)) else 1 for c in children),
+                             2 * MAX_YAML_NODES)
+            continue
+        if key in sizes:
+            continue
+        sizes[key] = 1  # in progress: a recursive alias back to it counts once
+        stack.append((node, True))
+        stack.extend((c, False) for c in children if isinstance(c, (dict, list)) and id(c) not in sizes)
+    return sizes.get(id(data), 1)
 
