@@ -180,7 +180,7 @@ def _convert(src: Path, dest: Path) -> None:
     from twinsense.scenario import scenario_from_dict
 
     try:
-        path = to_mcap(src, dest, lambda d: scenario_from_dict(d, source=f"{src} (scenario)").scene)
+        path = to_mcap(src, dest, lambda d: scenario_from_dict(d, source=f"{src} (scenario)"))
     except (TwinsenseError, ImportError) as exc:
         _fail(exc)
     typer.echo(f"wrote {path} (ROS 2 MCAP)")

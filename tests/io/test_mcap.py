@@ -18,6 +18,7 @@ from twinsense.errors import TwinsenseError
 from twinsense.io import mcap as M
 from twinsense.io.recording import open_recording
 from twinsense.scenario import scenario_from_dict
+from twinsense.simulate import simulate
 
 ROOT = Path(__file__).resolve().parents[2]
 MSG_DIR = ROOT / "docs" / "msg"
@@ -37,6 +38,13 @@ def _scenario() -> dict:
          "mount": {"pose": {"position": [2.0, 0.0, 1.6]}}},
         {"name": "hall", "kind": "magnetic", "preset": "tle493d", "frame_rate": 10,
          "mount": {"pose": {"position": [1.0, 0.0, 0.5]}}},
+        {"name": "lidar", "kind": "lidar", "preset": "velodyne_vlp16", "frame_rate": 10,
+         "overrides": {"columns": 90}, "mount": {"pose": {"look_at": {"eye": [0.0, 0.0, 1.0],
+                                                                       "target": [4.0, 0.0, 1.0]}}}},
+        {"name": "sonar", "kind": "ultrasonic", "preset": "open_40khz", "frame_rate": 10,
+         "mount": {"pose": {"look_at": {"eye": [0.0, 0.0, 0.5], "target": [4.0, 0.0, 0.5]}}}},
+        {"name": "prox", "kind": "inductive", "preset": "m12_flush", "frame_rate": 10,
+         "mount": {"pose": {"position": [2.0, -1.0, 0.1]}}},
     ]
     return d
 
@@ -55,14 +63,23 @@ def _typestore():
 def run(tmp_path_factory):
     out = tmp_path_factory.mktemp("mcap")
     sc = scenario_from_dict(_scenario(), base_dir=ROOT / "examples")
-    res = sc.run(out, progress=False)
-    mcap_path = M.convert(res.path, out / "run.mcap", lambda d: scenario_from_dict(d).scene)
+    detections = []  # the radar's detections as captured in the run (the recording keeps the cube only)
+
+    def keep(sensor, frame):
+        if sensor.kind == "radar":
+            detections.append(frame.detections)
+
+    res = simulate(sc.scene, sc.sensors, sc.duration, out=sc.recording_path(out), seed=sc.seed,
+                   scenario=sc.raw, on_frame=keep)
+    # The converter rebuilds the scenario (scene and sensors) from the recording, as `twinsense convert` does.
+    mcap_path = M.convert(res.path, out / "run.mcap", lambda d: scenario_from_dict(d))
     msgs: dict[str, list] = {}
     with AnyReader([mcap_path], default_typestore=_typestore()) as reader:
         types = {c.topic: c.msgtype for c in reader.connections}
         for c, log_ns, raw in reader.messages():
             msgs.setdefault(c.topic, []).append((log_ns, reader.deserialize(raw, c.msgtype)))
-    return {"h5": res.path, "mcap": mcap_path, "msgs": msgs, "types": types, "scene": sc.scene}
+    return {"h5": res.path, "mcap": mcap_path, "msgs": msgs, "types": types, "scene": sc.scene,
+            "detections": detections}
 
 
 def _ns(t: float) -> int:
@@ -87,8 +104,10 @@ def test_every_topic_and_type(run):
         "/tof/points": "sensor_msgs/msg/PointCloud2",
         "/radar/cube": "twinsense_msgs/msg/RadarCube", "/radar/range_doppler": "twinsense_msgs/msg/RangeDoppler",
         "/cap/frame": "twinsense_msgs/msg/CapacitiveFrame",
-        "/hall/field_true": "twinsense_msgs/msg/ArrayStream", "/hall/field": "twinsense_msgs/msg/ArrayStream",
-        "/hall/raw": "twinsense_msgs/msg/ArrayStream",
+        "/radar/detections": "sensor_msgs/msg/PointCloud2",
+        "/hall/frame": "twinsense_msgs/msg/MagneticFrame", "/hall/magnetic_field": "sensor_msgs/msg/MagneticField",
+        "/lidar/points": "sensor_msgs/msg/PointCloud2", "/sonar/frame": "twinsense_msgs/msg/UltrasonicFrame",
+        "/prox/frame": "twinsense_msgs/msg/InductiveFrame",
     }
     # Two frames per sensor; one static tf message.
     assert {k: len(v) for k, v in run["msgs"].items()} == {k: 1 if k == "/tf_static" else 2 for k in run["types"]}
@@ -224,11 +243,17 @@ def test_radar_capacitive_and_array_messages(run):
                 np.testing.assert_array_equal(getattr(m, field), cap[stream][k])
             np.testing.assert_array_equal(m.maxwell.reshape(m.n_terminals, m.n_terminals), cap["maxwell"][k])
             assert m.header.frame_id == "cap"
-        for stream in ("field_true", "field", "raw"):
-            for k, (_, m) in enumerate(run["msgs"][f"/hall/{stream}"]):
-                a = hall[stream][k]
-                assert m.stream == stream and tuple(m.shape) == a.shape
-                np.testing.assert_array_equal(m.data.reshape(a.shape), a.astype(np.float64))
+        for k, (_, m) in enumerate(run["msgs"]["/hall/frame"]):
+            # float64 copies of float64 fields and of int32 codes: exact (tolerance 0).
+            n, a = m.n_elements, m.n_axes
+            assert (n, a) == hall["field"][k].shape and m.header.frame_id == "hall"
+            np.testing.assert_array_equal(m.field_true.reshape(n, 3), hall["field_true"][k])
+            np.testing.assert_array_equal(m.field.reshape(n, a), hall["field"][k])
+            np.testing.assert_array_equal(m.raw.reshape(n, a), hall["raw"][k].astype(np.float64))
+            _, mf = run["msgs"]["/hall/magnetic_field"][k]
+            b = mf.magnetic_field
+            np.testing.assert_array_equal([b.x, b.y, b.z], hall["field"][k][0])
+            assert list(mf.magnetic_field_covariance) == [0.0] * 9
 
 
 def test_cli_convert_and_errors(run, tmp_path):
@@ -269,3 +294,120 @@ def test_negative_time_is_refused():
     with pytest.raises(TwinsenseError, match="timestamp"):
         M.stamp_ns(-0.1)
     assert M.stamp_ns(1.5) == 1_500_000_000
+
+
+def _cloud(m) -> np.ndarray:
+    """A PointCloud2 decoded from its own field table (names, offsets, datatypes), not the writer's."""
+    types = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
+    dt = np.dtype({"names": [f.name for f in m.fields], "formats": ["<" + types[f.datatype] for f in m.fields],
+                   "offsets": [f.offset for f in m.fields], "itemsize": m.point_step})
+    assert m.row_step == m.point_step * m.width and not m.is_bigendian
+    return np.frombuffer(m.data.tobytes(), dtype=dt).reshape(m.height, m.width)
+
+
+def test_radar_detections_are_the_runs(run):
+    # Detections recomputed from the recorded ADC codes by the rebuilt radar equal those of the run:
+    # the same deterministic chain on the same codes; float32 storage of float64 values -> rel 2^-24.
+    assert len(run["detections"]) == len(run["msgs"]["/radar/detections"]) == 2
+    for det, (_, m) in zip(run["detections"], run["msgs"]["/radar/detections"]):
+        assert m.header.frame_id == "radar_link" and m.height == 1 and m.width == len(det.range) > 0
+        assert [f.name for f in m.fields] == ["x", "y", "z", "range", "radial_velocity", "snr"]
+        c = _cloud(m)[0]
+        # REP 103 link frame: x forward = optical z, y left = -optical x, z up = -optical y.
+        p = det.points_sensor
+        for got, want in [(c["x"], p[:, 2]), (c["y"], -p[:, 0]), (c["z"], -p[:, 1]), (c["range"], det.range),
+                          (c["radial_velocity"], det.velocity), (c["snr"], det.snr_db)]:
+            np.testing.assert_allclose(got, want, rtol=2**-24, atol=1e-30)
+        # A point lies at its range: |p| = r (float32 rounding of 3 coordinates, ~1e-7 relative).
+        np.testing.assert_allclose(np.sqrt(c["x"].astype(float) ** 2 + c["y"] ** 2 + c["z"] ** 2), c["range"],
+                                   rtol=1e-6, atol=0)
+
+
+def test_lidar_points_are_the_recorded_echoes(run):
+    with open_recording(run["h5"]) as rec:
+        lid = rec["lidar"]
+        for k, (_, m) in enumerate(run["msgs"]["/lidar/points"]):
+            assert [(f.name, f.datatype) for f in m.fields] == [("x", 7), ("y", 7), ("z", 7), ("intensity", 2),
+                                                                ("ring", 4), ("time", 7)]
+            assert m.header.frame_id == "lidar" and m.is_dense
+            c = _cloud(m)[0]
+            valid = np.isfinite(lid["range"][k])
+            row, echo = np.nonzero(valid)
+            assert m.width == valid.sum() > 100
+            xyz = lid["xyz"][k][row, echo]
+            # float32 points, uint8 intensity and int16 rings are copied: exact.
+            np.testing.assert_array_equal(np.stack([c["x"], c["y"], c["z"]], axis=-1), xyz)
+            np.testing.assert_array_equal(c["intensity"], lid["intensity"][k][row, echo])
+            np.testing.assert_array_equal(c["ring"], lid["ring"][k][row])
+            # time: float32 offset from the stamp; offsets < 0.1 s round to <= 2^-24 * 0.1 s ~ 6e-9 s.
+            t0 = lid.timestamps[k]
+            np.testing.assert_allclose(c["time"] + t0, lid["time"][k][row], rtol=0, atol=1e-8)
+            assert c["time"].min() >= 0 and c["time"].max() < 0.1
+
+
+def test_ultrasonic_and_inductive_frames(run):
+    with open_recording(run["h5"]) as rec:
+        son, prox = rec["sonar"], rec["prox"]
+        for k, (_, m) in enumerate(run["msgs"]["/sonar/frame"]):
+            a = son["ascan"][k]
+            assert (m.n_transducers, m.n_samples) == a.shape and m.sample_rate == son.config["config"]["sample_rate"]
+            # float32 and float64 arrays are copied: exact (NaN where no echo, compared as NaN).
+            np.testing.assert_array_equal(m.ascan.reshape(a.shape), a)
+            np.testing.assert_array_equal(m.envelope.reshape(a.shape), son["envelope"][k])
+            np.testing.assert_array_equal(m.first_echo_distance, son["first_echo_distance"][k])
+            np.testing.assert_array_equal(m.fire_time, son["fire_time"][k])
+        for k, (_, m) in enumerate(run["msgs"]["/prox/frame"]):
+            assert m.output == bool(prox["output"][k][0])
+            for f in ("quality", "delta_r", "delta_l", "frequency"):
+                assert getattr(m, f) == prox[f][k][0], f
+
+
+def test_new_kind_through_the_extension_point(run, tmp_path, monkeypatch):
+    # A kind without a builder falls back to one ArrayStream per stream; a registered builder (how a
+    # tactile array will plug in) with its own message definition replaces the built-in one.
+    monkeypatch.delitem(M.KIND_MESSAGES, "ultrasonic")
+    monkeypatch.setitem(M.KIND_MESSAGES, "inductive", M.KIND_MESSAGES["inductive"])  # restored afterwards
+    monkeypatch.setattr(M, "MSGDEFS", dict(M.MSGDEFS))
+    text = "std_msgs/Header header\nfloat64 q\n"
+
+    def quality(name, s, k, ns, frame_id, sensor):
+        return [(f"/{name}/q", "demo_msgs/msg/Q", {"header": M._header(ns, frame_id), "q": float(s["quality"][k][0])})]
+
+    M.register_messages("inductive", quality, {"demo_msgs/msg/Q": M._with_deps(text, *M._HEADER_DEPS)})
+    with pytest.raises(TwinsenseError, match="kind"):
+        M.register_messages("", quality)
+    with pytest.raises(TwinsenseError, match="msgdefs"):
+        M.register_messages("inductive", quality, {"Q": text})
+    out = M.convert(run["h5"], tmp_path / "x.mcap")
+    ts = _typestore()
+    ts.register(get_types_from_msg(text, "demo_msgs/msg/Q"))
+    with AnyReader([out], default_typestore=ts) as reader:
+        types = {c.topic: c.msgtype for c in reader.connections}
+        got = {c.topic: reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages()}
+    assert types["/sonar/ascan"] == "twinsense_msgs/msg/ArrayStream" and "/sonar/frame" not in types
+    assert types["/prox/q"] == "demo_msgs/msg/Q" and "/prox/frame" not in types
+    with open_recording(run["h5"]) as rec:
+        # The last message of each topic is frame 1; float64 copies: exact.
+        assert got["/prox/q"].q == rec["prox"]["quality"][1][0]
+        np.testing.assert_array_equal(got["/sonar/fire_time"].data, rec["sonar"]["fire_time"][1])
+
+
+def test_cli_run_format_mcap(tmp_path):
+    # `twinsense run --format mcap` writes the recording and the .mcap beside it; the file decodes.
+    d = {"name": "cli", "duration": 0.1, "objects": [
+        {"name": "wall", "geometry": {"type": "box", "size": [0.2, 4.0, 3.0]}, "material": "concrete",
+         "pose": {"position": [3.0, 0.0, 1.0]}}],
+         "sensors": [{"name": "lidar", "kind": "lidar", "preset": "velodyne_vlp16", "frame_rate": 10,
+                      "overrides": {"columns": 90}, "mount": {"pose": {"position": [0.0, 0.0, 1.0]}}},
+                     {"name": "prox", "kind": "inductive", "preset": "m12_flush", "frame_rate": 10}],
+         "outputs": {"recording": "rec.h5"}}
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(d))
+    res = CliRunner().invoke(app, ["run", str(tmp_path / "s.yaml"), "-o", str(tmp_path / "out"),
+                                   "--no-progress", "--format", "mcap"])
+    assert res.exit_code == 0, res.output
+    path = tmp_path / "out" / "rec.mcap"
+    assert f"wrote {path}" in res.output
+    with AnyReader([path], default_typestore=_typestore()) as reader:
+        got = {c.topic: reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages()}
+    assert set(got) == {"/tf_static", "/clock", "/lidar/points", "/prox/frame"}
+    assert got["/lidar/points"].width > 0 and got["/prox/frame"].quality > 0

@@ -11,6 +11,7 @@ message layouts are described in docs/ros2-mcap.md.
 
 from __future__ import annotations
 
+import array
 import json
 import os
 from collections.abc import Callable
@@ -36,6 +37,7 @@ OPTICAL_KINDS = frozenset({"camera", "tof", "radar"})
 
 # sensor_msgs/PointField datatypes.
 FLOAT32 = 7
+POINT_FIELD_TYPES = {"i1": 1, "u1": 2, "i2": 3, "u2": 4, "i4": 5, "u4": 6, "f4": 7, "f8": 8}
 
 _TIME = "int32 sec\nuint32 nanosec\n"
 _HEADER = "builtin_interfaces/Time stamp\nstring frame_id\n"
@@ -73,6 +75,9 @@ ROS_MSGDEFS: dict[str, str] = {
         ("geometry_msgs/Transform", "Vector3 translation\nQuaternion rotation\n"),
         ("geometry_msgs/Vector3", _VEC), ("geometry_msgs/Quaternion", _QUAT)),
     "rosgraph_msgs/msg/Clock": _with_deps("builtin_interfaces/Time clock\n", ("builtin_interfaces/Time", _TIME)),
+    "sensor_msgs/msg/MagneticField": _with_deps(
+        "std_msgs/Header header\ngeometry_msgs/Vector3 magnetic_field\nfloat64[9] magnetic_field_covariance\n",
+        *_HEADER_DEPS, ("geometry_msgs/Vector3", _VEC)),
 }
 
 _RADAR_CUBE = ("std_msgs/Header header\nuint32 n_rx\nuint32 n_chirps\nuint32 n_samples\n"
@@ -81,6 +86,12 @@ _RANGE_DOPPLER = "std_msgs/Header header\nuint32 n_doppler\nuint32 n_range\nfloa
 _CAPACITIVE = ("std_msgs/Header header\nstring[] channels\nfloat64[] channel_values\nfloat64[] readout\n"
                "float64[] delta\nfloat64[] self_capacitance\nuint32 n_terminals\nfloat64[] maxwell\n")
 _ARRAY = "std_msgs/Header header\nstring stream\nuint32[] shape\nfloat64[] data\n"
+_ULTRASONIC = ("std_msgs/Header header\nuint32 n_transducers\nuint32 n_samples\nfloat64 sample_rate\n"
+               "float32[] ascan\nfloat32[] envelope\nfloat32[] first_echo_distance\nfloat64[] fire_time\n")
+_MAGNETIC = ("std_msgs/Header header\nuint32 n_elements\nuint32 n_axes\nfloat64[] field_true\nfloat64[] field\n"
+             "float64[] raw\n")
+_INDUCTIVE = ("std_msgs/Header header\nbool output\nfloat64 quality\nfloat64 delta_r\nfloat64 delta_l\n"
+              "float64 frequency\n")
 
 #: The package's own messages: name -> definition (the field lines of docs/msg/<Name>.msg).
 TWINSENSE_MSGS: dict[str, str] = {
@@ -88,6 +99,9 @@ TWINSENSE_MSGS: dict[str, str] = {
     "twinsense_msgs/msg/RangeDoppler": _RANGE_DOPPLER,
     "twinsense_msgs/msg/CapacitiveFrame": _CAPACITIVE,
     "twinsense_msgs/msg/ArrayStream": _ARRAY,
+    "twinsense_msgs/msg/UltrasonicFrame": _ULTRASONIC,
+    "twinsense_msgs/msg/MagneticFrame": _MAGNETIC,
+    "twinsense_msgs/msg/InductiveFrame": _INDUCTIVE,
 }
 MSGDEFS: dict[str, str] = {**ROS_MSGDEFS, **{k: _with_deps(v, *_HEADER_DEPS) for k, v in TWINSENSE_MSGS.items()}}
 
@@ -110,6 +124,16 @@ def stamp_ns(t: float) -> int:
 
 def _time(ns: int) -> dict:
     return {"sec": ns // 1_000_000_000, "nanosec": ns % 1_000_000_000}
+
+
+def _f4(a) -> array.array:
+    """A float32[] field: the writer takes an ``array.array`` as is (no per-element Python objects)."""
+    return array.array("f", np.ascontiguousarray(a, dtype="<f4").ravel().tobytes())
+
+
+def _f8(a) -> array.array:
+    """A float64[] field (see :func:`_f4`)."""
+    return array.array("d", np.ascontiguousarray(a, dtype="<f8").ravel().tobytes())
 
 
 def _header(ns: int, frame_id: str) -> dict:
@@ -200,76 +224,230 @@ def image_mono8(a: np.ndarray, ns: int, frame_id: str) -> dict:
             "is_bigendian": 0, "step": w, "data": a.tobytes()}
 
 
+def point_cloud(columns: list[tuple[str, np.ndarray]], ns: int, frame_id: str,
+                shape: tuple[int, int] | None = None) -> dict:
+    """A PointCloud2 of named per-point columns, packed in the given order.
+
+    ``columns``: (field name, (m,) array); each keeps its dtype (little-endian;
+    int8..float64 map to the PointField datatypes). ``shape``: (height, width)
+    of an organised cloud (default one row of m points). ``is_dense`` is false
+    when an x, y or z value is not finite.
+    """
+    dtype = np.dtype([(n, np.asarray(a).dtype.newbyteorder("<")) for n, a in columns])
+    m = len(columns[0][1]) if columns else 0
+    pts = np.empty(m, dtype=dtype)
+    for n, a in columns:
+        pts[n] = a
+    h, w = shape if shape is not None else (1, m)
+    fields = []
+    for n, _ in columns:
+        dt, off = dtype.fields[n]
+        key = f"{dt.kind}{dt.itemsize}"
+        if key not in POINT_FIELD_TYPES:
+            raise ConfigError(f"point_cloud.{n}", str(dt), "int8..int32, uint8..uint32, float32 or float64")
+        fields.append({"name": n, "offset": off, "datatype": POINT_FIELD_TYPES[key], "count": 1})
+    xyz = [pts[n] for n in "xyz" if n in dtype.names]
+    dense = all(bool(np.isfinite(c).all()) for c in xyz)
+    return {"header": _header(ns, frame_id), "height": h, "width": w, "fields": fields, "is_bigendian": False,
+            "point_step": dtype.itemsize, "row_step": dtype.itemsize * w, "data": pts.tobytes(),
+            "is_dense": dense}
+
+
 def point_cloud_xyzi(xyz: np.ndarray, intensity: np.ndarray, ns: int, frame_id: str) -> dict:
     """An organised (H, W) cloud of float32 x, y, z [m], intensity; NaN marks a pixel without a point."""
     h, w = xyz.shape[:2]
-    pts = np.empty((h, w, 4), dtype="<f4")
-    pts[..., :3] = xyz
-    pts[..., 3] = intensity
-    fields = [{"name": n, "offset": 4 * i, "datatype": FLOAT32, "count": 1} for i, n in enumerate("xyz")]
-    fields.append({"name": "intensity", "offset": 12, "datatype": FLOAT32, "count": 1})
-    return {"header": _header(ns, frame_id), "height": h, "width": w, "fields": fields, "is_bigendian": False,
-            "point_step": 16, "row_step": 16 * w, "data": pts.tobytes(),
-            "is_dense": bool(np.isfinite(pts[..., :3]).all())}
+    xyz = np.asarray(xyz, dtype=np.float32).reshape(-1, 3)
+    return point_cloud([("x", xyz[:, 0]), ("y", xyz[:, 1]), ("z", xyz[:, 2]),
+                        ("intensity", np.asarray(intensity, dtype=np.float32).ravel())], ns, frame_id, (h, w))
 
 
-def _sensor_messages(name: str, s: SensorRecording, k: int, ns: int) -> list[tuple[str, str, dict]]:
+def radar_detection_columns(det) -> list[tuple[str, np.ndarray]]:
+    """PointCloud2 columns of radar detections (a ``RadarPointCloud``), in the REP 103 link frame.
+
+    x forward, y left, z up [m] (the optical sensor-frame points rotated by
+    :data:`R_LINK_OPTICAL`), range [m], radial_velocity [m/s] (positive
+    away), snr [dB]; all float32.
+    """
+    p = np.asarray(det.points_sensor, dtype=np.float64).reshape(-1, 3) @ R_LINK_OPTICAL.T
+    f4 = np.float32
+    return [("x", p[:, 0].astype(f4)), ("y", p[:, 1].astype(f4)), ("z", p[:, 2].astype(f4)),
+            ("range", np.asarray(det.range, dtype=f4)), ("radial_velocity", np.asarray(det.velocity, dtype=f4)),
+            ("snr", np.asarray(det.snr_db, dtype=f4))]
+
+
+def lidar_columns(xyz: np.ndarray, intensity: np.ndarray, ring: np.ndarray, time: np.ndarray,
+                  rng: np.ndarray, t: float) -> list[tuple[str, np.ndarray]]:
+    """PointCloud2 columns of one LiDAR frame's echoes (empty slots left out), in firing order.
+
+    ``xyz`` (n, E, 3), ``intensity`` / ``rng`` (n, E), ``ring`` / ``time``
+    (n,) as in :class:`~twinsense.lidar.frame.LidarFrame`. Columns: x, y, z
+    [m] float32 (sensor frame), intensity uint8 (the device's 0-255 scale),
+    ring uint16, time float32 [s] after the frame stamp ``t`` (the per-point
+    offset drivers publish; float32 keeps 10 ns over a 0.1 s revolution).
+    """
+    row, echo = np.nonzero(np.isfinite(rng))
+    p = np.asarray(xyz, dtype=np.float32)[row, echo]
+    return [("x", p[:, 0]), ("y", p[:, 1]), ("z", p[:, 2]),
+            ("intensity", np.asarray(intensity, dtype=np.uint8)[row, echo]),
+            ("ring", np.asarray(ring)[row].astype(np.uint16)),
+            ("time", (np.asarray(time, dtype=np.float64)[row] - t).astype(np.float32))]
+
+
+#: One message of the topic list: (topic, message type, message).
+Message = tuple[str, str, dict]
+#: ``builder(name, sensor_recording, k, ns, frame_id, sensor) -> [Message]``: frame ``k`` of one sensor.
+#: ``sensor`` is the sensor rebuilt from the recording's scenario, or None.
+MessageBuilder = Callable[[str, SensorRecording, int, int, str, Any], list[Message]]
+
+
+def _camera_messages(name, s, k, ns, frame_id, sensor) -> list[Message]:
+    return [(f"/{name}/depth", "sensor_msgs/msg/Image", image_32fc1(s["depth"][k], ns, frame_id)),
+            (f"/{name}/range", "sensor_msgs/msg/Image", image_32fc1(s["range"][k], ns, frame_id))]
+
+
+def _tof_messages(name, s, k, ns, frame_id, sensor) -> list[Message]:
+    amp = s["amplitude"][k]
+    return [(f"/{name}/depth", "sensor_msgs/msg/Image", image_32fc1(s["depth"][k], ns, frame_id)),
+            (f"/{name}/amplitude", "sensor_msgs/msg/Image", image_32fc1(amp, ns, frame_id)),
+            (f"/{name}/confidence", "sensor_msgs/msg/Image", image_mono8(s["confidence"][k], ns, frame_id)),
+            (f"/{name}/points", "sensor_msgs/msg/PointCloud2",
+             point_cloud_xyzi(s["points_sensor"][k], amp, ns, frame_id))]
+
+
+def _radar_messages(name, s, k, ns, frame_id, sensor) -> list[Message]:
+    out: list[Message] = []
+    adc = np.asarray(s["adc"][k])
+    if adc.ndim != 3:
+        raise TwinsenseError(f"{s!r}: radar 'adc' frames have shape {adc.shape}; expected (rx, chirp, sample)")
+    imag = adc.imag.ravel() if np.iscomplexobj(adc) else np.empty(0)
+    out.append((f"/{name}/cube", "twinsense_msgs/msg/RadarCube",
+                {"header": _header(ns, frame_id), "n_rx": adc.shape[0], "n_chirps": adc.shape[1],
+                 "n_samples": adc.shape[2], "real": _f4(adc.real),
+                 "imag": _f4(imag)}))
+    if "range_doppler_power" in s.stream_names:
+        p = np.asarray(s["range_doppler_power"][k], dtype=np.float32)
+        out.append((f"/{name}/range_doppler", "twinsense_msgs/msg/RangeDoppler",
+                    {"header": _header(ns, frame_id), "n_doppler": p.shape[0], "n_range": p.shape[1],
+                     "power": _f4(p)}))
+    if sensor is not None and getattr(sensor, "process", False):
+        # The recording keeps the ADC codes, not the detections: the radar rebuilt from the scenario runs
+        # its processing chain on the recorded codes, the same deterministic chain as in the run.
+        from twinsense.radar.effects import codes_to_voltage
+
+        det = sensor.process_cube(codes_to_voltage(adc, sensor.config.if_chain)).detections
+        out.append((f"/{name}/detections", "sensor_msgs/msg/PointCloud2",
+                    point_cloud(radar_detection_columns(det), ns, f"{name}_link")))
+    return out
+
+
+def _capacitive_messages(name, s, k, ns, frame_id, sensor) -> list[Message]:
+    m = np.asarray(s["maxwell"][k], dtype=np.float64)
+    return [(f"/{name}/frame", "twinsense_msgs/msg/CapacitiveFrame",
+             {"header": _header(ns, frame_id), "channels": list(s.config.get("channels", [])),
+              "channel_values": _f8(s["channels"][k]), "readout": _f8(s["readout"][k]),
+              "delta": _f8(s["delta"][k]), "self_capacitance": _f8(s["self_capacitance"][k]),
+              "n_terminals": m.shape[0], "maxwell": _f8(m)})]
+
+
+def _lidar_messages(name, s, k, ns, frame_id, sensor) -> list[Message]:
+    cols = lidar_columns(s["xyz"][k], s["intensity"][k], s["ring"][k], s["time"][k], s["range"][k],
+                         float(s.timestamps[k]))
+    return [(f"/{name}/points", "sensor_msgs/msg/PointCloud2", point_cloud(cols, ns, frame_id))]
+
+
+def _ultrasonic_messages(name, s, k, ns, frame_id, sensor) -> list[Message]:
+    ascan = np.asarray(s["ascan"][k], dtype=np.float32)
+    return [(f"/{name}/frame", "twinsense_msgs/msg/UltrasonicFrame",
+             {"header": _header(ns, frame_id), "n_transducers": ascan.shape[0], "n_samples": ascan.shape[1],
+              "sample_rate": float(s.config.get("config", {}).get("sample_rate", 0.0)),
+              "ascan": _f4(ascan), "envelope": _f4(s["envelope"][k]),
+              "first_echo_distance": _f4(s["first_echo_distance"][k]),
+              "fire_time": _f8(s["fire_time"][k])})]
+
+
+def _magnetic_messages(name, s, k, ns, frame_id, sensor) -> list[Message]:
+    field = np.asarray(s["field"][k], dtype=np.float64)
+    out: list[Message] = [(f"/{name}/frame", "twinsense_msgs/msg/MagneticFrame",
+                           {"header": _header(ns, frame_id), "n_elements": field.shape[0],
+                            "n_axes": field.shape[1],
+                            "field_true": _f8(s["field_true"][k]),
+                            "field": _f8(field), "raw": _f8(s["raw"][k])})]
+    if field.shape == (1, 3):
+        # A single 3-axis element is what sensor_msgs/MagneticField describes; the covariance is left
+        # all zero ("unknown" in ROS).
+        x, y, z = (float(v) for v in field[0])
+        out.append((f"/{name}/magnetic_field", "sensor_msgs/msg/MagneticField",
+                    {"header": _header(ns, frame_id), "magnetic_field": {"x": x, "y": y, "z": z},
+                     "magnetic_field_covariance": [0.0] * 9}))
+    return out
+
+
+def _inductive_messages(name, s, k, ns, frame_id, sensor) -> list[Message]:
+    v = {st: np.asarray(s[st][k]).ravel()[0] for st in ("output", "quality", "delta_r", "delta_l", "frequency")}
+    return [(f"/{name}/frame", "twinsense_msgs/msg/InductiveFrame",
+             {"header": _header(ns, frame_id), "output": bool(v["output"]),
+              **{st: float(v[st]) for st in ("quality", "delta_r", "delta_l", "frequency")}})]
+
+
+def array_stream_messages(name, s, k, ns, frame_id, sensor) -> list[Message]:
+    """One ``ArrayStream`` per recorded stream: the fallback of a kind without its own builder."""
+    out: list[Message] = []
+    for stream in s.stream_names:
+        a = np.asarray(s[stream][k])
+        out.append((f"/{name}/{stream}", "twinsense_msgs/msg/ArrayStream",
+                    {"header": _header(ns, frame_id), "stream": stream, "shape": list(a.shape),
+                     "data": _f8(a)}))
+    return out
+
+
+#: Sensor kind -> message builder. A kind not listed (a user-defined sensor) is written with
+#: :func:`array_stream_messages`; :func:`register_messages` adds a kind (e.g. tactile arrays).
+KIND_MESSAGES: dict[str, MessageBuilder] = {
+    "camera": _camera_messages, "tof": _tof_messages, "radar": _radar_messages,
+    "capacitive": _capacitive_messages, "lidar": _lidar_messages, "ultrasonic": _ultrasonic_messages,
+    "magnetic": _magnetic_messages, "inductive": _inductive_messages,
+}
+
+
+def register_messages(kind: str, builder: MessageBuilder, msgdefs: dict[str, str] | None = None) -> None:
+    """Write frames of sensor ``kind`` with ``builder`` (replacing any earlier one).
+
+    ``msgdefs``: message type -> ROS 2 ``.msg`` definition (with its
+    dependencies after ``====`` separators, as in :data:`MSGDEFS`) for the
+    types the builder emits that are not already in :data:`MSGDEFS`.
+    """
+    if not isinstance(kind, str) or not kind:
+        raise ConfigError("kind", kind, "a sensor kind name (non-empty str)")
+    if not callable(builder):
+        raise ConfigError("builder", builder, "a callable (name, recording, k, ns, frame_id, sensor) -> messages")
+    for msgtype, text in (msgdefs or {}).items():
+        if not isinstance(text, str) or msgtype.count("/") != 2:
+            raise ConfigError(f"msgdefs[{msgtype!r}]", text, "'package/msg/Name': a .msg definition (str)")
+        MSGDEFS[msgtype] = text
+    KIND_MESSAGES[kind] = builder
+
+
+def _sensor_messages(name: str, s: SensorRecording, k: int, ns: int, sensor: Any = None) -> list[Message]:
     """(topic, message type, message) of frame ``k`` of one sensor."""
     kind, frame_id = s.kind, sensor_frame(name, s.kind)
-    out: list[tuple[str, str, dict]] = []
+    out: list[Message] = []
     info = camera_info(kind, s.config)
     if info is not None:
         out.append((f"/{name}/camera_info", "sensor_msgs/msg/CameraInfo",
                     {"header": _header(ns, frame_id), **info, "binning_x": 0, "binning_y": 0,
                      "roi": {"x_offset": 0, "y_offset": 0, "height": 0, "width": 0, "do_rectify": False}}))
-    if kind == "camera":
-        out.append((f"/{name}/depth", "sensor_msgs/msg/Image", image_32fc1(s["depth"][k], ns, frame_id)))
-        out.append((f"/{name}/range", "sensor_msgs/msg/Image", image_32fc1(s["range"][k], ns, frame_id)))
-    elif kind == "tof":
-        amp = s["amplitude"][k]
-        out.append((f"/{name}/depth", "sensor_msgs/msg/Image", image_32fc1(s["depth"][k], ns, frame_id)))
-        out.append((f"/{name}/amplitude", "sensor_msgs/msg/Image", image_32fc1(amp, ns, frame_id)))
-        out.append((f"/{name}/confidence", "sensor_msgs/msg/Image", image_mono8(s["confidence"][k], ns, frame_id)))
-        out.append((f"/{name}/points", "sensor_msgs/msg/PointCloud2",
-                    point_cloud_xyzi(s["points_sensor"][k], amp, ns, frame_id)))
-    elif kind == "radar":
-        adc = np.asarray(s["adc"][k])
-        if adc.ndim != 3:
-            raise TwinsenseError(f"{s!r}: radar 'adc' frames have shape {adc.shape}; expected (rx, chirp, sample)")
-        imag = adc.imag.ravel() if np.iscomplexobj(adc) else np.empty(0)
-        out.append((f"/{name}/cube", "twinsense_msgs/msg/RadarCube",
-                    {"header": _header(ns, frame_id), "n_rx": adc.shape[0], "n_chirps": adc.shape[1],
-                     "n_samples": adc.shape[2], "real": adc.real.astype(np.float32).ravel().tolist(),
-                     "imag": imag.astype(np.float32).tolist()}))
-        if "range_doppler_power" in s.stream_names:
-            p = np.asarray(s["range_doppler_power"][k], dtype=np.float32)
-            out.append((f"/{name}/range_doppler", "twinsense_msgs/msg/RangeDoppler",
-                        {"header": _header(ns, frame_id), "n_doppler": p.shape[0], "n_range": p.shape[1],
-                         "power": p.ravel().tolist()}))
-    elif kind == "capacitive":
-        m = np.asarray(s["maxwell"][k], dtype=np.float64)
-        out.append((f"/{name}/frame", "twinsense_msgs/msg/CapacitiveFrame",
-                    {"header": _header(ns, frame_id), "channels": list(s.config.get("channels", [])),
-                     "channel_values": np.asarray(s["channels"][k], dtype=np.float64).tolist(),
-                     "readout": np.asarray(s["readout"][k], dtype=np.float64).tolist(),
-                     "delta": np.asarray(s["delta"][k], dtype=np.float64).tolist(),
-                     "self_capacitance": np.asarray(s["self_capacitance"][k], dtype=np.float64).tolist(),
-                     "n_terminals": m.shape[0], "maxwell": m.ravel().tolist()}))
-    else:
-        for stream in s.stream_names:
-            a = np.asarray(s[stream][k])
-            out.append((f"/{name}/{stream}", "twinsense_msgs/msg/ArrayStream",
-                        {"header": _header(ns, frame_id), "stream": stream, "shape": list(a.shape),
-                         "data": a.astype(np.float64).ravel().tolist()}))
+    out += KIND_MESSAGES.get(kind, array_stream_messages)(name, s, k, ns, frame_id, sensor)
     return out
 
 
-def write_mcap(rec: Recording, out, scene: Scene | None = None) -> Path:
+def write_mcap(rec: Recording, out, scene: Scene | None = None, sensors: dict[str, Any] | None = None) -> Path:
     """Write the messages of an open recording to ``out`` (an ``.mcap`` path); returns the path.
 
     ``scene`` (rebuilt from the recording's scenario) adds every object's
     frame to ``/tf`` (moving objects at each frame time) and ``/tf_static``
     (static objects); without it only the sensors' frames are published.
+    ``sensors`` (name -> sensor, rebuilt from the same scenario) lets a
+    builder derive what the recording does not store: radar detections.
     The file is written under a temporary name beside ``out`` and renamed
     into place when complete.
     """
@@ -282,14 +460,14 @@ def write_mcap(rec: Recording, out, scene: Scene | None = None) -> Path:
     tmp = out.with_name(f".{out.name}.{os.getpid()}.tmp")
     try:
         with open(tmp, "wb") as f:
-            _write(writer_cls(f), rec, scene)
+            _write(writer_cls(f), rec, scene, sensors or {})
         os.replace(tmp, out)
     finally:
         tmp.unlink(missing_ok=True)
     return out
 
 
-def _write(writer, rec: Recording, scene: Scene | None) -> None:
+def _write(writer, rec: Recording, scene: Scene | None, sensors: dict[str, Any]) -> None:
     schemas: dict[str, Any] = {}
 
     def emit(topic: str, msgtype: str, msg: dict, ns: int) -> None:
@@ -321,23 +499,29 @@ def _write(writer, rec: Recording, scene: Scene | None) -> None:
                 emit("/tf", "tf2_msgs/msg/TFMessage",
                      {"transforms": [_transform(ns, WORLD_FRAME, o.name, o.pose_at(t)) for o in moving]}, ns)
             last_ns = ns
-        for topic, msgtype, msg in _sensor_messages(name, rec[name], k, ns):
+        for topic, msgtype, msg in _sensor_messages(name, rec[name], k, ns, sensors.get(name)):
             emit(topic, msgtype, msg, ns)
     writer.finish()
 
 
-def convert(recording, out, scene_from_scenario: Callable[[dict], Scene] | None = None,
+def convert(recording, out, scene_from_scenario: Callable[[dict], Any] | None = None,
             allow_incomplete: bool = False) -> Path:
     """Convert the HDF5 recording at ``recording`` into the MCAP file ``out``.
 
-    ``scene_from_scenario`` builds the scene from the recording's scenario
-    (a dict) for the objects' frames on ``/tf``; it is not called when the
-    recording has no scenario (a run from the Python API).
+    ``scene_from_scenario`` builds, from the recording's scenario (a dict),
+    the scene (for the objects' frames on ``/tf``) or a whole scenario (an
+    object with ``.scene`` and ``.sensors``, e.g.
+    :func:`twinsense.scenario.scenario_from_dict`): its sensors then add
+    what is derived from the recorded streams (radar detections). It is not
+    called when the recording has no scenario (a run from the Python API).
     """
     _require_mcap()
     with open_recording(recording, allow_incomplete=allow_incomplete) as rec:
         scenario = rec.scenario
         if isinstance(scenario, str):
             scenario = json.loads(scenario)
-        scene = scene_from_scenario(scenario) if scenario and scene_from_scenario is not None else None
-        return write_mcap(rec, out, scene)
+        built = scene_from_scenario(scenario) if scenario and scene_from_scenario is not None else None
+        scene, sensors = built, None
+        if built is not None and not isinstance(built, Scene):
+            scene, sensors = built.scene, {s.name: s for s in built.sensors}
+        return write_mcap(rec, out, scene, sensors)
