@@ -1,5 +1,17 @@
 """Scene model: poses, geometry, motion, materials, objects."""
 
+from twinsense.scene.articulated import (
+    ArticulatedBody,
+    Joint,
+    JointConstantVelocity,
+    JointKeyframes,
+    JointMotion,
+    JointSetpoints,
+    KinematicTree,
+    Link,
+    LinkMotion,
+    TreeState,
+)
 from twinsense.scene.geometry import (
     Box,
     Capsule,
@@ -22,11 +34,12 @@ from twinsense.scene.motion import (
     Waypoints,
 )
 from twinsense.scene.pose import Pose
-from twinsense.scene.scene import SENSOR_KINDS, Mount, Scene, SceneObject
+from twinsense.scene.scene import SENSOR_KINDS, Frame, Mount, Scene, SceneObject
 
 __all__ = [
-    "MAGNET_SHAPES", "SENSOR_KINDS", "Box", "Capsule", "ConstantVelocity", "Cylinder", "Geometry", "Keyframes",
-    "Magnet", "Material", "MeshFile", "Motion", "MotionState", "Mount", "Oscillation", "Plane", "Pose",
-    "Scene", "SceneObject", "Sphere", "Static", "TriangleMesh", "Waypoints", "get_material",
-    "material_names", "register_material",
+    "MAGNET_SHAPES", "SENSOR_KINDS", "ArticulatedBody", "Box", "Capsule", "ConstantVelocity", "Cylinder", "Frame",
+    "Geometry", "Joint", "JointConstantVelocity", "JointKeyframes", "JointMotion", "JointSetpoints", "Keyframes",
+    "KinematicTree", "Link", "LinkMotion", "Magnet", "Material", "MeshFile", "Motion", "MotionState", "Mount",
+    "Oscillation", "Plane", "Pose", "Scene", "SceneObject", "Sphere", "Static", "TreeState", "TriangleMesh",
+    "Waypoints", "get_material", "material_names", "register_material",
 ]

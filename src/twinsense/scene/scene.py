@@ -93,12 +93,39 @@ class SceneObject:
                 **({"magnet": self.magnet.to_dict()} if self.magnet is not None else {})}
 
 
+@dataclass(frozen=True, eq=False)
+class Frame:
+    """A named moving frame without geometry (a mount point, e.g. a robot flange): no sensor sees it."""
+
+    name: str
+    motion: Motion | Pose = field(default_factory=Static)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            raise ConfigError("frame.name", self.name, "a non-empty string")
+        motion = Static(self.motion) if isinstance(self.motion, Pose) else self.motion
+        if not isinstance(motion, Motion):
+            raise ConfigError(f"{self.name}.motion", motion, "a Pose or a Motion")
+        object.__setattr__(self, "motion", motion)
+
+    def state_at(self, t: float) -> MotionState:
+        return self.motion.state(t)
+
+    def pose_at(self, t: float) -> Pose:
+        return self.motion.state(t).pose
+
+
 class Scene:
-    """A set of named objects. Sensors read it; nothing writes results into it."""
+    """A set of named objects. Sensors read it; nothing writes results into it.
+
+    Besides objects a scene holds named frames without geometry (mount points,
+    e.g. robot links without a mesh); sensors can mount on either.
+    """
 
     def __init__(self, objects=(), name: str = "scene"):
         self.name = name
         self._objects: list[SceneObject] = []
+        self._frames: dict[str, Frame] = {}
         self._version = 0
         for o in objects:
             self.add(o)
@@ -106,7 +133,7 @@ class Scene:
     def add(self, obj: SceneObject) -> SceneObject:
         if not isinstance(obj, SceneObject):
             raise ConfigError("scene.objects[]", obj, "a SceneObject")
-        if any(o.name == obj.name for o in self._objects):
+        if any(o.name == obj.name for o in self._objects) or obj.name in self._frames:
             raise ConfigError(f"objects[{len(self._objects)}].name", obj.name, "a name not used by another object")
         self._objects.append(obj)
         self._version += 1
@@ -121,6 +148,34 @@ class Scene:
         if magnet is not None:
             kw["magnet"] = magnet
         return self.add(SceneObject(name, geometry, material, motion, **kw))
+
+    def add_frame(self, frame: Frame) -> Frame:
+        """Add a mount frame (no geometry; invisible to every sensor)."""
+        if not isinstance(frame, Frame):
+            raise ConfigError("scene.frames[]", frame, "a Frame")
+        if frame.name in self._frames or any(o.name == frame.name for o in self._objects):
+            raise ConfigError(f"frames[{len(self._frames)}].name", frame.name, "a name not used by another "
+                              "object or frame")
+        self._frames[frame.name] = frame
+        return frame
+
+    def add_articulated(self, body) -> list[SceneObject]:
+        """Add an articulated body (``twinsense.scene.articulated.ArticulatedBody``): its links."""
+        return body.add_to(self)
+
+    @property
+    def frame_names(self) -> tuple[str, ...]:
+        return tuple(self._frames)
+
+    def mount_target(self, name: str) -> SceneObject | Frame:
+        """The object or frame called ``name`` (what a sensor mount refers to)."""
+        f = self._frames.get(name)
+        if f is not None:
+            return f
+        for o in self._objects:
+            if o.name == name:
+                return o
+        raise UnknownNameError("mount.parent", name, [o.name for o in self._objects] + list(self._frames))
 
     @property
     def objects(self) -> tuple[SceneObject, ...]:
@@ -194,7 +249,7 @@ class Mount:
             return MotionState(self.pose, np.zeros(3), np.zeros(3))
         if scene is None:
             raise ConfigError("mount.parent", self.parent, "a scene that holds this object")
-        ps = scene.object(self.parent).state_at(t)
+        ps = scene.mount_target(self.parent).state_at(t)
         pose = ps.pose @ self.pose
         return MotionState(pose, ps.point_velocity(pose.position[None])[0], ps.angular_velocity)
 

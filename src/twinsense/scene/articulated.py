@@ -1,0 +1,986 @@
+"""Articulated bodies: kinematic trees of links and joints, and joint trajectories.
+
+A :class:`KinematicTree` holds rigid links connected by revolute, prismatic or
+fixed joints (URDF conventions). A joint's ``origin`` maps the joint frame into
+the parent link frame at q = 0; the child link frame *is* the joint frame,
+turned by q [rad] about ``axis`` (revolute) or shifted by q [m] along it
+(prismatic), the axis given in the joint frame.
+
+:meth:`KinematicTree.forward` gives every link's pose (link -> world) and the
+linear velocity of the link origin and angular velocity (world frame),
+propagated analytically down the tree::
+
+    w_child = w_parent + a qd                      (revolute)
+    v_child = v_parent + w_parent x r + a qd       (prismatic adds a qd)
+
+with a = R_child axis the joint axis in the world and r the offset of the child
+origin from the parent origin. Sensors (radar Doppler, ToF motion artefacts)
+read these exact velocities, never finite differences.
+
+An :class:`ArticulatedBody` puts a tree in a scene, driven by a joint motion
+(``q(t)``, ``qd(t)`` of the movable joints, with exact derivatives): one
+:class:`~twinsense.scene.scene.SceneObject` per link with geometry, named
+``"body/link"``, whose frame is the link frame, and one mount frame per link
+without geometry. All links share one forward-kinematics evaluation per time.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections import OrderedDict
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numba
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from twinsense import validation as V
+from twinsense.errors import ConfigError
+from twinsense.scene.geometry import Geometry, TriangleMesh
+from twinsense.scene.materials import Material, get_material
+from twinsense.scene.motion import Motion, MotionState, Static, check_time
+from twinsense.scene.pose import Pose
+from twinsense.scene.scene import SENSOR_KINDS, Frame, Scene, SceneObject
+
+JOINT_KINDS = ("revolute", "prismatic", "fixed")
+#: Accepted on input and stored as a revolute joint without limits (URDF "continuous").
+CONTINUOUS = "continuous"
+_KIND_CODE = {"revolute": 0, "prismatic": 1, "fixed": 2}
+_ORIGIN = np.zeros(3)
+_ORIGIN.setflags(write=False)
+_EYE = np.eye(3)
+_EYE.setflags(write=False)
+#: Forward-kinematics results kept per body (the sensors of one frame ask a few times).
+FK_CACHE_SIZE = 64
+
+
+def _name(field_name: str, value) -> str:
+    if not isinstance(value, str) or not value:
+        raise ConfigError(field_name, value, "a non-empty string")
+    return value
+
+
+def _limit(field_name: str, value, default: float) -> float:
+    """A joint limit: a number or +-inf (no limit); NaN and text are refused."""
+    if value is None:
+        return default
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ConfigError(field_name, value, "a number or +-inf [rad or m]")
+    v = float(value)
+    if math.isnan(v):
+        raise ConfigError(field_name, value, "a number or +-inf [rad or m]")
+    return v
+
+
+@dataclass(frozen=True, eq=False)
+class Joint:
+    """A joint between two links.
+
+    Parameters
+    ----------
+    name : str
+    kind : str
+        "revolute", "prismatic" or "fixed"; "continuous" is taken as a
+        revolute joint with infinite limits.
+    parent, child : str
+        Link names.
+    origin : Pose
+        Joint frame -> parent link frame at q = 0.
+    axis : (3,) float
+        Joint axis in the joint frame (normalised here).
+    lower, upper : float
+        Limits [rad] (revolute) or [m] (prismatic); +-inf means none.
+    """
+
+    name: str
+    kind: str
+    parent: str
+    child: str
+    origin: Pose = field(default_factory=Pose)
+    axis: tuple = (0.0, 0.0, 1.0)
+    lower: float = -math.inf
+    upper: float = math.inf
+
+    def __post_init__(self) -> None:
+        n = _name("joint.name", self.name)
+        kind = self.kind
+        if kind == CONTINUOUS:
+            kind = "revolute"
+            object.__setattr__(self, "lower", -math.inf)
+            object.__setattr__(self, "upper", math.inf)
+        if not isinstance(kind, str) or kind not in JOINT_KINDS:
+            raise ConfigError(f"joints[{n}].kind", self.kind, "one of: " + ", ".join((*JOINT_KINDS, CONTINUOUS)))
+        object.__setattr__(self, "kind", kind)
+        _name(f"joints[{n}].parent", self.parent)
+        _name(f"joints[{n}].child", self.child)
+        if self.parent == self.child:
+            raise ConfigError(f"joints[{n}].child", self.child, "a link other than the parent")
+        if not isinstance(self.origin, Pose):
+            raise ConfigError(f"joints[{n}].origin", self.origin, "a twinsense Pose (joint frame -> parent link)")
+        a = V.vector(f"joints[{n}].axis", self.axis, 3)
+        norm = V._norm(a)
+        if not norm > 0 or not math.isfinite(norm):
+            raise ConfigError(f"joints[{n}].axis", self.axis, "a non-zero finite direction (3,)")
+        a = a / norm
+        a.setflags(write=False)
+        object.__setattr__(self, "axis", a)
+        lo = _limit(f"joints[{n}].lower", self.lower, -math.inf)
+        hi = _limit(f"joints[{n}].upper", self.upper, math.inf)
+        if lo > hi:
+            raise ConfigError(f"joints[{n}].lower", lo, f"a limit <= upper ({hi:g})")
+        object.__setattr__(self, "lower", lo)
+        object.__setattr__(self, "upper", hi)
+
+    @property
+    def movable(self) -> bool:
+        return self.kind != "fixed"
+
+    @property
+    def unit(self) -> str:
+        return "m" if self.kind == "prismatic" else "rad"
+
+
+@dataclass(frozen=True, eq=False)
+class Link:
+    """A rigid link: optional geometry and the material it is made of.
+
+    Parameters
+    ----------
+    name : str
+    geometry : Geometry or None
+        Shape in the geometry frame [m]; None for a frame-only link (a mount point).
+    material : Material or str
+    origin : Pose
+        Geometry frame -> link frame.
+    layers : iterable of str or None
+        Sensor kinds that see the link (None: all).
+    """
+
+    name: str
+    geometry: Geometry | None = None
+    material: Material | str = "aluminium"
+    origin: Pose = field(default_factory=Pose)
+    layers: frozenset | None = None
+
+    def __post_init__(self) -> None:
+        n = _name("link.name", self.name)
+        if self.geometry is not None and not isinstance(self.geometry, Geometry):
+            raise ConfigError(f"links[{n}].geometry", self.geometry, "a twinsense geometry or None")
+        object.__setattr__(self, "material", get_material(self.material))
+        if not isinstance(self.origin, Pose):
+            raise ConfigError(f"links[{n}].origin", self.origin, "a twinsense Pose (geometry frame -> link)")
+        if self.layers is not None:
+            layers = frozenset([self.layers] if isinstance(self.layers, str) else self.layers)
+            bad = layers - set(SENSOR_KINDS)
+            if bad:
+                raise ConfigError(f"links[{n}].layers", sorted(bad), "sensor kinds among: " + ", ".join(SENSOR_KINDS))
+            object.__setattr__(self, "layers", layers)
+
+    def link_frame_geometry(self) -> Geometry | None:
+        """The geometry expressed in the link frame (a mesh when ``origin`` is not the identity)."""
+        g = self.geometry
+        if g is None or self.origin == Pose():
+            return g
+        m = g.mesh
+        return TriangleMesh(self.origin.apply(np.asarray(m.vertices)), np.asarray(m.faces), name=self.name)
+
+
+@dataclass(frozen=True, eq=False)
+class TreeState:
+    """Every link's pose and velocities at one configuration.
+
+    Attributes
+    ----------
+    link_names : tuple of str
+        Order of the rows below (the tree's ``link_names``).
+    positions : (n_links, 3) float
+        Link origins in the world [m].
+    rotations : (n_links, 3, 3) float
+        Link -> world rotations.
+    linear_velocities : (n_links, 3) float
+        Velocity of each link origin, world frame [m/s].
+    angular_velocities : (n_links, 3) float
+        Angular velocity of each link, world frame [rad/s].
+    """
+
+    link_names: tuple
+    positions: np.ndarray
+    rotations: np.ndarray
+    linear_velocities: np.ndarray
+    angular_velocities: np.ndarray
+    _index: dict = field(repr=False, default_factory=dict)
+
+    def index(self, link: str | int) -> int:
+        if isinstance(link, (int, np.integer)) and not isinstance(link, bool):
+            if not 0 <= link < len(self.link_names):
+                raise ConfigError("link", link, f"an index in 0..{len(self.link_names) - 1}")
+            return int(link)
+        i = self._index.get(link)
+        if i is None:
+            from twinsense.errors import UnknownNameError
+
+            raise UnknownNameError("link", link, list(self.link_names))
+        return i
+
+    def pose(self, link: str | int) -> Pose:
+        """Link -> world."""
+        i = self.index(link)
+        return Pose(self.positions[i], self.rotations[i])
+
+    def state(self, link: str | int) -> MotionState:
+        i = self.index(link)
+        return MotionState(Pose(self.positions[i], self.rotations[i]),
+                           self.linear_velocities[i].copy(), self.angular_velocities[i].copy())
+
+    def point_velocity(self, link: str | int, points_world) -> np.ndarray:
+        """Velocity (n, 3) [m/s] of points (n, 3) fixed to ``link``, given in world coordinates: v + w x r."""
+        i = self.index(link)
+        p = np.asarray(points_world, dtype=float)
+        return self.linear_velocities[i] + np.cross(self.angular_velocities[i], p - self.positions[i])
+
+
+def _jit(fn):
+    """``numba.njit`` cached on disk when a cache location is writable (else compiled once per process)."""
+    try:
+        return numba.njit(cache=True, nogil=True, fastmath=False, error_model="numpy")(fn)
+    except RuntimeError:  # no writable cache location
+        return numba.njit(cache=False, nogil=True, fastmath=False, error_model="numpy")(fn)
+
+
+@_jit
+def _fk_kernel(q, qd, qi, kinds, parent, child, o_rot, o_pos, axis, root, bp, br, bv, bw,
+               pos, rot, lin_vel, ang_vel):  # pragma: no cover - compiled
+    """Forward kinematics with velocities, joints in parent-before-child order (see KinematicTree.forward).
+
+    Per joint k (parent link p, child link c, joint frame = child frame):
+    R_c = R_p R_o,k J_k(q), p_c = p_p + R_p (o_k + R_o,k a_k q) (prismatic),
+    a = R_c a_k, w_c = w_p + a qd (revolute), v_c = v_p + w_p x (p_c - p_p) + a qd (prismatic).
+    """
+    for i in range(3):
+        pos[root, i] = bp[i]
+        lin_vel[root, i] = bv[i]
+        ang_vel[root, i] = bw[i]
+        for j in range(3):
+            rot[root, i, j] = br[i, j]
+    jr = np.empty((3, 3))
+    rel = np.empty((3, 3))
+    for k in range(len(kinds)):
+        p = parent[k]
+        c = child[k]
+        ax, ay, az = axis[k, 0], axis[k, 1], axis[k, 2]
+        qk = 0.0
+        qdk = 0.0
+        if qi[k] >= 0:
+            qk = q[qi[k]]
+            qdk = qd[qi[k]]
+        # Joint rotation J in the joint frame: Rodrigues for a revolute joint, identity otherwise.
+        if kinds[k] == 0:
+            cs = math.cos(qk)
+            sn = math.sin(qk)
+            t = 1.0 - cs
+            jr[0, 0] = cs + t * ax * ax
+            jr[0, 1] = t * ax * ay - sn * az
+            jr[0, 2] = t * ax * az + sn * ay
+            jr[1, 0] = t * ay * ax + sn * az
+            jr[1, 1] = cs + t * ay * ay
+            jr[1, 2] = t * ay * az - sn * ax
+            jr[2, 0] = t * az * ax - sn * ay
+            jr[2, 1] = t * az * ay + sn * ax
+            jr[2, 2] = cs + t * az * az
+        else:
+            for i in range(3):
+                for j in range(3):
+                    jr[i, j] = 1.0 if i == j else 0.0
+        shift = qk if kinds[k] == 1 else 0.0
+        for i in range(3):
+            for j in range(3):
+                rel[i, j] = o_rot[k, i, 0] * jr[0, j] + o_rot[k, i, 1] * jr[1, j] + o_rot[k, i, 2] * jr[2, j]
+        # Child origin in the parent frame: the joint origin plus the prismatic shift along the axis.
+        lp0 = o_pos[k, 0] + (o_rot[k, 0, 0] * ax + o_rot[k, 0, 1] * ay + o_rot[k, 0, 2] * az) * shift
+        lp1 = o_pos[k, 1] + (o_rot[k, 1, 0] * ax + o_rot[k, 1, 1] * ay + o_rot[k, 1, 2] * az) * shift
+        lp2 = o_pos[k, 2] + (o_rot[k, 2, 0] * ax + o_rot[k, 2, 1] * ay + o_rot[k, 2, 2] * az) * shift
+        for i in range(3):
+            pos[c, i] = pos[p, i] + rot[p, i, 0] * lp0 + rot[p, i, 1] * lp1 + rot[p, i, 2] * lp2
+            for j in range(3):
+                rot[c, i, j] = rot[p, i, 0] * rel[0, j] + rot[p, i, 1] * rel[1, j] + rot[p, i, 2] * rel[2, j]
+        aw0 = rot[c, 0, 0] * ax + rot[c, 0, 1] * ay + rot[c, 0, 2] * az
+        aw1 = rot[c, 1, 0] * ax + rot[c, 1, 1] * ay + rot[c, 1, 2] * az
+        aw2 = rot[c, 2, 0] * ax + rot[c, 2, 1] * ay + rot[c, 2, 2] * az
+        r0 = pos[c, 0] - pos[p, 0]
+        r1 = pos[c, 1] - pos[p, 1]
+        r2 = pos[c, 2] - pos[p, 2]
+        wp0, wp1, wp2 = ang_vel[p, 0], ang_vel[p, 1], ang_vel[p, 2]
+        lin_vel[c, 0] = lin_vel[p, 0] + wp1 * r2 - wp2 * r1
+        lin_vel[c, 1] = lin_vel[p, 1] + wp2 * r0 - wp0 * r2
+        lin_vel[c, 2] = lin_vel[p, 2] + wp0 * r1 - wp1 * r0
+        ang_vel[c, 0] = wp0
+        ang_vel[c, 1] = wp1
+        ang_vel[c, 2] = wp2
+        if kinds[k] == 0:
+            ang_vel[c, 0] += aw0 * qdk
+            ang_vel[c, 1] += aw1 * qdk
+            ang_vel[c, 2] += aw2 * qdk
+        elif kinds[k] == 1:
+            lin_vel[c, 0] += aw0 * qdk
+            lin_vel[c, 1] += aw1 * qdk
+            lin_vel[c, 2] += aw2 * qdk
+
+
+class KinematicTree:
+    """Links connected by joints into one tree (one root link, no cycles).
+
+    Parameters
+    ----------
+    name : str
+    links : sequence of Link
+    joints : sequence of Joint
+        Every link except the root is the child of exactly one joint.
+    """
+
+    def __init__(self, name: str, links: Sequence[Link], joints: Sequence[Joint]):
+        self.name = _name("tree.name", name)
+        if isinstance(links, (str, bytes)) or not isinstance(links, Sequence) or not links:
+            raise ConfigError(f"{name}.links", links, "a non-empty sequence of Link")
+        if isinstance(joints, (str, bytes)) or not isinstance(joints, Sequence):
+            raise ConfigError(f"{name}.joints", joints, "a sequence of Joint")
+        for i, lk in enumerate(links):
+            if not isinstance(lk, Link):
+                raise ConfigError(f"{name}.links[{i}]", lk, "a twinsense Link")
+        for i, j in enumerate(joints):
+            if not isinstance(j, Joint):
+                raise ConfigError(f"{name}.joints[{i}]", j, "a twinsense Joint")
+        self.links = tuple(links)
+        self.joints = tuple(joints)
+        self.link_names = tuple(lk.name for lk in self.links)
+        index = {}
+        for i, n in enumerate(self.link_names):
+            if n in index:
+                raise ConfigError(f"{name}.links[{i}].name", n, "a name not used by another link")
+            index[n] = i
+        self._link_index = index
+        seen = set()
+        parent_joint: dict[str, Joint] = {}
+        for i, j in enumerate(self.joints):
+            if j.name in seen:
+                raise ConfigError(f"{name}.joints[{i}].name", j.name, "a name not used by another joint")
+            seen.add(j.name)
+            for role in ("parent", "child"):
+                ln = getattr(j, role)
+                if ln not in index:
+                    raise ConfigError(f"{name}.joints[{j.name}].{role}", ln,
+                                      "one of the links: " + ", ".join(self.link_names))
+            if j.child in parent_joint:
+                raise ConfigError(f"{name}.joints[{j.name}].child", j.child,
+                                  "a link without another parent joint (already child of "
+                                  f"{parent_joint[j.child].name!r})")
+            parent_joint[j.child] = j
+        roots = [n for n in self.link_names if n not in parent_joint]
+        if len(roots) != 1:
+            raise ConfigError(f"{name}.joints", f"root links {roots}",
+                              "a tree with exactly one root link (a link that is no joint's child); "
+                              + ("a cycle leaves none" if not roots else "join the others to it"))
+        self.root = roots[0]
+        # Breadth-first from the root: joints in an order where a parent is placed before its child.
+        children: dict[str, list[Joint]] = {n: [] for n in self.link_names}
+        for j in self.joints:
+            children[j.parent].append(j)
+        order: list[Joint] = []
+        frontier = [self.root]
+        reached = {self.root}
+        while frontier:
+            nxt = []
+            for ln in frontier:
+                for j in children[ln]:
+                    order.append(j)
+                    reached.add(j.child)
+                    nxt.append(j.child)
+            frontier = nxt
+        if len(reached) != len(self.link_names):
+            lost = [n for n in self.link_names if n not in reached]
+            raise ConfigError(f"{name}.joints", f"links {lost}", "a tree: these links form a cycle, unreachable "
+                              f"from the root {self.root!r}")
+        self._parent_joint = parent_joint
+        movable = [j for j in self.joints if j.movable]
+        self.joint_names = tuple(j.name for j in movable)
+        self._joint_index = {n: i for i, n in enumerate(self.joint_names)}
+        lim = np.array([[j.lower, j.upper] for j in movable], dtype=float).reshape(-1, 2)
+        lim.setflags(write=False)
+        self.limits = lim
+        self._lower, self._upper = lim[:, 0].copy(), lim[:, 1].copy()
+        self._zeros = np.zeros(len(movable))
+        self._zeros.setflags(write=False)
+        self._compile(order)
+
+    # ---------------------------------------------------------------- precomputation
+    def _compile(self, order: list[Joint]) -> None:
+        m = len(order)
+        self._order_parent = np.array([self._link_index[j.parent] for j in order], dtype=np.intp)
+        self._order_child = np.array([self._link_index[j.child] for j in order], dtype=np.intp)
+        self._order_qi = np.array([self._joint_index.get(j.name, -1) if j.movable else -1 for j in order],
+                                  dtype=np.intp)
+        self._kinds = np.array([_KIND_CODE[j.kind] for j in order], dtype=np.intp)
+        self._o_rot = np.ascontiguousarray(np.array([j.origin.rotation for j in order]).reshape(m, 3, 3))
+        self._o_pos = np.ascontiguousarray(np.array([j.origin.position for j in order]).reshape(m, 3))
+        self._axis = np.ascontiguousarray(np.array([j.axis for j in order]).reshape(m, 3))
+        self._root_index = self._link_index[self.root]
+
+    # ---------------------------------------------------------------- queries
+    @property
+    def n_joints(self) -> int:
+        """Number of movable joints (the length of q)."""
+        return len(self.joint_names)
+
+    def link(self, name: str) -> Link:
+        i = self._link_index.get(name)
+        if i is None:
+            from twinsense.errors import UnknownNameError
+
+            raise UnknownNameError(f"{self.name}.link", name, list(self.link_names))
+        return self.links[i]
+
+    def joint(self, name: str) -> Joint:
+        for j in self.joints:
+            if j.name == name:
+                return j
+        from twinsense.errors import UnknownNameError
+
+        raise UnknownNameError(f"{self.name}.joint", name, [j.name for j in self.joints])
+
+    def joint_index(self, name: str) -> int:
+        """Column of movable joint ``name`` in q."""
+        i = self._joint_index.get(name)
+        if i is None:
+            from twinsense.errors import UnknownNameError
+
+            raise UnknownNameError(f"{self.name}.joint", name, list(self.joint_names))
+        return i
+
+    def parent_joint(self, link: str) -> Joint | None:
+        """The joint whose child is ``link`` (None for the root)."""
+        self.link(link)
+        return self._parent_joint.get(link)
+
+    def check_limits(self, q, field_name: str | None = None, when: str = "") -> None:
+        """ConfigError naming the first joint whose value lies outside its limits."""
+        q = np.asarray(q, dtype=float)
+        # NaN fails both comparisons, so it is refused here too.
+        ok = (q >= self._lower) & (q <= self._upper)
+        if not ok.all():
+            bad = ~ok
+            i = int(np.argmax(bad))
+            j = self.joint(self.joint_names[i])
+            raise ConfigError(field_name or f"{self.name}.joints[{j.name}]", float(q[i]),
+                              f"a value within the limits [{j.lower:g}, {j.upper:g}] {j.unit} of joint "
+                              f"{j.name!r}{when}")
+
+    def _vector(self, field_name: str, value) -> np.ndarray:
+        if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (self.n_joints,):
+            if np.isfinite(value).all():  # the fast path of forward kinematics in a loop
+                return np.ascontiguousarray(value)
+        try:
+            v = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise ConfigError(field_name, value, f"{self.n_joints} finite numbers, one per joint "
+                              f"{list(self.joint_names)}") from None
+        if v.shape != (self.n_joints,) or not np.all(np.isfinite(v)):
+            raise ConfigError(field_name, value, f"{self.n_joints} finite numbers, one per joint "
+                              f"{list(self.joint_names)}")
+        return v
+
+    # ---------------------------------------------------------------- kinematics
+    def forward(self, q, qd=None, base: MotionState | Pose | None = None) -> TreeState:
+        """Pose and velocities of every link.
+
+        Parameters
+        ----------
+        q : (n_joints,) float
+            Joint positions [rad or m], in ``joint_names`` order, within ``limits``.
+        qd : (n_joints,) float, optional
+            Joint velocities [rad/s or m/s] (default zero).
+        base : MotionState or Pose, optional
+            State of the root link in the world (default: identity, at rest).
+        """
+        q = self._vector(f"{self.name}.q", q)
+        qd = self._zeros if qd is None else self._vector(f"{self.name}.qd", qd)
+        self.check_limits(q)
+        if base is None:
+            bp, br, bv, bw = _ORIGIN, _EYE, _ORIGIN, _ORIGIN
+        elif isinstance(base, Pose):
+            bp, br, bv, bw = base.position, base.rotation, _ORIGIN, _ORIGIN
+        elif isinstance(base, MotionState):
+            bp, br = base.pose.position, base.pose.rotation
+            bv = V.vector(f"{self.name}.base.linear_velocity", base.linear_velocity, 3, "m/s")
+            bw = V.vector(f"{self.name}.base.angular_velocity", base.angular_velocity, 3, "rad/s")
+        else:
+            raise ConfigError(f"{self.name}.base", base, "a MotionState, a Pose or None")
+        return self._forward(q, qd, bp, br, bv, bw)
+
+    def _forward(self, q, qd, bp, br, bv, bw) -> TreeState:
+        n = len(self.link_names)
+        pos, rot = np.empty((n, 3)), np.empty((n, 3, 3))
+        lin_vel, ang_vel = np.empty((n, 3)), np.empty((n, 3))
+        _fk_kernel(q, qd, self._order_qi, self._kinds, self._order_parent, self._order_child, self._o_rot,
+                   self._o_pos, self._axis, self._root_index, bp, br, bv, bw, pos, rot, lin_vel, ang_vel)
+        for arr in (pos, rot, lin_vel, ang_vel):
+            arr.setflags(write=False)
+        return TreeState(self.link_names, pos, rot, lin_vel, ang_vel, self._link_index)
+
+    def __repr__(self) -> str:
+        return f"KinematicTree({self.name!r}, {len(self.links)} links, joints={list(self.joint_names)})"
+
+
+# ==================================================================== joint motions
+class JointMotion:
+    """Base class of joint trajectories: ``q(t)`` and ``qd(t)`` of some joints.
+
+    ``joint_names`` lists the joints the columns belong to (None: every movable
+    joint of the tree, in its order); joints not listed stay at 0.
+    """
+
+    joint_names: tuple | None = None
+
+    def q(self, t: float) -> np.ndarray:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def qd(self, t: float) -> np.ndarray:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def q_qd(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        return self.q(t), self.qd(t)
+
+    @property
+    def n_columns(self) -> int:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    @property
+    def is_static(self) -> bool:
+        return False
+
+    @property
+    def version(self) -> int:
+        """Changes when values are pushed from outside (FK caches key on it)."""
+        return 0
+
+    def check(self, tree: KinematicTree, columns: np.ndarray, field_name: str) -> None:
+        """Raise ConfigError if the trajectory is known, at load, to leave the joint limits."""
+
+    def to_dict(self) -> dict:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+
+def _joint_names(field_name: str, names) -> tuple | None:
+    if names is None:
+        return None
+    if isinstance(names, str) or not isinstance(names, Sequence) or not all(isinstance(n, str) for n in names):
+        raise ConfigError(field_name, names, "a list of joint names or None")
+    if len(set(names)) != len(names):
+        raise ConfigError(field_name, list(names), "joint names without repeats")
+    return tuple(names)
+
+
+def _limits_text(tree: KinematicTree, col: int) -> str:
+    j = tree.joint(tree.joint_names[col])
+    return f"within the limits [{j.lower:g}, {j.upper:g}] {j.unit} of joint {j.name!r}"
+
+
+class JointKeyframes(JointMotion):
+    """Timed joint positions joined by a clamped cubic spline (C2, zero velocity at both ends).
+
+    Before the first and after the last keyframe the joints hold still, so the
+    velocity is continuous there too. The spline may swing past a keyframe
+    between two keyframes; the check at load covers the whole curve (its
+    extrema), not only the keyframes.
+
+    Parameters
+    ----------
+    times : (n_t,) float
+        Strictly increasing [s], n_t >= 2.
+    values : (n_t, n_j) float
+        Joint positions [rad or m] at those times.
+    joint_names : list of str, optional
+        The joints of the columns (default: every movable joint, in tree order).
+    """
+
+    def __init__(self, times, values, joint_names=None):
+        t = V.array("joints.keyframes.times", times, (None,), "s")
+        if len(t) < 2 or np.any(np.diff(t) <= 0) or np.any(np.abs(t) > V.TIME_MAX):
+            raise ConfigError("joints.keyframes.times", times,
+                              f"at least 2 strictly increasing times within +-{V.TIME_MAX:g} [s]")
+        vals = np.asarray(V._floats("joints.keyframes.values", values, "a finite array (n_times, n_joints)"))
+        if vals.ndim == 1 and len(t) == len(vals):
+            vals = vals[:, None]
+        if vals.ndim != 2 or len(vals) != len(t) or vals.shape[1] == 0:
+            raise ConfigError("joints.keyframes.values", f"array of shape {vals.shape}",
+                              f"one row per keyframe time: shape ({len(t)}, n_joints)")
+        if not np.all(np.isfinite(vals)):
+            raise ConfigError("joints.keyframes.values", "array with NaN or inf", "finite joint positions")
+        self.joint_names = _joint_names("joints.keyframes.joint_names", joint_names)
+        if self.joint_names is not None and len(self.joint_names) != vals.shape[1]:
+            raise ConfigError("joints.keyframes.joint_names", list(self.joint_names),
+                              f"one name per column of values ({vals.shape[1]})")
+        self.times = t
+        self.values = vals
+        self._spline = CubicSpline(t, vals, axis=0, bc_type="clamped")
+        self._dspline = self._spline.derivative()
+
+    @property
+    def n_columns(self) -> int:
+        return self.values.shape[1]
+
+    def _clip_time(self, t: float) -> tuple[float, bool]:
+        t = check_time(t)
+        if t <= self.times[0]:
+            return float(self.times[0]), True
+        if t >= self.times[-1]:
+            return float(self.times[-1]), True
+        return t, False
+
+    def q(self, t):
+        tc, held = self._clip_time(t)
+        if held:  # the keyframe itself, not the spline's rounding of it
+            return self.values[0 if tc == self.times[0] else -1].copy()
+        return np.asarray(self._spline(tc), dtype=float)
+
+    def qd(self, t):
+        tc, held = self._clip_time(t)
+        if held:
+            return np.zeros(self.n_columns)
+        return np.asarray(self._dspline(tc), dtype=float)
+
+    def extrema(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(min, max, t_min, t_max) per column over the whole spline [rad or m, s].
+
+        Per interval the derivative is a quadratic 3 c0 s^2 + 2 c1 s + c2; its
+        real roots inside the interval and the interval ends are the candidates.
+        """
+        c = self._spline.c  # (4, n_intervals, n_cols): coefficients of s^3, s^2, s, 1
+        h = np.diff(self.times)[:, None]
+        a, b, cc = 3 * c[0], 2 * c[1], c[2]
+        disc = b * b - 4 * a * cc
+        sq = np.sqrt(np.maximum(disc, 0.0))
+        cands = [np.zeros_like(h + a), np.broadcast_to(h, a.shape)]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            for r in ((-b + sq) / (2 * a), (-b - sq) / (2 * a), -cc / b):
+                ok = np.isfinite(r) & (r > 0) & (r < h) & (disc >= 0)
+                cands.append(np.where(ok, r, 0.0))
+        s = np.stack(cands)  # (n_cand, n_intervals, n_cols)
+        val = ((c[0] * s + c[1]) * s + c[2]) * s + c[3]
+        tt = self.times[:-1][None, :, None] + s
+        flat_v = val.transpose(2, 0, 1).reshape(self.n_columns, -1)
+        flat_t = tt.transpose(2, 0, 1).reshape(self.n_columns, -1)
+        i_lo, i_hi = np.argmin(flat_v, axis=1), np.argmax(flat_v, axis=1)
+        cols = np.arange(self.n_columns)
+        return flat_v[cols, i_lo], flat_v[cols, i_hi], flat_t[cols, i_lo], flat_t[cols, i_hi]
+
+    def check(self, tree, columns, field_name):
+        for k, col in enumerate(columns):
+            lo, hi = tree.limits[col]
+            for i, v in enumerate(self.values[:, k]):
+                if not lo <= v <= hi:
+                    raise ConfigError(f"{field_name}.keyframes.values[{i}][{k}]", float(v),
+                                      _limits_text(tree, col))
+        vmin, vmax, tmin, tmax = self.extrema()
+        for k, col in enumerate(columns):
+            lo, hi = tree.limits[col]
+            # A spline passing through in-limit keyframes overshoots by far more than rounding when it
+            # really leaves the limits; 1e-12 of the range absorbs the rounding of the extremum.
+            tol = 1e-12 * max(1.0, abs(lo) if math.isfinite(lo) else 0.0, abs(hi) if math.isfinite(hi) else 0.0)
+            for v, tv in ((vmin[k], tmin[k]), (vmax[k], tmax[k])):
+                if not lo - tol <= v <= hi + tol:
+                    raise ConfigError(f"{field_name}.keyframes", f"{float(v):.6g} at t = {float(tv):.6g} s",
+                                      _limits_text(tree, col) + " along the whole spline between the keyframes "
+                                      "(the cubic overshoots here: add a keyframe or move it away from the limit)")
+
+    def to_dict(self):
+        return {"type": "keyframes", "times": self.times.tolist(), "values": self.values.tolist(),
+                "joint_names": None if self.joint_names is None else list(self.joint_names)}
+
+
+class JointConstantVelocity(JointMotion):
+    """q(t) = q0 + qd t: constant joint velocities [rad/s or m/s] from q0 at t = 0.
+
+    A joint that reaches its limit raises ConfigError at the first time asked beyond it.
+    """
+
+    def __init__(self, q0, qd, joint_names=None):
+        q0 = np.asarray(V._floats("joints.constant_velocity.q0", q0, "finite joint positions"), dtype=float)
+        qd = np.asarray(V._floats("joints.constant_velocity.qd", qd, "finite joint velocities"), dtype=float)
+        if q0.ndim != 1 or qd.shape != q0.shape:
+            raise ConfigError("joints.constant_velocity.qd", qd.tolist(), f"one velocity per joint ({q0.shape})")
+        if not (np.all(np.isfinite(q0)) and np.all(np.isfinite(qd))):
+            raise ConfigError("joints.constant_velocity", "NaN or inf", "finite joint positions and velocities")
+        if np.any(np.abs(qd) > V.ANGULAR_SPEED_MAX):
+            raise ConfigError("joints.constant_velocity.qd", qd.tolist(),
+                              f"joint speeds <= {V.ANGULAR_SPEED_MAX:g} [rad/s or m/s]")
+        self.joint_names = _joint_names("joints.constant_velocity.joint_names", joint_names)
+        if self.joint_names is not None and len(self.joint_names) != len(q0):
+            raise ConfigError("joints.constant_velocity.joint_names", list(self.joint_names),
+                              f"one name per value ({len(q0)})")
+        self.q0 = q0
+        self.qdot = qd
+
+    @property
+    def n_columns(self):
+        return len(self.q0)
+
+    @property
+    def is_static(self):
+        return not np.any(self.qdot)
+
+    def q(self, t):
+        return self.q0 + self.qdot * check_time(t)
+
+    def qd(self, t):
+        check_time(t)
+        return self.qdot.copy()
+
+    def exit_time(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """Per column, the first time t >= 0 [s] at which q leaves [lo, hi] (inf if never)."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t_hi = np.where(self.qdot > 0, (hi - self.q0) / self.qdot, np.inf)
+            t_lo = np.where(self.qdot < 0, (lo - self.q0) / self.qdot, np.inf)
+        return np.minimum(t_hi, t_lo)
+
+    def check(self, tree, columns, field_name):
+        for k, col in enumerate(columns):
+            lo, hi = tree.limits[col]
+            if not lo <= self.q0[k] <= hi:
+                raise ConfigError(f"{field_name}.constant_velocity.q0[{k}]", float(self.q0[k]),
+                                  _limits_text(tree, col))
+
+    def to_dict(self):
+        return {"type": "constant_velocity", "q0": self.q0.tolist(), "qd": self.qdot.tolist(),
+                "joint_names": None if self.joint_names is None else list(self.joint_names)}
+
+
+class JointSetpoints(JointMotion):
+    """Joint values pushed from outside at each step (a co-simulation, a robot driver).
+
+    ``set(t, q, qd)`` records the state at time t; ``q(t')`` is the latest
+    setpoint at or before t' moved on by its velocity (q_k + qd_k (t' - t_k)),
+    the first setpoint before any. The last ``history`` setpoints are kept.
+    """
+
+    def __init__(self, q0, joint_names=None, history: int = 256):
+        q0 = np.asarray(V._floats("joints.setpoints.q0", q0, "finite joint positions"), dtype=float)
+        if q0.ndim != 1 or len(q0) == 0 or not np.all(np.isfinite(q0)):
+            raise ConfigError("joints.setpoints.q0", q0.tolist(), "a non-empty vector of finite joint positions")
+        self.joint_names = _joint_names("joints.setpoints.joint_names", joint_names)
+        if self.joint_names is not None and len(self.joint_names) != len(q0):
+            raise ConfigError("joints.setpoints.joint_names", list(self.joint_names), f"one name per value ({len(q0)})")
+        self._history = V.integer("joints.setpoints.history", history, lo=1)
+        self._t = [-math.inf]
+        self._q = [q0]
+        self._qd = [np.zeros_like(q0)]
+        self._version = 0
+        self._lock = threading.Lock()
+
+    @property
+    def n_columns(self):
+        return len(self._q[0])
+
+    @property
+    def version(self):
+        return self._version
+
+    def set(self, t: float, q, qd=None) -> None:
+        """Record joint positions q [rad or m] and velocities qd at time t [s] (t not before the last)."""
+        t = check_time(t)
+        n = self.n_columns
+        q = np.array(V._floats("setpoints.q", q, f"{n} finite joint positions"), dtype=float)
+        qd = np.zeros(n) if qd is None else np.array(V._floats("setpoints.qd", qd, f"{n} finite velocities"),
+                                                     dtype=float)
+        if q.shape != (n,) or qd.shape != (n,) or not (np.all(np.isfinite(q)) and np.all(np.isfinite(qd))):
+            raise ConfigError("setpoints.q", q.tolist(), f"{n} finite joint positions and velocities")
+        with self._lock:
+            if t < self._t[-1]:
+                raise ConfigError("setpoints.t", t, f"a time >= the last setpoint's ({self._t[-1]:g} s)")
+            if t == self._t[-1]:
+                self._q[-1], self._qd[-1] = q, qd
+            else:
+                self._t.append(t)
+                self._q.append(q)
+                self._qd.append(qd)
+                if len(self._t) > self._history + 1:
+                    del self._t[1], self._q[1], self._qd[1]
+            self._version += 1
+
+    def _at(self, t: float) -> int:
+        i = int(np.searchsorted(self._t, t, side="right")) - 1
+        return max(i, 0)
+
+    def q(self, t):
+        t = check_time(t)
+        i = self._at(t)
+        if not math.isfinite(self._t[i]):
+            return self._q[i].copy()
+        return self._q[i] + self._qd[i] * (t - self._t[i])
+
+    def qd(self, t):
+        return self._qd[self._at(check_time(t))].copy()
+
+    def to_dict(self):
+        return {"type": "setpoints", "n_joints": self.n_columns,
+                "joint_names": None if self.joint_names is None else list(self.joint_names)}
+
+
+# ==================================================================== bodies in a scene
+class ArticulatedBody:
+    """A kinematic tree in a scene, driven by a joint motion, on a (possibly moving) base.
+
+    Parameters
+    ----------
+    name : str
+        Prefix of the scene objects: ``f"{name}/{link}"``.
+    tree : KinematicTree
+    joint_motion : JointMotion, or None (every joint held at 0)
+    base : Pose or Motion
+        Root link -> world (a Motion for a mobile base).
+    """
+
+    def __init__(self, name: str, tree: KinematicTree, joint_motion: JointMotion | None = None,
+                 base: Pose | Motion | None = None):
+        self.name = _name("robot.name", name)
+        if "/" in name:
+            raise ConfigError("robot.name", name, "a name without '/' (it separates body and link names)")
+        if not isinstance(tree, KinematicTree):
+            raise ConfigError(f"{name}.tree", tree, "a KinematicTree")
+        self.tree = tree
+        if joint_motion is None:
+            joint_motion = JointConstantVelocity(np.zeros(tree.n_joints), np.zeros(tree.n_joints))
+        if not isinstance(joint_motion, JointMotion):
+            raise ConfigError(f"{name}.joints", joint_motion,
+                              "a JointKeyframes, JointConstantVelocity or JointSetpoints (or None)")
+        self.joint_motion = joint_motion
+        names = joint_motion.joint_names
+        if names is None:
+            if joint_motion.n_columns != tree.n_joints:
+                raise ConfigError(f"{name}.joints", f"{joint_motion.n_columns} columns",
+                                  f"one column per movable joint ({tree.n_joints}: {list(tree.joint_names)}), "
+                                  "or joint_names naming the columns")
+            cols = np.arange(tree.n_joints)
+        else:
+            cols = []
+            for n in names:
+                if n not in tree.joint_names:
+                    from twinsense.errors import UnknownNameError
+
+                    raise UnknownNameError(f"{name}.joints.joint_names", n, list(tree.joint_names))
+                cols.append(tree.joint_index(n))
+            cols = np.array(cols, dtype=np.intp)
+        self._cols = cols
+        self._q_fixed = np.zeros(tree.n_joints)
+        rest = np.setdiff1d(np.arange(tree.n_joints), cols)
+        for col in rest:  # joints without a trajectory stay at 0, which must lie within their limits
+            lo, hi = tree.limits[col]
+            if not lo <= 0.0 <= hi:
+                raise ConfigError(f"{name}.joints.joint_names", list(names or ()),
+                                  f"a list that includes joint {tree.joint_names[col]!r}: it has no trajectory, "
+                                  f"so it would stay at 0, outside its limits [{lo:g}, {hi:g}]")
+        joint_motion.check(tree, cols, f"{name}.joints")
+        if base is None:
+            base = Static(Pose())
+        elif isinstance(base, Pose):
+            base = Static(base)
+        if not isinstance(base, Motion):
+            raise ConfigError(f"{name}.base", base, "a Pose or a Motion (root link -> world)")
+        self.base = base
+        self._cache: OrderedDict = OrderedDict()
+        self._lock = threading.Lock()
+
+    @property
+    def is_static(self) -> bool:
+        return self.base.is_static and self.joint_motion.is_static
+
+    def joint_state(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """(q, qd) of every movable joint at t, in ``tree.joint_names`` order; checked against the limits."""
+        qm, qdm = self.joint_motion.q_qd(t)
+        q = self._q_fixed.copy()
+        qd = np.zeros(self.tree.n_joints)
+        q[self._cols] = qm
+        qd[self._cols] = qdm
+        if not np.all((q >= self.tree.limits[:, 0]) & (q <= self.tree.limits[:, 1])):
+            when = f" (reached at t = {t:.9g} s)"
+            m = self.joint_motion
+            if isinstance(m, JointConstantVelocity):
+                te = m.exit_time(self.tree.limits[self._cols, 0], self.tree.limits[self._cols, 1])
+                when = f" (the constant velocity leaves them at t = {float(np.min(te)):.9g} s; asked at t = {t:.9g} s)"
+            self.tree.check_limits(q, None, when)
+        return q, qd
+
+    def state(self, t: float) -> TreeState:
+        """Every link's state at t [s]; one forward kinematics per time for all links (cached)."""
+        t = check_time(t)
+        key = (t, self.joint_motion.version)
+        with self._lock:
+            hit = self._cache.get(key)
+            if hit is not None:
+                self._cache.move_to_end(key)
+                return hit
+        q, qd = self.joint_state(t)
+        st = self.tree.forward(q, qd, self.base.state(t))
+        with self._lock:
+            self._cache[key] = st
+            while len(self._cache) > FK_CACHE_SIZE:
+                self._cache.popitem(last=False)
+        return st
+
+    def object_name(self, link: str) -> str:
+        self.tree.link(link)
+        return f"{self.name}/{link}"
+
+    def link_motion(self, link: str) -> LinkMotion:
+        return LinkMotion(self, self.tree.link_names.index(self.tree.link(link).name))
+
+    def scene_items(self) -> tuple[list[SceneObject], list[Frame]]:
+        """One SceneObject per link with geometry (frame = link frame), one Frame per link without."""
+        objs, frames = [], []
+        for i, lk in enumerate(self.tree.links):
+            motion = LinkMotion(self, i)
+            name = f"{self.name}/{lk.name}"
+            geom = lk.link_frame_geometry()
+            if geom is None:
+                frames.append(Frame(name, motion))
+            else:
+                kw = {} if lk.layers is None else {"layers": lk.layers}
+                objs.append(SceneObject(name, geom, lk.material, motion, **kw))
+        return objs, frames
+
+    def add_to(self, scene: Scene) -> list[SceneObject]:
+        """Add the links to ``scene``: objects for links with geometry, mount frames for the others."""
+        if not isinstance(scene, Scene):
+            raise ConfigError("scene", scene, "a twinsense Scene")
+        objs, frames = self.scene_items()
+        taken = {o.name for o in scene.objects} | set(scene.frame_names)
+        for item in (*objs, *frames):
+            if item.name in taken:
+                raise ConfigError(f"{self.name}.name", self.name,
+                                  f"a robot name whose link names are free in the scene ({item.name!r} is taken)")
+        for o in objs:
+            scene.add(o)
+        for f in frames:
+            scene.add_frame(f)
+        return objs
+
+    def __repr__(self) -> str:
+        return f"ArticulatedBody({self.name!r}, {self.tree!r})"
+
+
+@dataclass(frozen=True, eq=False)
+class LinkMotion(Motion):
+    """The motion of one link of an articulated body (its frame = the link frame)."""
+
+    body: ArticulatedBody
+    link_index: int
+
+    def state(self, t):
+        return self.body.state(t).state(self.link_index)
+
+    @property
+    def is_static(self):
+        return self.body.is_static
+
+    def to_dict(self):
+        return {"type": "link", "body": self.body.name, "link": self.body.tree.link_names[self.link_index]}
