@@ -36,6 +36,7 @@ LAYERS: list[tuple[str, frozenset[str]]] = [
     ("io", frozenset({"io"})),
     ("simulate", frozenset({"simulate"})),
     ("scenario", frozenset({"scenario"})),
+    ("stream", frozenset({"stream"})),
     ("sweep", frozenset({"sweep"})),
     ("plotting", frozenset({"plotting"})),
     ("demos", frozenset({"demos"})),

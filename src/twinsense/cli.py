@@ -88,15 +88,16 @@ def run(scenario: Path = typer.Argument(..., help="scenario YAML file"),
         progress: bool = typer.Option(True, help="show a progress bar"),
         duration: float = _DURATION, seed: int = _SEED, max_frames: int = _MAX_FRAMES,
         max_frame_bytes: int = _MAX_FRAME_BYTES,
-        fmt: str = typer.Option("h5", "--format", help="h5, or mcap: also write the ROS 2 MCAP file")) -> None:
+        fmt: str = typer.Option("h5", "--format",
+                                help="h5, mcap (also write the ROS 2 MCAP file) or rrd (also the Rerun file)")) -> None:
     """Simulate a scenario and write its recording under OUT.
 
     Ctrl-C, SIGTERM and SIGHUP stop the run after the frame in progress and
     keep every frame so far in <name>.partial.h5 (exit status 128 + signal
     number); a second signal stops at once.
     """
-    if fmt not in ("h5", "mcap"):
-        _fail(ValueError(f"--format {fmt!r}: expected h5 or mcap"))
+    if fmt not in ("h5", "mcap", "rrd"):
+        _fail(ValueError(f"--format {fmt!r}: expected h5, mcap or rrd"))
     try:
         sc = _load(scenario, duration, seed, max_frames, max_frame_bytes)
     except TwinsenseError as exc:
@@ -115,8 +116,8 @@ def run(scenario: Path = typer.Argument(..., help="scenario YAML file"),
         typer.echo(f"no recording written (outputs.recording is null); captured {counts} frames")
     else:
         typer.echo(f"wrote {res.path} ({counts} frames)")
-        if fmt == "mcap":
-            _convert(res.path, res.path.with_suffix(".mcap"))
+        if fmt in ("mcap", "rrd"):
+            _convert(res.path, res.path.with_suffix(f".{fmt}"))
     for p in res.removed:
         typer.echo(f"removed {p} (an earlier run's partial recording, superseded)")
     for p in res.stale:
@@ -179,6 +180,15 @@ def _convert(src: Path, dest: Path) -> None:
     from twinsense.io.mcap import convert as to_mcap
     from twinsense.scenario import scenario_from_dict
 
+    if dest.suffix == ".rrd":
+        from twinsense.stream.rerun import convert as to_rrd
+
+        try:
+            path = to_rrd(src, dest, lambda d: scenario_from_dict(d, source=f"{src} (scenario)").scene)
+        except TwinsenseError as exc:
+            _fail(exc)
+        typer.echo(f"wrote {path} (Rerun)")
+        return
     try:
         path = to_mcap(src, dest, lambda d: scenario_from_dict(d, source=f"{src} (scenario)"))
     except (TwinsenseError, ImportError) as exc:
@@ -188,11 +198,12 @@ def _convert(src: Path, dest: Path) -> None:
 
 @app.command()
 def convert(recording: Path = typer.Argument(..., help="a twinsense HDF5 recording"),
-            out: Path = typer.Argument(..., help="the MCAP file to write (.mcap)")) -> None:
-    """Convert a recording into a ROS 2 MCAP file (needs the 'ros2' extra).
+            out: Path = typer.Argument(..., help="the file to write: .mcap (ROS 2) or .rrd (Rerun)")) -> None:
+    """Convert a recording into a ROS 2 MCAP file (needs the 'ros2' extra) or a Rerun .rrd file ('rerun' extra).
 
     Topics and frames are described in docs/ros2-mcap.md; the scene's object
-    frames on /tf come from the scenario stored in the recording.
+    frames on /tf come from the scenario stored in the recording. Rerun
+    entities are described in docs/rerun.md.
     """
     _convert(recording, out)
 
