@@ -209,6 +209,76 @@ def convert(recording: Path = typer.Argument(..., help="a twinsense HDF5 recordi
 
 
 @app.command()
+def serve(scenario: Path = typer.Argument(..., help="scenario YAML file"),
+          rate: float = typer.Option(1.0, "--rate", help="simulation seconds per wall second (0: as fast as possible)"),
+          duration: float = _DURATION, seed: int = _SEED,
+          foxglove: bool = typer.Option(True, "--foxglove/--no-foxglove", help="serve Foxglove WebSocket"),
+          foxglove_port: int = typer.Option(8765, "--foxglove-port", help="Foxglove WebSocket port (0: a free one)"),
+          zmq: str = typer.Option(None, "--zmq", help="also publish over ZeroMQ at this endpoint, e.g. "
+                                                       "tcp://127.0.0.1:5555"),
+          viewer: str = typer.Option(None, "--viewer", help="rerun: also stream to a native Rerun viewer"),
+          out: Path = typer.Option(None, "-o", "--out", help="also write the recording under OUT"),
+          max_frames: int = _MAX_FRAMES, max_frame_bytes: int = _MAX_FRAME_BYTES) -> None:
+    """Run a scenario paced to wall time and publish every frame live (needs the 'stream' extra).
+
+    Ctrl-C, SIGTERM and SIGHUP stop the run after the frame in progress,
+    close the servers and print what was sent and dropped (exit status
+    128 + signal number). Layouts and topics: docs/streaming.md.
+    """
+    from twinsense.stream.serve import serve_scenario
+
+    if viewer not in (None, "rerun"):
+        _fail(ValueError(f"--viewer {viewer!r}: expected rerun"))
+    try:
+        sc = _load(scenario, duration, seed, max_frames, max_frame_bytes)
+        sinks = []
+        if foxglove:
+            from twinsense.stream.foxglove_ws import FoxgloveSink
+
+            sinks.append(FoxgloveSink(port=foxglove_port))
+        if zmq is not None:
+            from twinsense.stream.zeromq import ZmqSink
+
+            sinks.append(ZmqSink(zmq))
+        if viewer == "rerun":
+            from twinsense.stream.rerun import RerunSink
+
+            sinks.append(RerunSink(spawn=True))
+    except (TwinsenseError, ImportError) as exc:
+        _fail(exc)
+
+    def announce(opened) -> None:
+        for s in opened:
+            if getattr(s, "name", "") == "foxglove":
+                typer.echo(f"foxglove: ws://{s.host}:{s.port} (Foxglove: open connection, Foxglove WebSocket)")
+            elif getattr(s, "name", "") == "zmq":
+                typer.echo(f"zmq: {s.endpoint}")
+        typer.echo(f"serving {sc.duration:g} s at rate {rate:g} (Ctrl-C stops)")
+
+    stop = _StopRequests()
+    try:
+        res = serve_scenario(sc, sinks, rate=rate, out_dir=out, stop=stop, on_open=announce)
+    except (TwinsenseError, ImportError) as exc:
+        _fail(exc)
+    except KeyboardInterrupt as exc:
+        served = getattr(exc, "serve_result", None)
+        if served is not None:
+            typer.echo(served.summary(), err=True)
+        if out is not None:
+            _report_stopped(sc, out, exc)
+        signum = exc.signum if isinstance(exc, _Stopped) else signal.SIGINT
+        typer.echo(f"stopped by {signal.Signals(signum).name}", err=True)
+        raise typer.Exit(128 + int(signum)) from None
+    finally:
+        stop.restore()
+    typer.echo(res.summary())
+    typer.echo(f"served {sum(res.result.frame_counts.values())} frames in {res.wall_time:.2f} s wall time"
+               + (f" ({res.late} frames later than the wall clock)" if res.late else ""))
+    if res.result.path is not None:
+        typer.echo(f"wrote {res.result.path}")
+
+
+@app.command()
 def presets(kind: str = typer.Argument(None, help="only this sensor kind")) -> None:
     """List the sensor presets."""
     from twinsense.presets import list_presets

@@ -1,0 +1,265 @@
+"""Live frames to Foxglove: a WebSocket server (foxglove-sdk, the ``stream`` extra).
+
+Topics use Foxglove's built-in message types, so the app shows them
+without set-up (frames and layouts as in docs/streaming.md):
+
+==============================  ====================  ==========================================
+topic                           type                  content
+==============================  ====================  ==========================================
+``/tf``                         FrameTransforms       sensor frames (REP 103, as in the MCAP
+                                                      output) and scene objects at each frame time
+``/<s>/depth``                  RawImage ``32FC1``    camera, ToF: depth [m]
+``/<s>/amplitude``              RawImage ``32FC1``    ToF: amplitude [DN]
+``/<s>/camera_info``            CameraCalibration     camera, ToF
+``/<s>/points``                 PointCloud            ToF (x, y, z, intensity), LiDAR (x, y, z,
+                                                      intensity, ring, time)
+``/<s>/detections``             PointCloud            radar: x, y, z (``<s>_link``, REP 103),
+                                                      range, radial_velocity, snr [dB]
+``/<s>/range_doppler``          RawImage ``32FC1``    radar: power [dB], rows Doppler, columns range
+``/<s>/maxwell``                RawImage ``32FC1``    capacitive: Maxwell matrix [F]
+``/<s>/frame``                  JSON                  capacitive channels; ultrasonic, magnetic,
+                                                      inductive and other kinds: their streams
+``/twinsense/stats``            JSON                  frames sent and dropped per sensor
+==============================  ====================  ==========================================
+
+Stamps and log times are the simulation time (ns from 0). The server
+keeps a bounded backlog per client (the oldest message goes first when a
+client is slow); in front of it, frames wait in this sink's bounded
+queue for the sender thread that converts them, and are dropped and
+counted when it is full.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from typing import Any
+
+import numpy as np
+
+from twinsense import validation as V
+from twinsense.errors import ConfigError
+from twinsense.io.mcap import (
+    WORLD_FRAME,
+    camera_info,
+    lidar_columns,
+    radar_detection_columns,
+    sensor_frame,
+    stamp_ns,
+    static_sensor_transforms,
+)
+from twinsense.stream.sinks import QUEUE_SIZE, QueuedSink
+
+#: Messages the server holds per client before it drops the oldest.
+BACKLOG = 256
+#: Streams of at most this many values go into a kind's JSON ``/<s>/frame`` message.
+MAX_JSON_VALUES = 16384
+#: [s] Wall time between ``/twinsense/stats`` messages.
+STATS_INTERVAL = 1.0
+# dB maps: 10 log10 of zero would be -inf.
+_DB_FLOOR = 1e-30
+
+
+def require_foxglove():
+    """The ``foxglove`` module, or an ImportError naming the extra that installs it."""
+    try:
+        import foxglove
+        import foxglove.messages
+    except ImportError as err:
+        raise ImportError("the Foxglove server needs the optional 'stream' extra: "
+                          "pip install 'twinsense[stream]' (foxglove-sdk, pyzmq)") from err
+    return foxglove
+
+
+def _plain(obj: Any) -> Any:
+    """``obj`` with JSON types only (numpy arrays and scalars converted), as a recording stores a config."""
+    def default(o):
+        if isinstance(o, np.ndarray):
+            return o.tolist()
+        if isinstance(o, np.generic):
+            return o.item()
+        return repr(o)
+
+    return json.loads(json.dumps(obj, default=default))
+
+
+class FoxgloveSink(QueuedSink):
+    """A Foxglove WebSocket server publishing every frame (a :class:`~twinsense.stream.sinks.FrameSink`).
+
+    Parameters
+    ----------
+    port : int
+        TCP port (0 picks a free one; ``port`` holds the real one after ``open``).
+    host : str
+        Address to listen on (default loopback only).
+    queue_size : int
+        Frames waiting for the sender thread before new ones are dropped.
+    backlog : int
+        Messages the server holds per client.
+    """
+
+    name = "foxglove"
+
+    def __init__(self, port: int = 8765, host: str = "127.0.0.1", *, queue_size: int = QUEUE_SIZE,
+                 backlog: int = BACKLOG, stats_interval: float = STATS_INTERVAL):
+        super().__init__(queue_size)
+        self.port = V.integer("FoxgloveSink.port", port, lo=0, hi=65535)
+        if not isinstance(host, str) or not host:
+            raise ConfigError("FoxgloveSink.host", host, "a host name or IP address to listen on")
+        self.host = host
+        self.backlog = V.integer("FoxgloveSink.backlog", backlog, lo=1)
+        self.stats_interval = V.positive("FoxgloveSink.stats_interval", stats_interval, "s")
+        self.server = None
+        self._channels: dict[str, Any] = {}
+        self._channel_names: dict[str, list] = {}
+        self._last_t: float | None = None
+
+    # --- transport ---------------------------------------------------------------
+    def _start(self) -> None:
+        fg = require_foxglove()
+        self._fg, self._m = fg, fg.messages
+        self._ctx = fg.Context()  # its own channels, never the process-wide default context
+        try:
+            self.server = fg.start_server(name="twinsense", host=self.host, port=self.port, context=self._ctx,
+                                          message_backlog_size=self.backlog)
+        except Exception as err:
+            raise ConfigError("foxglove_port", self.port, f"a free TCP port on {self.host} ({err})") from None
+        self.port = int(self.server.port)
+        self._static = []
+        self._moving = []
+        for s in self.sensors:
+            cfg = _plain(s.config_dict()) if hasattr(s, "config_dict") else {}
+            self._static += static_sensor_transforms(s.name, s.kind, cfg)
+        for obj in self.scene:
+            if obj.is_static:
+                self._static.append((WORLD_FRAME, obj.name, obj.pose_at(0.0)))
+            else:
+                self._moving.append(obj)
+        self._next_stats = time.monotonic() + self.stats_interval
+
+    def _stop(self) -> None:
+        if self.server is not None:
+            self._log_stats()
+            self.server.stop()
+            self.server = None
+
+    def stats(self) -> dict:
+        """Frames sent and dropped per sensor, and the frames queued now."""
+        return {"sent": dict(self.sent), "dropped": dict(self.dropped), "queued": self.queued}
+
+    # --- messages ----------------------------------------------------------------
+    def _channel(self, topic: str, cls_name: str | None):
+        ch = self._channels.get(topic)
+        if ch is None:
+            if cls_name is None:
+                ch = self._fg.Channel(topic, schema={"type": "object"}, context=self._ctx)
+            else:
+                import foxglove.channels as channels
+
+                ch = getattr(channels, f"{cls_name}Channel")(topic, context=self._ctx)
+            self._channels[topic] = ch
+        return ch
+
+    def _log(self, topic: str, cls_name: str | None, msg, ns: int) -> None:
+        self._channel(topic, cls_name).log(msg, log_time=ns)
+
+    def _log_stats(self) -> None:
+        self._log("/twinsense/stats", None, self.stats(), time.time_ns())
+
+    def _stamp(self, ns: int):
+        return self._fg.messages.Timestamp(ns // 1_000_000_000, ns % 1_000_000_000)
+
+    def _image(self, a: np.ndarray, ns: int, frame_id: str):
+        a = np.ascontiguousarray(a, dtype="<f4")
+        h, w = a.shape
+        return self._m.RawImage(timestamp=self._stamp(ns), frame_id=frame_id, width=w, height=h,
+                                encoding="32FC1", step=4 * w, data=a.tobytes())
+
+    def _cloud(self, columns: list[tuple[str, np.ndarray]], ns: int, frame_id: str):
+        m = self._m
+        types = {"u1": m.PackedElementFieldNumericType.Uint8, "i1": m.PackedElementFieldNumericType.Int8,
+                 "u2": m.PackedElementFieldNumericType.Uint16, "i2": m.PackedElementFieldNumericType.Int16,
+                 "u4": m.PackedElementFieldNumericType.Uint32, "i4": m.PackedElementFieldNumericType.Int32,
+                 "f4": m.PackedElementFieldNumericType.Float32, "f8": m.PackedElementFieldNumericType.Float64}
+        dtype = np.dtype([(n, np.asarray(a).dtype.newbyteorder("<")) for n, a in columns])
+        pts = np.empty(len(columns[0][1]), dtype=dtype)
+        for n, a in columns:
+            pts[n] = a
+        fields = [m.PackedElementField(name=n, offset=dtype.fields[n][1],
+                                       type=types[f"{dtype.fields[n][0].kind}{dtype.fields[n][0].itemsize}"])
+                  for n, _ in columns]
+        pose = m.Pose(position=m.Vector3(x=0.0, y=0.0, z=0.0), orientation=m.Quaternion(x=0.0, y=0.0, z=0.0, w=1.0))
+        return m.PointCloud(timestamp=self._stamp(ns), frame_id=frame_id, pose=pose, point_stride=dtype.itemsize,
+                            fields=fields, data=pts.tobytes())
+
+    def _transforms(self, t: float, ns: int):
+        m = self._m
+        poses = self._static + [(WORLD_FRAME, o.name, o.pose_at(t)) for o in self._moving]
+        out = []
+        for parent, child, pose in poses:
+            x, y, z = (float(v) for v in pose.position)
+            qx, qy, qz, qw = (float(v) for v in pose.quat_xyzw)
+            out.append(m.FrameTransform(timestamp=self._stamp(ns), parent_frame_id=parent, child_frame_id=child,
+                                        translation=m.Vector3(x=x, y=y, z=z),
+                                        rotation=m.Quaternion(x=qx, y=qy, z=qz, w=qw)))
+        return m.FrameTransforms(transforms=out)
+
+    def _publish(self, sensor, t: float, frame) -> None:
+        ns = stamp_ns(t)
+        name, kind = sensor.name, sensor.kind
+        fid = sensor_frame(name, kind)
+        if t != self._last_t:
+            # Every transform at every new frame time: a client that joins late has them at once.
+            self._log("/tf", "FrameTransforms", self._transforms(t, ns), ns)
+            self._last_t = t
+        if kind in ("camera", "tof"):
+            info = camera_info(kind, _plain(sensor.config_dict()))
+            if info is not None:
+                self._log(f"/{name}/camera_info", "CameraCalibration",
+                          self._m.CameraCalibration(timestamp=self._stamp(ns), frame_id=fid, width=info["width"],
+                                                    height=info["height"], distortion_model=info["distortion_model"],
+                                                    D=info["d"], K=info["k"], R=info["r"], P=info["p"]), ns)
+            self._log(f"/{name}/depth", "RawImage", self._image(frame.depth, ns, fid), ns)
+        if kind == "tof":
+            self._log(f"/{name}/amplitude", "RawImage", self._image(frame.amplitude, ns, fid), ns)
+            xyz = np.asarray(frame.points_sensor, dtype=np.float32).reshape(-1, 3)
+            amp = np.asarray(frame.amplitude, dtype=np.float32).ravel()
+            ok = np.isfinite(xyz).all(axis=1)
+            self._log(f"/{name}/points", "PointCloud",
+                      self._cloud([("x", xyz[ok, 0]), ("y", xyz[ok, 1]), ("z", xyz[ok, 2]), ("intensity", amp[ok])],
+                                  ns, fid), ns)
+        elif kind == "radar":
+            proc = getattr(frame, "processed", None)
+            if proc is not None:
+                db = 10.0 * np.log10(np.maximum(np.asarray(proc.power, dtype=float), _DB_FLOOR))
+                self._log(f"/{name}/range_doppler", "RawImage", self._image(db, ns, fid), ns)
+                self._log(f"/{name}/detections", "PointCloud",
+                          self._cloud(radar_detection_columns(proc.detections), ns, f"{name}_link"), ns)
+        elif kind == "lidar":
+            cols = lidar_columns(frame.xyz, frame.intensity, frame.ring, frame.time, frame.range, float(frame.t))
+            self._log(f"/{name}/points", "PointCloud", self._cloud(cols, ns, fid), ns)
+        elif kind == "capacitive":
+            st = frame.streams()
+            self._log(f"/{name}/maxwell", "RawImage", self._image(st["maxwell"], ns, fid), ns)
+            names = self._channel_names.setdefault(name, list(_plain(sensor.config_dict()).get("channels", [])))
+            self._log(f"/{name}/frame", None, {"t": t, "channel_names": names,
+                                               **{k: _json_values(st[k]) for k in
+                                                  ("channels", "readout", "delta", "self_capacitance") if k in st}},
+                      ns)
+        elif kind != "camera":
+            st = frame.streams()
+            self._log(f"/{name}/frame", None,
+                      {"t": t, **{k: _json_values(v) for k, v in st.items() if np.size(v) <= MAX_JSON_VALUES}}, ns)
+        if time.monotonic() >= self._next_stats:
+            self._log_stats()
+            self._next_stats = time.monotonic() + self.stats_interval
+
+
+def _json_values(a) -> Any:
+    """An array as nested lists for JSON; NaN and inf become None (JSON has neither)."""
+    a = np.asarray(a)
+    if a.dtype.kind in "fc":
+        a = np.real(a).astype(float)
+        return np.where(np.isfinite(a), a, None).tolist() if not np.isfinite(a).all() else a.tolist()
+    return a.tolist()
+
