@@ -351,6 +351,25 @@ def sweep(scenario: Path = typer.Argument(..., help="scenario YAML file"),
 
 
 @app.command()
+def export(recording: Path = typer.Argument(..., help="a twinsense HDF5 recording"),
+           out: Path = typer.Argument(..., help="the point cloud file to write: .pcd or .ply"),
+           sensor: str = typer.Option(..., "--sensor", help="a ToF or LiDAR sensor of the recording"),
+           frame: int = typer.Option(0, "--frame", help="frame index (0 = first)"),
+           coords: str = typer.Option("world", "--coords", help="world or sensor: the frame of x, y, z"),
+           ascii_pcd: bool = typer.Option(False, "--ascii", help="PCD as text (DATA ascii) instead of binary")) -> None:
+    """Write one frame's point cloud as PCD (PCL v0.7) or PLY (binary), with intensity and other fields."""
+    from twinsense.io.pointcloud import export as export_points
+    from twinsense.io.recording import open_recording
+
+    try:
+        with open_recording(recording) as rec:
+            path = export_points(rec[sensor], frame, out, coords=coords, binary=not ascii_pcd)
+    except TwinsenseError as exc:
+        _fail(exc)
+    typer.echo(f"wrote {path}")
+
+
+@app.command()
 def info() -> None:
     """Version, ray-casting backend and optional extras found."""
     import importlib.util
