@@ -94,7 +94,7 @@ def test_parallax_misses_only_in_the_band_beside_a_depth_edge():
     # the wall strip hidden from the render centre: angular width
     # b (1/z_near - 1/z_far) = 0.0667 rad. Only rays in that band miss, and
     # every other ray hits the closed-form surface (exact: planes).
-    x, y = CAM.pixel_normalised()
+    x, _ = CAM.pixel_normalised()
     z = np.where(np.abs(x) < 0.3, 1.0, 3.0)  # plate: |X| < 0.3 m at z = 1
     images = ExternalImages(z, np.full(z.shape, 0.5), K, Pose(), depth_kind="z")
     b = 0.10
