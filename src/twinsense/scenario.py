@@ -241,7 +241,7 @@ class ObjectSpec(_Model):
     pose: PoseSpec = PoseSpec()
     motion: MotionSpec | None = None
     layers: list[Literal["tof", "radar", "capacitive", "camera", "lidar", "ultrasonic", "magnetic",
-                         "inductive"]] = list(SENSOR_KINDS)
+                         "inductive", "tactile"]] = list(SENSOR_KINDS)
     magnet: MagnetSpec | None = None
 
 

@@ -13,7 +13,7 @@ from twinsense.scene.materials import Material, get_material
 from twinsense.scene.motion import Motion, MotionState, Static, check_time
 from twinsense.scene.pose import Pose
 
-SENSOR_KINDS = ("tof", "radar", "capacitive", "camera", "lidar", "ultrasonic", "magnetic", "inductive")
+SENSOR_KINDS = ("tof", "radar", "capacitive", "camera", "lidar", "ultrasonic", "magnetic", "inductive", "tactile")
 
 
 @dataclass(frozen=True, eq=False)

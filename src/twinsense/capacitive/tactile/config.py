@@ -1,0 +1,71 @@
+"""Configuration of a tactile skin: stack, mesh, converters, solver, estimators."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from twinsense import validation as v
+from twinsense.capacitive.readout import ReadoutConfig
+from twinsense.capacitive.solver import SolverConfig
+from twinsense.capacitive.tactile.layouts import TactileLayout
+from twinsense.capacitive.tactile.permittivity import PorousPermittivity
+from twinsense.capacitive.tactile.readout import AD7147_READOUT
+from twinsense.capacitive.tactile.stack_mesh import StackMeshSettings
+from twinsense.errors import ConfigError
+
+__all__ = ["TactileConfig"]
+
+
+@dataclass(frozen=True, eq=False)
+class TactileConfig:
+    """A capacitive tactile (and proximity) skin.
+
+    Attributes
+    ----------
+    layout : TactileLayout
+    mesh : StackMeshSettings
+    self_readout, mutual_readout : ReadoutConfig
+        Converters of the self-capacitance channels (one per electrode) and of
+        the mutual channels (one per taxel); their ``sample_rate`` is the
+        frame rate (both must agree).
+    solver : SolverConfig
+    porous : PorousPermittivity or None
+        Pressure-dependent permittivity of the dielectric (None: constant).
+    calibration_strain : float
+        Strain of the uniform confined compression the force estimate is
+        calibrated on (see :mod:`twinsense.capacitive.tactile.estimate`).
+    pressure_threshold : float
+        Estimated taxel pressure above which a taxel belongs to a contact [Pa].
+    max_contacts : int
+        Slots for per-contact forces in the recorded streams (NaN when unused).
+    """
+
+    layout: TactileLayout
+    mesh: StackMeshSettings = field(default_factory=StackMeshSettings)
+    self_readout: ReadoutConfig = AD7147_READOUT
+    mutual_readout: ReadoutConfig = AD7147_READOUT
+    solver: SolverConfig = field(default_factory=lambda: SolverConfig(energy_tol=1e-6))
+    porous: PorousPermittivity | None = None
+    calibration_strain: float = 0.05
+    pressure_threshold: float = 2e3
+    max_contacts: int = 4
+
+    def __post_init__(self) -> None:
+        checks = (("layout", TactileLayout), ("mesh", StackMeshSettings), ("self_readout", ReadoutConfig),
+                  ("mutual_readout", ReadoutConfig), ("solver", SolverConfig))
+        for name, cls in checks:
+            if not isinstance(getattr(self, name), cls):
+                raise ConfigError(f"TactileConfig.{name}", getattr(self, name), f"a {cls.__name__}")
+        if self.porous is not None and not isinstance(self.porous, PorousPermittivity):
+            raise ConfigError("TactileConfig.porous", self.porous, "a PorousPermittivity or None")
+        if self.self_readout.sample_rate != self.mutual_readout.sample_rate:
+            raise ConfigError("TactileConfig.mutual_readout.sample_rate", self.mutual_readout.sample_rate,
+                              f"the self readout's rate {self.self_readout.sample_rate} Hz (one scan per frame)")
+        v.number("TactileConfig.calibration_strain", self.calibration_strain, lo=0.0, hi=0.3, lo_open=True)
+        v.non_negative("TactileConfig.pressure_threshold", self.pressure_threshold, "Pa")
+        v.integer("TactileConfig.max_contacts", self.max_contacts, lo=1, hi=64)
+
+    @property
+    def frame_rate(self) -> float:
+        """Frames per second [Hz]."""
+        return self.self_readout.sample_rate

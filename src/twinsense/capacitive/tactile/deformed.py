@@ -1,0 +1,153 @@
+"""Electrostatics on the deformed stack, re-assembled incrementally.
+
+The electrodes are bonded to the dielectric, so they move with it: the mesh
+nodes are displaced by the mechanics' displacement field and the Maxwell
+matrix is computed on the deformed mesh. The P1 element stiffness depends
+on a cell's node coordinates only, so a frame re-computes the cells that
+have a node that moved since the last frame and scatter-adds the difference
+``eps0 (eps_new K_e(new) - eps_old K_e(old))`` into the fixed CSR pattern
+(:class:`~twinsense.capacitive.fem.ElectrostaticSystem`); the sparsity
+pattern, the Dirichlet sets and the warm-started AMG-PCG
+(:class:`~twinsense.capacitive.solver.MaxwellSolver`) stay as they are.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from twinsense.capacitive.assembly import element_stiffness
+from twinsense.capacitive.coupling import map_inclusions
+from twinsense.capacitive.fem import EPS0, ElectrostaticSystem
+from twinsense.capacitive.mesh import SimplexMesh
+from twinsense.capacitive.solver import MaxwellResult, MaxwellSolver, SolverConfig
+from twinsense.capacitive.tactile.permittivity import PorousPermittivity
+from twinsense.capacitive.tactile.stack_mesh import DIELECTRIC, StackMesh
+from twinsense.errors import ConfigError
+
+__all__ = ["DeformedElectrostatics", "volumetric_strain"]
+
+MOVE_TOL = 1e-12
+"""Node moves below this [m] (a millionth of a micrometre) leave a cell's stiffness alone."""
+
+
+def volumetric_strain(points0: np.ndarray, points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """(m,) volume change ``V / V0 - 1`` of ``cells`` (negative under compression)."""
+    def vol(p):
+        e = p[cells[:, 1:]] - p[cells[:, :1]]
+        return np.linalg.det(e)
+
+    return vol(points) / vol(points0) - 1.0
+
+
+class DeformedElectrostatics:
+    """The Maxwell matrix of a tactile stack for a displacement field and scene objects.
+
+    Parameters
+    ----------
+    stack : StackMesh
+    solver : SolverConfig, optional
+    porous : PorousPermittivity, optional
+        Pressure-dependent permittivity of the dielectric (None: constant).
+    """
+
+    def __init__(self, stack: StackMesh, solver: SolverConfig | None = None,
+                 porous: PorousPermittivity | None = None) -> None:
+        self.stack = stack
+        mesh = stack.mesh
+        z_top = stack.z_top
+        center = np.array([0.0, 0.0, z_top])
+        self.system = ElectrostaticSystem(mesh, stack.terminals, grounded=stack.ground,
+                                          permittivity=stack.permittivity, outer_boundary="open", center=center)
+        self.solver = MaxwellSolver(self.system, solver)
+        self.porous = porous
+        self.points0 = np.array(mesh.points)
+        self.displacement = np.zeros_like(self.points0)
+        self._base_eps = np.array(stack.permittivity)  # the stack's own permittivity, strain-corrected
+        self._object_eps = np.array(stack.permittivity)
+        self._air = stack.air_cells
+        self.reassembled = 0  # cells re-computed by the last set_displacement
+
+    @property
+    def points(self) -> np.ndarray:
+        """(n, 3) deformed node coordinates [m]."""
+        return self.points0 + self.displacement
+
+    def set_displacement(self, displacement: np.ndarray) -> np.ndarray:
+        """Move the nodes; re-compute only the cells with a node that moved.
+
+        Parameters
+        ----------
+        displacement : (n, 3) float, node displacements from the undeformed mesh [m].
+
+        Returns
+        -------
+        (c,) int, the cells whose stiffness was re-computed.
+        """
+        u = np.asarray(displacement, float)
+        n = self.points0.shape[0]
+        if u.shape != (n, 3) or not np.all(np.isfinite(u)):
+            raise ConfigError("displacement", f"array of shape {u.shape}", f"finite (n, 3) = ({n}, 3) [m]")
+        moved = np.flatnonzero(np.any(np.abs(u - self.displacement) > MOVE_TOL, axis=1))
+        self.reassembled = 0
+        if len(moved) == 0:
+            return np.zeros(0, np.int64)
+        mask = np.zeros(n, bool)
+        mask[moved] = True
+        cells = np.flatnonzero(mask[self.stack.mesh.cells].any(axis=1))
+        pts = self.points0 + u
+        sub = SimplexMesh.__new__(SimplexMesh)  # skip the orientation checks: volumes are checked below
+        object.__setattr__(sub, "points", pts)
+        object.__setattr__(sub, "cells", self.stack.mesh.cells[cells])
+        vol = sub.volumes
+        if np.any(vol <= 0):
+            k = cells[int(np.argmin(vol))]
+            raise ConfigError("displacement", f"inverts mesh cell {k}",
+                              "a deformation that keeps every cell's orientation (smaller load, or first_air "
+                              "larger than the indentation)")
+        k_new = element_stiffness(sub)
+        sys_ = self.system
+        self.displacement = u.copy()
+        eps_stack = self._stack_eps(cells)
+        self._base_eps[cells] = eps_stack
+        eps_new = np.where(np.isin(cells, self._air), self._object_eps[cells], eps_stack)
+        sys_.pattern.scatter_add(sys_.k_data, cells, sys_.local[cells], -EPS0 * sys_.eps_r[cells])
+        sys_.pattern.scatter_add(sys_.k_data, cells, k_new, EPS0 * eps_new)
+        sys_.local[cells] = k_new
+        eps = sys_.eps_r.copy()
+        eps[cells] = eps_new
+        sys_.eps_r = eps
+        self.reassembled = len(cells)
+        return cells
+
+    def _stack_eps(self, cells: np.ndarray) -> np.ndarray:
+        eps = np.array(self.stack.permittivity[cells])
+        if self.porous is not None:
+            d = self.stack.region[cells] == DIELECTRIC
+            if np.any(d):
+                strain = volumetric_strain(self.points0, self.points, self.stack.mesh.cells[cells[d]])
+                eps[d] = self.porous.permittivity(strain)
+        return eps
+
+    def set_objects(self, inclusions, skin_to_world=None) -> None:
+        """Map scene objects onto the air cells of the deformed mesh (the skin's own cells keep theirs).
+
+        Parameters
+        ----------
+        inclusions : sequence of coupling.Inclusion (world frame).
+        skin_to_world : Pose or None.
+        """
+        air = self._air
+        sub = SimplexMesh.__new__(SimplexMesh)
+        object.__setattr__(sub, "points", self.points)
+        object.__setattr__(sub, "cells", self.stack.mesh.cells[air])
+        mm = map_inclusions(sub, self.stack.permittivity[air], inclusions, mesh_to_world=skin_to_world)
+        obj_eps = self._base_eps.copy()
+        obj_eps[air] = mm.permittivity
+        self._object_eps = obj_eps
+        self.system.set_permittivity(obj_eps)
+        self.system.set_conductors(mm.grounded, mm.floating)
+
+    def solve(self) -> MaxwellResult:
+        """The Maxwell matrix of the electrodes (floating objects eliminated) [F]."""
+        return self.solver.solve()
+
