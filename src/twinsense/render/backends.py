@@ -19,6 +19,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from twinsense.errors import UnknownNameError
+from twinsense.render.kernels import finish_hits
 from twinsense.render.parallel import default_workers, map_ordered
 
 MeshArrays = tuple[np.ndarray, np.ndarray]  # vertices (n, 3) float, faces (m, 3) int
@@ -180,8 +181,13 @@ class EmbreeIntersector(Intersector):
         else:
             face = self._run(o32, d32)
         # Embree traces in float32; the distance is recomputed in float64
-        # against the hit triangle's plane (exact for the hit triangle).
-        return self._finish(o, d, face.astype(np.int64, copy=False))
+        # against the hit triangle's plane (exact for the hit triangle), in
+        # one compiled pass (the same operations as ``_finish``, the same bits).
+        t, geom, prim = np.empty(n), np.empty(n, np.int32), np.empty(n, np.int32)
+        normal, den = np.empty((n, 3)), np.empty(n)
+        finish_hits(face, self._planes, self._face_geom, self._face_prim, o, d, t, geom, prim,
+                    normal, den)
+        return t, geom, prim, normal, den
 
 
 class NumpyIntersector(Intersector):

@@ -25,8 +25,8 @@ import numpy as np
 
 from twinsense.errors import ConfigError
 from twinsense.render.backends import make_intersector
-from twinsense.render.culling import rays_hit_box, rays_near_sphere
 from twinsense.render.hits import ALWAYS_FIELDS, HIT_FIELDS, Hits, allocate_field, check_fields
+from twinsense.render.kernels import cull_into_frame
 from twinsense.render.parallel import default_workers, map_ordered
 from twinsense.render.rays import Rays
 from twinsense.scene.scene import SENSOR_KINDS, Scene
@@ -190,23 +190,13 @@ class SceneCaster:
             # Cull: only rays that pass through the object's bounding sphere
             # before their current closest hit can hit it.
             centre = pos + rot @ self._moving_centre[k]
-            sel = rays_near_sphere(o, d, centre, self._moving_radius[k], dist)
+            lo, hi = self._moving_box[k]
+            # Both culls and the move into the object's frame in one compiled
+            # pass (the same tests as culling.rays_near_sphere / rays_hit_box).
+            sel, o_local, d_local = cull_into_frame(o, d, centre, self._moving_radius[k], rot, pos,
+                                                    lo, hi, dist)
             if len(sel) == 0:
                 continue
-            if o.strides[0] == 0:  # one shared origin: move it once
-                o_local = _rotate((o[0] - pos)[None], rot)
-                o_local = np.broadcast_to(o_local[0], (len(sel), 3))
-            else:
-                o_local = _rotate(np.take(o, sel, axis=0) - pos, rot)
-            d_local = _rotate(np.take(d, sel, axis=0), rot)
-            # Second cull in the object's frame: its bounding box is much
-            # tighter than the sphere for elongated objects (a person).
-            inside = rays_hit_box(o_local, d_local, *self._moving_box[k], np.take(dist, sel))
-            if not inside.all():
-                sel, d_local = sel[inside], d_local[inside]
-                o_local = o_local[inside] if o_local.strides[0] else o_local[:len(sel)]
-                if len(sel) == 0:
-                    continue
             t_m, _, p, n_local = self._moving_bvh[k].intersect(o_local, d_local, threads=threads)
             won = np.flatnonzero(t_m < np.take(dist, sel))  # inf < inf is False: misses never win
             if len(won) == 0:

@@ -20,8 +20,10 @@ import numpy as np
 
 from twinsense.linalg import rotate_rows
 from twinsense.render import Hits, PinholeCamera, Rays, caster_for
+from twinsense.render.parallel import default_workers
 from twinsense.scene.scene import Scene
 from twinsense.tof.config import ToFConfig
+from twinsense.tof.kernels import hits_to_phasors
 from twinsense.tof.signal import PixelPhasors, Radiometry, SurfaceSamples, pixel_phasors, radiance_factor
 
 #: Hit fields the direct-light model needs (normals only for multipath).
@@ -133,8 +135,13 @@ class ToFRenderer:
         if entry is None or entry[0] is not rays or entry[1] is not caster:
             if fresh:
                 # A pose seen for the first time: a camera that moves every frame
-                # would never reuse what is kept, so render the whole image once.
-                return pixel_phasors(self.samples(scene, rotation, position, t)[0], self.radiometry)
+                # would never reuse what is kept, so render the whole image once,
+                # hits to phasors in one compiled pass (same numbers as
+                # pixel_phasors(surface_samples(...)) but the float32 cos/sin).
+                hits = self.hits(scene, rotation, position, t)
+                return PixelPhasors(*hits_to_phasors(hits.distance, hits.cos_incidence, hits.object_id,
+                                                     material_table(scene), self.config,
+                                                     self.radiometry, default_workers()))
             st = caster.cast_static(rays, DIRECT_FIELDS)
             tables = material_table(scene)
             samples = surface_samples(st, tables, self.config, self.sub_dirs.shape[:2])

@@ -1,0 +1,168 @@
+"""Compiled ToF kernel: the hits of the sub-pixel rays -> pixel phasors in one pass (numba).
+
+:func:`twinsense.tof.rendering.surface_samples` and
+:func:`twinsense.tof.signal.pixel_phasors` are the reference: several NumPy
+passes over every sub-pixel with float32 temporaries (samples, radiance
+factor, electrons, one cosine and one sine image per frequency, block sums).
+A camera that moves renders every pixel anew each frame; then
+:func:`hits_to_phasors` does the same float32 arithmetic with fewer passes
+and no temporaries, on bands of rows without the GIL.
+
+The cosines and sines stay NumPy's own vectorised float32 routines (a
+scalar C-library call per sub-pixel is several times slower): a compiled
+pass makes the electrons and phases, NumPy the cos and sin, a second
+compiled pass the block sums. Every step is the reference's float32
+operation in its order, so the phasors are the same bits
+(``tests/tof/test_tof_kernels.py``).
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+from twinsense.render.kernels import jit
+from twinsense.render.parallel import map_ordered
+
+
+@jit
+def _power(x, e):  # pragma: no cover
+    """x ** e for a whole e >= 1 by repeated squaring, the multiplications of
+    :func:`twinsense.tof.signal._power` in its order (float32 in, float32 out)."""
+    result = x
+    have = False
+    base = x
+    while True:
+        if e & 1:
+            if have:
+                result = result * base
+            else:
+                result = base
+                have = True
+        e >>= 1
+        if e == 0:
+            return result
+        base = base * base
+
+
+@jit
+def _sample_rows(r0, r1, distance, cos_incidence, obj, albedo_o, spec_o, retro_o, spec_exp, whole_exp,
+                 lobe_scale, retro_gain, signal_gain, ambient_gain, wavenumbers, ne, charge,
+                 phase):  # pragma: no cover
+    """Sub-pixel rows [r0, r1) (supersampled): electrons ``ne``, electrons of both taps
+    ``charge`` (ne + ambient) and the phases (F, rows, W*N), the reference's float32 steps."""
+    f32 = np.float32
+    one, two, zero = f32(1.0), f32(2.0), f32(0.0)
+    wn = signal_gain.shape[1]
+    miss = albedo_o.shape[0] - 1
+    for sr in range(r0, r1):
+        for sc in range(wn):
+            ray = sr * wn + sc
+            hit = obj[ray] >= 0
+            o = obj[ray] if hit else miss  # a miss picks the tables' zero entry
+            albedo = albedo_o[o]
+            s = spec_o[o]
+            cs = f32(cos_incidence[ray])
+            # radiance_factor: Lambertian part + Phong lobe at 2 theta, or the retro lobe.
+            cos2 = two * cs * cs - one
+            if cos2 < zero:
+                cos2 = zero
+            powered = _power(cos2, whole_exp) if whole_exp > 0 else cos2 ** spec_exp
+            rf = albedo * ((one - s) + s * (lobe_scale * powered))
+            if retro_o[o]:
+                rf = albedo * retro_gain * cs
+            # signal_electrons: R cos_i / d^2 times the per-sub-pixel gain.
+            d = f32(distance[ray]) if hit else zero
+            inv_d2 = one / (d * d) if d > zero else zero
+            e = signal_gain[sr, sc] * rf * cs * inv_d2
+            ne[sr, sc] = e
+            charge[sr, sc] = e + ambient_gain[sr, sc] * albedo
+            for fi in range(wavenumbers.shape[0]):
+                phase[fi, sr, sc] = d * wavenumbers[fi]
+
+
+@jit
+def _block_rows(r0, r1, n, ne, charge, cos, sin, dark2, real, imag, tap_sum):  # pragma: no cover
+    """Pixel rows [r0, r1): block sums of ne cos, ne sin and the charge, sub-pixels
+    added in the order of :func:`twinsense.tof.signal.block_sum` ((i, j) row-major)."""
+    width = real.shape[2]
+    for fi in range(real.shape[0]):
+        for r in range(r0, r1):
+            for c in range(width):
+                sr, sc = r * n, c * n
+                re = ne[sr, sc] * cos[fi, sr, sc]
+                im = ne[sr, sc] * sin[fi, sr, sc]
+                for i in range(n):
+                    for j in range(n):
+                        if i or j:
+                            re += ne[sr + i, sc + j] * cos[fi, sr + i, sc + j]
+                            im += ne[sr + i, sc + j] * sin[fi, sr + i, sc + j]
+                real[fi, r, c] = re
+                imag[fi, r, c] = im
+    for r in range(r0, r1):
+        for c in range(width):
+            sr, sc = r * n, c * n
+            tot = charge[sr, sc]
+            for i in range(n):
+                for j in range(n):
+                    if i or j:
+                        tot += charge[sr + i, sc + j]
+            tap_sum[r, c] = tot + dark2
+
+def hits_to_phasors(distance: np.ndarray, cos_incidence: np.ndarray, object_id: np.ndarray, tables,
+                    config, radiometry, workers: int = 1):
+    """Pixel phasors of a whole image from the hits of its sub-pixel rays.
+
+    Parameters
+    ----------
+    distance, cos_incidence : (H*N*W*N,) float64
+        Hit distance [m] (inf on a miss) and incidence cosine of every
+        sub-pixel ray, row-major supersampled image order.
+    object_id : (H*N*W*N,) int32
+        Hit object (-1: a miss).
+    tables : per-object (albedo, specular, retro-reflective) with a trailing
+        miss entry (:func:`twinsense.tof.rendering.material_table`).
+    config : ToFConfig
+    radiometry : Radiometry
+    workers : int
+        Threads, each on a band of pixel rows.
+
+    Returns
+    -------
+    (real, imag, tap_sum): (F, H, W), (F, H, W), (H, W) float32 [e-], the
+    fields of :class:`twinsense.tof.signal.PixelPhasors`.
+    """
+    cfg = config
+    h, w, n = cfg.height, cfg.width, cfg.supersample
+    f = len(radiometry.wavenumbers)
+    ne = np.empty((h * n, w * n), np.float32)
+    charge = np.empty_like(ne)
+    phase = np.empty((f, h * n, w * n), np.float32)
+    cos, sin = np.empty_like(phase), np.empty_like(phase)
+    real = np.empty((f, h, w), np.float32)
+    imag = np.empty((f, h, w), np.float32)
+    tap_sum = np.empty((h, w), np.float32)
+    albedo_o, spec_o, retro_o = tables
+    e = cfg.specular_exponent
+    whole = int(e) if e == int(e) and 1 <= e <= 256 else 0  # as signal._power chooses
+    sample_args = (np.ascontiguousarray(distance), np.ascontiguousarray(cos_incidence),
+                   np.ascontiguousarray(object_id), albedo_o, spec_o, retro_o, np.float32(e), whole,
+                   np.float32((e + 2.0) / 2.0), np.float32(cfg.retroreflector_gain),
+                   radiometry.signal_gain, radiometry.ambient_gain,
+                   radiometry.wavenumbers.astype(np.float32), ne, charge, phase)
+    dark2 = np.float32(2.0 * radiometry.dark_electrons)
+
+    def band(rows):
+        r0, r1 = rows
+        _sample_rows(r0 * n, r1 * n, *sample_args)
+        # NumPy's vectorised float32 cos and sin, as in pixel_phasors: the same bits.
+        sub = (slice(None), slice(r0 * n, r1 * n))
+        np.cos(phase[sub], out=cos[sub])
+        np.sin(phase[sub], out=sin[sub])
+        _block_rows(r0, r1, n, ne, charge, cos, sin, dark2, real, imag, tap_sum)
+
+    bands = max(1, min(workers, h))
+    edges = np.linspace(0, h, bands + 1).astype(int)
+    map_ordered(band, list(itertools.pairwise(edges.tolist())), bands)
+    return real, imag, tap_sum

@@ -1,0 +1,88 @@
+"""The caster's compiled kernels against the NumPy forms they replace.
+
+``finish_hits`` does the float64 operations of ``Intersector._finish`` in the
+same order (no fused multiply-adds: fastmath is off), so its results must be
+the same bits. ``cull_into_frame`` replaces ``rays_near_sphere`` +
+``rays_hit_box``: it may drop more rays than those (its sphere test for rays
+from several origins is the tighter cone test) but never a ray that hits the
+object, and it moves the kept rays into the object's frame with the bits of
+``caster._rotate``.
+"""
+
+import numpy as np
+import pytest
+import trimesh
+
+from twinsense.render import make_intersector
+from twinsense.render.caster import _rotate
+from twinsense.render.culling import rays_hit_box, rays_near_sphere
+from twinsense.render.kernels import cull_into_frame, finish_hits
+from twinsense.scene import Pose
+
+
+def _rays(n, shared, seed=4):
+    rng = np.random.default_rng(seed)
+    d = rng.normal(size=(n, 3))
+    d[:, 2] = np.abs(d[:, 2]) + 0.3
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    if shared:
+        o = np.broadcast_to(np.array([0.1, -0.2, -3.0]), (n, 3))
+    else:
+        o = np.array([0.1, -0.2, -3.0]) + rng.uniform(-0.5, 0.5, size=(n, 3))
+    return o, d
+
+
+@pytest.mark.parametrize("shared", [True, False])
+def test_finish_hits_gives_the_bits_of_the_numpy_finish(shared):
+    mesh = trimesh.creation.icosphere(subdivisions=3, radius=1.0)
+    box = trimesh.creation.box((0.5, 0.5, 0.5))
+    shifted = np.asarray(box.vertices) + np.array([0.0, 0.0, -1.5])
+    bvh = make_intersector("embree", [(mesh.vertices, mesh.faces), (shifted, box.faces)])
+    o, d = _rays(3000, shared)
+    face = bvh._run(np.ascontiguousarray(np.broadcast_to(o, d.shape), np.float32), d.astype(np.float32))
+    assert (face < 0).any() and (face >= 0).any()
+    want = bvh._finish(o, d, face.astype(np.int64))
+    n = len(d)
+    got = (np.empty(n), np.empty(n, np.int32), np.empty(n, np.int32), np.empty((n, 3)), np.empty(n))
+    finish_hits(face, bvh._planes, bvh._face_geom, bvh._face_prim, o, d, *got)
+    for a, b in zip(got, want):
+        np.testing.assert_array_equal(a, b)
+    assert set(np.unique(got[1])) == {-1, 0, 1}
+
+
+@pytest.mark.parametrize("shared", [True, False])
+def test_cull_keeps_every_ray_that_hits_and_moves_it_exactly(shared):
+    # An elongated box (a person's proportions), turned and moved; rays
+    # partly stopped earlier by t_max. The NumPy reference backend decides
+    # which rays really hit it.
+    box = trimesh.creation.box((0.4, 0.3, 1.8))
+    v = np.asarray(box.vertices)
+    pose = Pose.from_euler_deg((0.3, 0.1, 1.0), (10.0, -20.0, 35.0))
+    rot, pos = pose.rotation, pose.position
+    c_local = 0.5 * (v.min(axis=0) + v.max(axis=0))
+    radius = float(np.linalg.norm(v - c_local, axis=1).max()) * (1 + 1e-9) + 1e-9
+    lo, hi = v.min(axis=0) - 1e-9, v.max(axis=0) + 1e-9
+    centre = pos + rot @ c_local
+    o, _ = _rays(4000, shared)
+    # Directions towards points scattered around the box: many hit, many pass.
+    aim = centre + np.random.default_rng(7).normal(scale=0.8, size=o.shape)
+    d = aim - o
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    t_max = np.where(np.arange(len(d)) % 3 == 0, 3.5, np.inf)
+    sel, o_local, d_local = cull_into_frame(o, d, centre, radius, rot, pos, lo, hi, t_max)
+    # The reference culls: sphere in the world, then box in the object frame.
+    ref = rays_near_sphere(o, d, centre, radius, t_max)
+    ref_o = _rotate(np.take(o, ref, axis=0) - pos, rot)
+    ref_d = _rotate(np.take(d, ref, axis=0), rot)
+    ref = ref[rays_hit_box(ref_o, ref_d, lo, hi, np.take(t_max, ref))]
+    assert np.all(np.diff(sel) > 0) and set(sel) <= set(ref)
+    if shared:  # the same sphere test: the same rays
+        np.testing.assert_array_equal(sel, ref)
+    # Every ray that hits the box before t_max is kept.
+    t, *_ = make_intersector("numpy", [(v, box.faces)]).intersect(
+        _rotate(o - pos, rot), _rotate(d, rot))
+    hitting = np.flatnonzero(t < t_max)
+    assert 200 < len(hitting) < len(d) - 200 and set(hitting) <= set(sel)
+    # Local rays: the bits of the NumPy rotation.
+    np.testing.assert_array_equal(o_local, _rotate(np.take(o, sel, axis=0) - pos, rot))
+    np.testing.assert_array_equal(d_local, _rotate(np.take(d, sel, axis=0), rot))
