@@ -1,0 +1,606 @@
+"""The Boulic-Magnenat-Thalmann-Thalmann global human walking model, as pure functions of time.
+
+Boulic, Magnenat-Thalmann and Thalmann, "A global human walking model with
+real-time kinematic personification", The Visual Computer 6(6):344-358, 1990.
+The radar micro-Doppler literature builds its walking people on it (V. C.
+Chen, *The Micro-Doppler Effect in Radar*, Artech House 2011, ch. 5; van
+Dorp and Groen, IEE Proc. Radar Sonar Navig. 150(4) 2003 and IET RSN 2(2)
+2008).
+
+Normalisation (Boulic section 3): the walking speed v [m/s] is scaled by the
+leg length H_t [m] (hip-joint height above the ground, "height of the
+thigh") into the relative velocity RV = v / H_t [1/s]. Then
+
+- relative cycle (stride) length    RL_c = 1.346 sqrt(RV)            [H_t]
+- cycle duration                    D_c  = RL_c / RV = 1.346 / sqrt(RV) [s]
+- support (stance) duration         D_s  = 0.752 D_c - 0.143         [s]
+- double-support duration           D_ds = D_s - D_c / 2             [s]
+
+so a stride is RL_c H_t metres, a step half of it, and the cadence is
+2 / D_c steps per second. The widely copied implementation of the book's
+scripts measures the stride in H_t units but plots it in metres (and its
+cycle lasts RL_c / (RV H_t)); here every length is RL_c H_t, so the walker
+covers exactly v D_c per cycle.
+
+Inside one cycle the normalised time (phase) ``u`` in [0, 1) starts at the
+heel strike of the *reference* leg (the right one); the other leg follows
+the same curves half a cycle later. The trajectories (Boulic appendices A-D,
+control points as tabulated in Chen's scripts) are:
+
+- body translations relative to the mean, in H_t units: vertical
+  -a_v + a_v sin 2 pi (2u - 0.35), a_v = 0.015 RV; lateral a_l sin 2 pi (u - 0.1);
+  forward/backward a_a sin 2 pi (2u + 2 phi_a), phi_a = 0.625 - D_s / D_c;
+- pelvis rotations [deg]: forward tilt a_1 - a_1 sin 2 pi (2u - 0.1); list
+  (left/right, a four-piece cosine of amplitude a_2 = 0.01 RV, read as
+  radians); torsion a_3 cos 2 pi u, a_3 = 4 RV;
+- hip, knee and ankle flexion, thorax torsion and elbow flexion: periodic
+  shape-preserving cubic (PCHIP) interpolation of 3-5 control points that
+  depend on RV in three ranges (RV < 0.5, 0.5 <= RV < 1.3, 1.3 <= RV <= 3);
+- shoulder flexion 3 - a_s / 2 - a_s cos 2 pi u, a_s = 9.88 RV [deg].
+
+Two amplitudes differ in sign between the RV ranges in the book's script
+(a_l = 0.128 RV (1 - RV) below RV = 0.5 but -0.032 above; a_a likewise); the
+model is continuous in RV, so +0.032 and +0.021 are taken. The elbow's
+third control point for RV >= 1.3 reads ``(rv - .13)`` there; ``(rv - 1.3)``
+is the continuous form and is used.
+
+Sign conventions (chosen by the physics, since the paper's frames differ
+from ours): hip flexion > 0 swings the thigh forward, knee flexion > 0 bends
+the shank backward, ankle flexion > 0 is dorsiflexion (toes up), shoulder and
+elbow flexion > 0 swing the arm / forearm forward; the pelvis turns forward on
+the side of the leading leg, the thorax the other way, the body shifts
+laterally over the stance foot.
+
+Every curve returns its value and its exact time derivative (the PCHIP
+derivative, or the derivative of the closed form), never a finite difference.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.interpolate import PchipInterpolator
+
+from twinsense import validation as V
+from twinsense.errors import ConfigError
+
+STRIDE_COEFF = 1.346  # RL_c = 1.346 sqrt(RV)  (Boulic 1990, eq. 1)
+SUPPORT_SLOPE = 0.752  # D_s = 0.752 D_c - 0.143 [s]  (Boulic 1990, eq. 3)
+SUPPORT_OFFSET = 0.143  # [s]
+RV_MAX = 3.0  # the upper end of the model's third RV range [1/s]
+
+# The curves a walker uses, by name. "forward", "lateral", "vertical" are
+# translations [m] (already multiplied by H_t); all others are angles [rad].
+CURVE_NAMES = ("forward", "lateral", "vertical", "pelvis_tilt", "pelvis_list", "pelvis_torsion",
+               "hip_flexion", "knee_flexion", "ankle_flexion", "thorax_torsion", "shoulder_flexion",
+               "elbow_flexion")
+
+
+@dataclass(frozen=True)
+class GaitTiming:
+    """Spatial and temporal gait characteristics of the Boulic model.
+
+    Attributes
+    ----------
+    speed : float
+        Mean forward walking speed v [m/s], > 0.
+    leg_length : float
+        H_t, hip-joint height above the ground [m].
+    """
+
+    speed: float
+    leg_length: float
+
+    def __post_init__(self):
+        v = V.positive("walk.speed", self.speed, "m/s")
+        h = V.number("walk.leg_length", self.leg_length, lo=0.1, hi=2.0, unit="m")
+        if v / h > RV_MAX:
+            raise ConfigError("walk.speed", self.speed,
+                              f"a walking speed <= {RV_MAX:g} x leg length = {RV_MAX * h:.3g} m/s "
+                              "(the walking model's range, relative velocity v / H_t <= 3 /s)")
+        object.__setattr__(self, "speed", v)
+        object.__setattr__(self, "leg_length", h)
+
+    @property
+    def relative_velocity(self) -> float:
+        """RV = v / H_t [1/s]."""
+        return self.speed / self.leg_length
+
+    @property
+    def stride_length(self) -> float:
+        """One cycle (two steps) [m]: 1.346 sqrt(RV) H_t."""
+        return STRIDE_COEFF * np.sqrt(self.relative_velocity) * self.leg_length
+
+    @property
+    def step_length(self) -> float:
+        """Half a stride [m]."""
+        return 0.5 * self.stride_length
+
+    @property
+    def cycle_duration(self) -> float:
+        """D_c = 1.346 / sqrt(RV) [s]."""
+        return STRIDE_COEFF / np.sqrt(self.relative_velocity)
+
+    @property
+    def cadence(self) -> float:
+        """Steps per minute: 2 steps per cycle."""
+        return 120.0 / self.cycle_duration
+
+    @property
+    def support_duration(self) -> float:
+        """Stance of one foot D_s = 0.752 D_c - 0.143 [s]."""
+        return SUPPORT_SLOPE * self.cycle_duration - SUPPORT_OFFSET
+
+    @property
+    def relative_support(self) -> float:
+        """D_s / D_c: the phase of the reference foot's toe-off."""
+        return self.support_duration / self.cycle_duration
+
+
+@dataclass(frozen=True, eq=False)
+class PeriodicCurve:
+    """A 1-periodic curve through control points (x [cycle], y), PCHIP-interpolated.
+
+    The control points are repeated one period either side so that the
+    interpolant and its derivative join smoothly across u = 0 == 1.
+    """
+
+    x: tuple
+    y: tuple
+    _spline: PchipInterpolator = field(init=False, repr=False)
+    _deriv: PchipInterpolator = field(init=False, repr=False)
+
+    def __post_init__(self):
+        x = np.mod(np.asarray(self.x, float), 1.0)
+        y = np.asarray(self.y, float)
+        order = np.argsort(x, kind="stable")
+        x, y = x[order], y[order]
+        # A point one period from another (x1 + 1 == x3 in the hip curve) is the same point.
+        keep = np.concatenate([[True], np.diff(x) > 1e-12])
+        x, y = x[keep], y[keep]
+        xs = np.concatenate([x - 1.0, x, x + 1.0])
+        ys = np.concatenate([y, y, y])
+        spline = PchipInterpolator(xs, ys)
+        object.__setattr__(self, "_spline", spline)
+        object.__setattr__(self, "_deriv", spline.derivative())
+
+    def __call__(self, u) -> tuple[np.ndarray, np.ndarray]:
+        """Value and d/du at phase(s) ``u`` [cycles] (any real; taken mod 1)."""
+        w = np.mod(np.asarray(u, float), 1.0)
+        return self._spline(w), self._deriv(w)
+
+
+def _ramp(rv: float, lo: float, span: float) -> float:
+    """(RV - lo) / span: the model's linear blend inside one RV range."""
+    return (rv - lo) / span
+
+
+def _leg_points(rv: float, rel_support: float) -> dict[str, tuple[list, list]]:
+    """Control points [cycle], [deg] of hip, knee, ankle (Boulic appendix C)."""
+    if rv < 0.5:
+        hip = ([-0.1, 0.5, 0.9], [50 * rv, -30 * rv, 50 * rv])
+        knee = ([0.17, 0.4, 0.75, 1.0], [3, 3, 140 * rv, 3])
+        ankle = ([0, 0.08, 0.5, rel_support, 0.85], [-3, -30 * rv - 3, 22 * rv - 3, -34 * rv - 3, -3])
+    elif rv < 1.3:
+        hip = ([-0.1, 0.5, 0.9], [25, -15, 25])
+        knee = ([0.17, 0.4, 0.75, 1.0], [3, 3, 70, 3])
+        ankle = ([0, 0.08, 0.5, rel_support, 0.85], [-3, -18, 8, -20, -3])
+    else:
+        r = _ramp(rv, 1.3, 1.7)
+        hip = ([0.2 * r - 0.1, 0.5, 0.9], [5 * r + 25, -15, 6 * r + 25])
+        knee = ([-0.05 * r + 0.17, 0.4, -0.05 * r + 0.75, -0.03 * r + 1.0], [22 * r + 3, 3, -5 * r + 70, 3 * r + 3])
+        ankle = ([0, 0.08, -0.1 * r + 0.5, rel_support, 0.85],
+                 [5 * r - 3, 4 * r - 18, -3 * r + 8, -8 * r - 20, 5 * r - 3])
+    return {"hip_flexion": hip, "knee_flexion": knee, "ankle_flexion": ankle}
+
+
+def _arm_points(rv: float) -> dict[str, tuple[list, list]]:
+    """Control points of thorax torsion and elbow flexion (Boulic appendix D)."""
+    thorax = ([0.1, 0.4, 0.6, 0.9], [4 / 3 * rv, -4.5 / 3 * rv, -4 / 3 * rv, 4.5 / 3 * rv])
+    if rv < 0.5:
+        elbow = ([0.05, 0.5, 0.9], [6 * rv + 3, 34 * rv + 3, 10 * rv + 3])
+    elif rv < 1.3:
+        r = _ramp(rv, 0.5, 0.8)
+        elbow = ([0.05, 0.01 * r + 0.5, 0.9], [8 * r + 6, 24 * r + 20, 9 * r + 8])
+    else:
+        r = _ramp(rv, 1.3, 1.7)
+        elbow = ([0.05, 0.04 * r + 0.51, -0.1 * r + 0.9], [-6 * r + 14, 26 * r + 44, -6 * r + 17])
+    return {"thorax_torsion": thorax, "elbow_flexion": elbow}
+
+
+class BoulicGait:
+    """Joint-angle and body-translation trajectories of one walker.
+
+    Parameters
+    ----------
+    timing : GaitTiming
+        Speed and leg length (they fix RV and every curve).
+
+    ``curves(t)`` gives every curve of :data:`CURVE_NAMES` at times ``t`` [s]
+    since the reference heel strike, as ``{name: (value, d value / dt)}``;
+    the reference (right) leg and arm; ``side_phase`` = 0.5 for the other
+    side.
+    """
+
+    def __init__(self, timing: GaitTiming):
+        if not isinstance(timing, GaitTiming):
+            raise ConfigError("gait.timing", timing, "a GaitTiming")
+        self.timing = timing
+        rv = timing.relative_velocity
+        points = {**_leg_points(rv, timing.relative_support), **_arm_points(rv)}
+        self._splines = {k: PeriodicCurve(tuple(x), tuple(y)) for k, (x, y) in points.items()}
+        slow = rv < 0.5
+        self._a_vertical = 0.015 * rv
+        self._a_lateral = 0.128 * rv * (1 - rv) if slow else 0.032
+        self._a_forward = 0.084 * rv * (1 - rv) if slow else 0.021
+        self._phi_forward = 0.625 - timing.relative_support
+        self._a_tilt = 8 * rv * (1 - rv) if slow else 2.0
+        self._a_list = 0.01 * rv
+        self._a_torsion = 4.0 * rv
+        self._a_shoulder = 9.88 * rv
+
+    @property
+    def cycle_duration(self) -> float:
+        return self.timing.cycle_duration
+
+    def phase(self, t) -> np.ndarray:
+        """Cycles since the reference heel strike at ``t`` [s] (not wrapped)."""
+        return np.asarray(t, float) / self.timing.cycle_duration
+
+    def curve(self, name: str, t, side_phase: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """(value, d/dt) of curve ``name`` at ``t`` [s]; units [m], [m/s] or [rad], [rad/s]."""
+        u = self.phase(t) + side_phase
+        val, du = self._per_cycle(name, u)
+        return val, du / self.timing.cycle_duration
+
+    def curves(self, t, side_phase: float = 0.0) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        return {k: self.curve(k, t, side_phase) for k in CURVE_NAMES}
+
+    def _per_cycle(self, name: str, u) -> tuple[np.ndarray, np.ndarray]:
+        """Value and derivative per cycle (d/du) at phase ``u``."""
+        u = np.asarray(u, float)
+        tau = 2 * np.pi
+        ht = self.timing.leg_length
+        deg = np.pi / 180
+        if name in self._splines:
+            v, d = self._splines[name](u)
+            return v * deg, d * deg
+        if name == "vertical":
+            a = self._a_vertical * ht
+            arg = tau * (2 * u - 0.35)
+            return -a + a * np.sin(arg), 2 * tau * a * np.cos(arg)
+        if name == "lateral":
+            a = self._a_lateral * ht
+            arg = tau * (u - 0.1)
+            return a * np.sin(arg), tau * a * np.cos(arg)
+        if name == "forward":
+            a = self._a_forward * ht
+            arg = tau * (2 * u + 2 * self._phi_forward)
+            return a * np.sin(arg), 2 * tau * a * np.cos(arg)
+        if name == "pelvis_tilt":
+            a = self._a_tilt * deg
+            arg = tau * (2 * u - 0.1)
+            return a - a * np.sin(arg), -2 * tau * a * np.cos(arg)
+        if name == "pelvis_torsion":
+            a = self._a_torsion * deg
+            return a * np.cos(tau * u), -tau * a * np.sin(tau * u)
+        if name == "shoulder_flexion":
+            a = self._a_shoulder
+            return (3 - a / 2 - a * np.cos(tau * u)) * deg, tau * a * np.sin(tau * u) * deg
+        if name == "pelvis_list":
+            return self._list(u)
+        raise ConfigError("gait.curve", name, "one of: " + ", ".join(CURVE_NAMES))
+
+    def _list(self, u) -> tuple[np.ndarray, np.ndarray]:
+        """Pelvis list: four cosine pieces (0-0.15, 0.15-0.5, 0.5-0.65, 0.65-1), C1 at the joins.
+
+        > 0 drops the pelvis on the left side, the side of the swinging leg
+        while the reference (right) leg stands.
+        """
+        a = self._a_list
+        w = np.mod(u, 1.0)
+        tau = 2 * np.pi
+        val = np.empty_like(w)
+        der = np.empty_like(w)
+        p1 = w < 0.15
+        p2 = (w >= 0.15) & (w < 0.5)
+        p3 = (w >= 0.5) & (w < 0.65)
+        p4 = w >= 0.65
+        k1, k2 = tau * 10 / 3, tau * 10 / 7
+        val[p1] = -a + a * np.cos(k1 * w[p1])
+        der[p1] = -a * k1 * np.sin(k1 * w[p1])
+        val[p2] = -a - a * np.cos(k2 * (w[p2] - 0.15))
+        der[p2] = a * k2 * np.sin(k2 * (w[p2] - 0.15))
+        val[p3] = a - a * np.cos(k1 * (w[p3] - 0.5))
+        der[p3] = a * k1 * np.sin(k1 * (w[p3] - 0.5))
+        val[p4] = a + a * np.cos(k2 * (w[p4] - 0.65))
+        der[p4] = -a * k2 * np.sin(k2 * (w[p4] - 0.65))
+        return -val, -der
+
+
+@dataclass(frozen=True)
+class LegGeometry:
+    """Sagittal leg dimensions the walk's body translation is fitted to [m].
+
+    thigh, shank : hip -> knee, knee -> ankle joint; ankle_height : ankle joint
+    above the sole; heel, toe : sole points behind / ahead of the ankle;
+    hip_half_width : lateral offset of each hip joint from the pelvis origin.
+    """
+
+    thigh: float
+    shank: float
+    ankle_height: float
+    heel: float
+    toe: float
+    hip_half_width: float
+
+    @property
+    def leg_length(self) -> float:
+        """H_t: hip-joint height above the floor when standing straight [m]."""
+        return self.thigh + self.shank + self.ankle_height
+
+
+_SIDES = ((0.0, -1.0), (0.5, 1.0))  # (phase offset, lateral sign): right (reference), left
+_GRID = 1024  # phase samples per stance to find where the contact rolls from heel to toe
+HIP_SCALE_RANGE = (0.05, 3.0)
+MIN_TRANSFER = 0.02  # [cycle] shortest weight transfer between the feet
+SWING_CLEARANCE = 0.01  # [m] lowest sole point of a swinging foot above the floor
+
+
+def smoothstep(s) -> tuple[np.ndarray, np.ndarray]:
+    """C1 ramp 3 s^2 - 2 s^3 on [0, 1] (0 before, 1 after) and its derivative d/ds."""
+    s = np.clip(np.asarray(s, float), 0.0, 1.0)
+    return s * s * (3 - 2 * s), 6 * s * (1 - s)
+
+
+class WalkCycle:
+    """The Boulic joint curves plus a body translation that keeps the stance foot planted.
+
+    The model's own forward and vertical body translations (Boulic appendix
+    A) leave the stance foot of a leg built from anthropometric segment
+    lengths sliding by tenths of a m/s and several centimetres into the
+    floor. Here the pelvis rests on the feet instead (sagittal plane, with
+    the pelvis torsion's shift of the hip joints):
+
+    - each foot touches the floor at its lowest sole point (heel or toe: the
+      foot rolls from one to the other, the touching point never slides);
+    - in single support the pelvis is placed by the standing foot: its height
+      puts that point on the floor and its forward position is the point's
+      fixed world position minus the point's offset from the pelvis;
+    - in double support (from the other heel strike to this toe-off, D_ds)
+      the pelvis blends from one foot's placement to the other's with a C1
+      ramp 3 s^2 - 2 s^3;
+    - the feet land exactly one step (RL_c H_t / 2) apart, so the mean speed
+      is exactly v and stride and cadence are the model's;
+    - the hip-flexion curve is scaled by ``hip_scale`` (root finding) until
+      the feet's spacing during double support averages one step; the two
+      placements then agree on average and the stance feet slide only by
+      their residual mismatch during double support.
+
+    The model's lateral sway, pelvis list and torsion are kept as published.
+    """
+
+    def __init__(self, timing: GaitTiming, leg: LegGeometry):
+        if not isinstance(timing, GaitTiming):
+            raise ConfigError("gait.timing", timing, "a GaitTiming")
+        if not isinstance(leg, LegGeometry):
+            raise ConfigError("gait.leg", leg, "a LegGeometry")
+        from scipy.optimize import brentq
+
+        self.gait = BoulicGait(timing)
+        self.timing = timing
+        self.leg = leg
+        self.double_support = timing.relative_support - 0.5  # D_ds / D_c
+        lo, hi = HIP_SCALE_RANGE
+        f = self._mismatch
+        self.touchdown = 0.0
+        if not f(lo) * f(hi) < 0:
+            raise ConfigError("walk.speed", timing.speed,
+                              f"a speed whose step the leg reaches with a hip-flexion scale in [{lo:g}, {hi:g}]")
+        # The landing foot reaches the floor a little after the model's heel-strike phase;
+        # the weight moves over from then to toe-off. Refit the scale for that window.
+        self.hip_scale = float(brentq(f, lo, hi, xtol=1e-12))
+        for _ in range(4):
+            before = (self.touchdown, self.hip_scale)
+            self.touchdown = self._touchdown(self.hip_scale)
+            if not f(lo) * f(hi) < 0:  # slow walks: keep the transfer window that has a solution
+                self.touchdown, self.hip_scale = before
+                break
+            self.hip_scale = float(brentq(f, lo, hi, xtol=1e-12))
+        self._pieces = self._contact_pieces(self.hip_scale)
+        self.swing_lift = 0.0
+        self._shift = 0.0
+        self.swing_lift = self._fit_swing_lift()
+        self._shift = -float(self.body_translation(0.0)[0][0, 0])
+
+    # --------------------------------------------------------------- sagittal sole points
+    def swing_knee(self, t, side_phase: float = 0.0, lift: float | None = None):
+        """Extra knee flexion [rad] (and rate) in swing: lift sin^2(pi (u - r_s) / (1 - r_s)).
+
+        The ankle dorsiflexes by the same angle, so the foot keeps its pitch
+        while the shank folds back. Zero in stance, so it never moves the
+        pelvis; it lifts a swinging foot that the joint curves would
+        otherwise drag through the floor.
+        """
+        b = self.swing_lift if lift is None else lift
+        Dc = self.timing.cycle_duration
+        rs = self.timing.relative_support
+        u = np.mod(np.asarray(t, float) / Dc + side_phase, 1.0)
+        arg = np.pi * np.clip((u - rs) / (1 - rs), 0.0, 1.0)
+        return b * np.sin(arg) ** 2, b * np.sin(2 * arg) * np.pi / ((1 - rs) * Dc)
+
+    def joint_curve(self, name: str, t, side_phase: float = 0.0):
+        """(value, d/dt) of a Boulic curve as this walk uses it (hip scaled, knee lifted in swing)."""
+        v, d = self.gait.curve(name, t, side_phase)
+        if name == "hip_flexion":
+            return self.hip_scale * v, self.hip_scale * d
+        if name in ("knee_flexion", "ankle_flexion"):
+            lv, ld = self.swing_knee(t, side_phase)
+            return v + lv, d + ld
+        return v, d
+
+    def _fit_swing_lift(self) -> float:
+        """Smallest swing knee lift [rad] that keeps the swinging foot SWING_CLEARANCE above the floor."""
+        from scipy.optimize import brentq
+
+        Dc = self.timing.cycle_duration
+        rs = self.timing.relative_support
+        u = np.linspace(rs, 1.0, 257)
+        pz = self.body_translation(u * Dc)[0][:, 2]
+
+        # The foot leaves and reaches the floor at the ends of the swing: ask
+        # for the clearance in the middle, shaped like the lift itself.
+        need = SWING_CLEARANCE * np.sin(np.pi * (u - rs) / (1 - rs)) ** 2
+
+        def margin(b):
+            _, z, _, _ = self.sole_points(u * Dc, lift=b)
+            return float(np.min(z[:2].min(axis=0) + pz - need))
+
+        if margin(0.0) >= 0:
+            return 0.0
+        if margin(1.5) < 0:
+            raise ConfigError("walk.speed", self.timing.speed, "a speed at which the swinging foot clears "
+                              "the floor with a knee lift below 1.5 rad")
+        return float(brentq(margin, 0.0, 1.5, xtol=1e-10))
+
+    def sole_points(self, t, hip_scale: float | None = None, lift: float | None = None):
+        """Heel and toe of both feet relative to the pelvis origin, sagittal plane.
+
+        Returns x, z, xd, zd, each (4, n): rows right heel, right toe, left heel,
+        left toe; x forward and z up [m], in the walking direction's frame
+        (without the pelvis list); xd, zd their time derivatives [m/s].
+        """
+        k = self.hip_scale if hip_scale is None else hip_scale
+        L = self.leg
+        t = np.atleast_1d(np.asarray(t, float))
+        g = self.gait
+        yaw, yawd = g.curve("pelvis_torsion", t)
+        xs, zs, xds, zds = [], [], [], []
+        for off, s in _SIDES:
+            h, hd = g.curve("hip_flexion", t, off)
+            h, hd = k * h, k * hd
+            kn, knd = g.curve("knee_flexion", t, off)
+            a, ad = g.curve("ankle_flexion", t, off)
+            if lift is not None or hasattr(self, "swing_lift"):
+                lv, ld = self.swing_knee(t, off, lift)
+                kn, knd = kn + lv, knd + ld
+                a, ad = a + lv, ad + ld
+            ph, phd = h - kn, hd - knd
+            fa, fad = ph + a, phd + ad
+            ax = L.thigh * np.sin(h) + L.shank * np.sin(ph) - s * L.hip_half_width * np.sin(yaw)
+            axd = L.thigh * np.cos(h) * hd + L.shank * np.cos(ph) * phd - s * L.hip_half_width * np.cos(yaw) * yawd
+            az = -L.thigh * np.cos(h) - L.shank * np.cos(ph)
+            azd = L.thigh * np.sin(h) * hd + L.shank * np.sin(ph) * phd
+            c, sn = np.cos(fa), np.sin(fa)
+            fz = -L.ankle_height
+            for fx in (-L.heel, L.toe):
+                xs.append(ax + fx * c - fz * sn)
+                zs.append(az + fx * sn + fz * c)
+                xds.append(axd + (-fx * sn - fz * c) * fad)
+                zds.append(azd + (fx * c - fz * sn) * fad)
+        return np.array(xs), np.array(zs), np.array(xds), np.array(zds)
+
+    def _contact_pieces(self, k):
+        """Where the right foot's touching point rolls between heel and toe in its stance.
+
+        Returns (starts [cycle], point (0 heel, 1 toe), offset [m]) per piece;
+        the offset keeps the contact's x continuous (the world contact is
+        x_contact + offset of the first point).
+        """
+        from scipy.optimize import brentq
+
+        Dc = self.timing.cycle_duration
+        rs = self.timing.relative_support
+        u = np.linspace(0.0, rs, _GRID + 1)
+        _, z, _, _ = self.sole_points(u * Dc, k)
+        idx = np.where(z[1] < z[0], 1, 0)
+        starts, points = [0.0], [int(idx[0])]
+        for j in np.nonzero(np.diff(idx))[0]:
+            def gap(w):
+                _, zz, _, _ = self.sole_points(w * Dc, k)
+                return zz[0, 0] - zz[1, 0]
+
+            starts.append(float(brentq(gap, u[j], u[j + 1], xtol=1e-14)))
+            points.append(int(idx[j + 1]))
+        starts = np.array(starts)
+        xs, _, _, _ = self.sole_points(starts * Dc, k)
+        off = np.zeros(len(points))
+        for j in range(1, len(points)):
+            off[j] = off[j - 1] + xs[points[j - 1], j] - xs[points[j], j]
+        return starts, np.array(points), off
+
+    def _contact(self, x, z, xd, zd, rows, phase, pieces):
+        """Contact x (with offset), z and their rates of one foot at its stance phases."""
+        starts, points, off = pieces
+        j = np.clip(np.searchsorted(starts, phase, side="right") - 1, 0, len(points) - 1)
+        r = np.asarray(rows)[points[j]]
+        cols = np.arange(x.shape[1])
+        return x[r, cols] + off[j], z[r, cols], xd[r, cols], zd[r, cols]
+
+    def _touchdown(self, k) -> float:
+        """Phase after the other foot's heel strike at which it first reaches the floor.
+
+        The pelvis is placed by the back foot alone here; at most
+        ``double_support - MIN_TRANSFER`` so the weight transfer keeps a minimum length.
+        """
+        Dc = self.timing.cycle_duration
+        d = self.double_support
+        f = 0.5 + np.linspace(0.0, d, 257)
+        x, z, xd, zd = self.sole_points(f * Dc, k)
+        back_z = self._contact(x, z, xd, zd, (0, 1), f, self._contact_pieces(k))[1]
+        down = np.nonzero(z[2:].min(axis=0) <= back_z)[0]
+        first = f[down[0]] - 0.5 if len(down) else d
+        return float(min(first, d - MIN_TRANSFER))
+
+    def _mismatch(self, k) -> float:
+        """Mean over the weight transfer of (one step) - (front contact - back contact) [m]."""
+        pieces = self._contact_pieces(k)
+        Dc = self.timing.cycle_duration
+        d = self.double_support
+        f = 0.5 + np.linspace(self.touchdown, d, 65)
+        x, z, xd, zd = self.sole_points(f * Dc, k)
+        back = self._contact(x, z, xd, zd, (0, 1), f, pieces)[0]
+        front = self._contact(x, z, xd, zd, (2, 3), f - 0.5, pieces)[0]
+        return float(np.mean(self.timing.step_length - (front - back)))
+
+    # --------------------------------------------------------------- body translation
+    def support_weight(self, t) -> tuple[np.ndarray, np.ndarray]:
+        """Share of the right (reference) foot in placing the pelvis, and its rate [1/s]."""
+        Dc = self.timing.cycle_duration
+        f = np.mod(np.asarray(t, float) / Dc, 1.0)
+        a, d = self.touchdown, self.double_support
+        up, upd = smoothstep((f - a) / (d - a))
+        down, downd = smoothstep((f - 0.5 - a) / (d - a))
+        w = np.where(f < 0.5, up, 1.0 - down)
+        wd = np.where(f < 0.5, upd, -downd) / ((d - a) * Dc)
+        return w, wd
+
+    def body_translation(self, t) -> tuple[np.ndarray, np.ndarray]:
+        """Pelvis-origin position and velocity in the walking frame at ``t`` [s].
+
+        Returns (p, v), each (n, 3): x forward along the path [m], y left
+        (the model's lateral sway), z up (pelvis-origin height above the floor).
+        """
+        t = np.atleast_1d(np.asarray(t, float))
+        T = self.timing
+        Dc = T.cycle_duration
+        n = np.floor(t / Dc)
+        f = t / Dc - n
+        x, z, xd, zd = self.sole_points(t)
+        rc, rz, rcd, rzd = self._contact(x, z, xd, zd, (0, 1), f, self._pieces)
+        lphase = np.mod(f - 0.5, 1.0)
+        lc, lz, lcd, lzd = self._contact(x, z, xd, zd, (2, 3), lphase, self._pieces)
+        # World x of each foot's first contact: right lands at n strides,
+        # left one step later (the left stance in progress began at n - 0.5 if f < 0.5).
+        xr = n * T.stride_length
+        xl = np.where(f >= 0.5, n, n - 1) * T.stride_length + T.step_length
+        w, wd = self.support_weight(t)
+        pr, pl = xr - rc, xl - lc
+        px = w * pr + (1 - w) * pl + self._shift
+        pxd = wd * (pr - pl) - w * rcd - (1 - w) * lcd
+        pz = -(w * rz + (1 - w) * lz)
+        pzd = -(wd * (rz - lz) + w * rzd + (1 - w) * lzd)
+        # The model's lateral sway is positive towards the reference (right) leg: -y.
+        ly, lyd = self.gait.curve("lateral", t)
+        return np.stack([px, -ly, pz], axis=1), np.stack([pxd, -lyd, pzd], axis=1)
