@@ -449,6 +449,15 @@ class SensorRecording:
     def __len__(self) -> int:
         return int(self._g["timestamps"].shape[0])
 
+    def to_xarray(self):
+        """This sensor as an ``xarray.Dataset`` with named dimensions (needs the 'xarray' extra).
+
+        See :mod:`twinsense.io.labelled` and docs/recording-format.md.
+        """
+        from twinsense.io.labelled import sensor_dataset
+
+        return sensor_dataset(self)
+
     def __repr__(self) -> str:
         return f"SensorRecording({self.name!r}, kind={self.kind!r}, frames={len(self)}, streams={self.stream_names})"
 
@@ -500,6 +509,12 @@ class Recording:
             raise UnknownNameError("sensor", name, list(self.sensors))
         return self.sensors[name]
 
+    def to_xarray(self) -> dict:
+        """Every sensor as ``{name: xarray.Dataset}`` with named dimensions (needs the 'xarray' extra)."""
+        from twinsense.io.labelled import recording_datasets
+
+        return recording_datasets(self)
+
     def close(self) -> None:
         self._f.close()
 
@@ -520,6 +535,20 @@ def open_recording(path, allow_incomplete: bool = False) -> Recording:
     temporary file a killed run left behind (everything up to its last flush).
     """
     return Recording(path, allow_incomplete=allow_incomplete)
+
+
+def open_xarray(path, allow_incomplete: bool = False) -> dict:
+    """Read a recording into ``{sensor name: xarray.Dataset}`` (needs the 'xarray' extra).
+
+    Dimensions are named (``time``, ``row``, ``col``, ``rx``, ``chirp``,
+    ``sample``, ``channel``, ...) and ``time`` holds the timestamps [s]; see
+    docs/recording-format.md. The data is read into memory and the file closed.
+    """
+    from twinsense.io.labelled import require_xarray
+
+    require_xarray()
+    with Recording(path, allow_incomplete=allow_incomplete) as rec:
+        return rec.to_xarray()
 
 
 # ----------------------------------------------------------------------
