@@ -41,7 +41,7 @@ from typing import Annotated, Any, Literal
 import yaml
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from twinsense.errors import ConfigError, GeometryError, TwinsenseError
+from twinsense.errors import ConfigError, GeometryError, RecordingError, TwinsenseError
 from twinsense.scene import geometry as G
 from twinsense.scene import motion as M
 from twinsense.scene.magnet import Magnet
@@ -253,7 +253,8 @@ class MountSpec(_Model):
 class SensorSpec(_Model):
     name: str = Field(min_length=1)
     kind: str
-    preset: str
+    preset: str | None = None
+    replay: str | None = None  # kind radar: a real recording (path or shipped name) played as the sensor
     overrides: dict[str, Any] = {}
     frame_rate: Pos | None = None
     mount: MountSpec = MountSpec()
@@ -506,6 +507,9 @@ def scenario_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None 
         except ConfigError as e:
             problems.append((e.field, e.value, e.allowed))
             continue
+        if ss.replay is not None or ss.preset is None:
+            problems += _replay_sensor(ss, i, mount, base_dir, sensors)
+            continue
         try:
             from twinsense.presets import make_sensor
 
@@ -525,6 +529,25 @@ def scenario_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None 
     if problems:
         raise ScenarioError(source, problems)
     return Scenario(spec.name, scene, sensors, spec.duration, spec.seed, spec.outputs, source, data, limits)
+
+
+def _replay_sensor(ss: SensorSpec, i: int, mount: Mount, base_dir: Path, sensors: list) -> list:
+    """Append a ``replay:`` sensor (a real recording played as a radar) to ``sensors``; its problems."""
+    if ss.replay is None:
+        return [(f"sensors[{i}].preset", None, "a preset name (or, for kind radar, replay: a recording)")]
+    if ss.kind != "radar" or ss.preset is not None or ss.frame_rate is not None:
+        return [(f"sensors[{i}].replay", ss.replay,
+                 "a replay of kind radar, without preset or frame_rate (the recording sets them)")]
+    from twinsense.radar.replay import SHIPPED, replay_radar
+
+    source = ss.replay if ss.replay in SHIPPED else base_dir / ss.replay
+    try:
+        sensors.append(replay_radar(source, name=ss.name, mount=mount, **ss.overrides))
+    except ConfigError as e:
+        return [(f"sensors[{i}].{'replay' if e.field == 'replay' else _sensor_field(e)}", e.value, e.allowed)]
+    except RecordingError as e:
+        return [(f"sensors[{i}].replay", ss.replay, f"a readable recording ({e})")]
+    return []
 
 
 def _sensor_field(e: ConfigError) -> str:
