@@ -5,6 +5,7 @@ the camera intrinsics."""
 from __future__ import annotations
 
 import math
+import sys
 import warnings
 from pathlib import Path
 
@@ -222,3 +223,27 @@ def test_cli_convert_by_suffix(run, tmp_path):
     assert res.exit_code == 0, res.output
     assert "Rerun" in res.output
     assert read_rrd(out).keys() == run["ents"].keys()
+
+
+def test_cli_run_format_rrd(tmp_path):
+    d = yaml.safe_load((ROOT / "examples" / "office_depth.yaml").read_text())
+    d["duration"] = 0.1  # one depth frame
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(d))
+    res = CliRunner().invoke(app, ["run", str(tmp_path / "s.yaml"), "-o", str(tmp_path / "o"), "--no-progress",
+                                   "--format", "rrd"])
+    assert res.exit_code == 0, res.output
+    ents = read_rrd(tmp_path / "o" / "recording.rrd")
+    with open_recording(tmp_path / "o" / "recording.h5") as rec:
+        (t, r), = [(t, r) for t, r in ents["/world/sensors/depth/image/depth"] if t is not None]
+        assert t == 0
+        np.testing.assert_array_equal(image(r["DepthImage:buffer"], r["DepthImage:format"], np.float32),
+                                      rec["depth"]["depth"][0])
+
+
+def test_missing_rerun_names_the_extra(run, tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "rerun", None)  # as if not installed: import raises ImportError
+    with pytest.raises(ConfigError, match=r"pip install 'twinsense\[rerun\]'"):
+        R.write_rrd(run["h5"], tmp_path / "x.rrd")
+    with pytest.raises(ConfigError, match=r"pip install 'twinsense\[rerun\]'"):
+        R.RerunSink(tmp_path / "x.rrd")
+    assert list(tmp_path.iterdir()) == []
