@@ -99,6 +99,8 @@ class ZmqSink:
         self.nodrop = bool(nodrop)
         self.stats_interval = V.positive("ZmqSink.stats_interval", stats_interval, "s")
         self.endpoint: str | None = None
+        #: Subscribers that joined (see :meth:`wait_for_subscribers`).
+        self.subscribers = 0
         self.dropped: dict[str, int] = {}
         self.sent: dict[str, int] = {}
         self._index: dict[str, int] = {}
@@ -111,9 +113,11 @@ class ZmqSink:
         zmq = require_zmq()
         self._zmq = zmq
         self._ctx = zmq.Context()
-        sock = self._ctx.socket(zmq.XPUB if self.nodrop else zmq.PUB)
+        # XPUB is PUB that also reports subscriptions (verbose: every subscriber's, so they can be counted).
+        sock = self._ctx.socket(zmq.XPUB)
         sock.setsockopt(zmq.SNDHWM, self.hwm)
         sock.setsockopt(zmq.LINGER, LINGER_MS)
+        sock.setsockopt(zmq.XPUB_VERBOSE, 1)
         if self.nodrop:
             sock.setsockopt(zmq.XPUB_NODROP, 1)
         try:
@@ -151,8 +155,7 @@ class ZmqSink:
             self.sent[name] = self.sent.get(name, 0) + 1
         except zmq.Again:
             self.dropped[name] = self.dropped.get(name, 0) + 1
-        if self.nodrop:
-            self._drain_subscriptions()
+        self._drain_subscriptions()
         if time.monotonic() >= self._next_stats:
             self._control(b"ctrl/stats")
             self._next_stats = time.monotonic() + self.stats_interval
@@ -175,14 +178,31 @@ class ZmqSink:
         except self._zmq.Again:
             pass  # a subscriber is full: it will see the next one
 
+    def wait_for_subscribers(self, n: int = 1, timeout: float = 5.0) -> int:
+        """Wait up to ``timeout`` [s] until ``n`` subscribers have joined; returns how many have.
+
+        A subscriber counts once it subscribed to the control topic (every
+        :class:`Subscriber` does) or to everything (an empty prefix). A
+        publisher can hold its first frame this way: ZeroMQ subscriptions
+        reach the publisher a moment after ``connect``, and frames before
+        that are not delivered to the newcomer.
+        """
+        V.integer("n", n, lo=0)
+        deadline = time.monotonic() + V.non_negative("timeout", timeout, "s")
+        while self._sock is not None and self.subscribers < n:
+            left = deadline - time.monotonic()
+            if left <= 0 or not self._sock.poll(max(1, round(left * 1000))):
+                break
+            self._drain_subscriptions()
+        return self.subscribers
+
     def _drain_subscriptions(self) -> None:
         # An XPUB socket queues every (un)subscription for the application; read them so they cannot pile up.
         zmq = self._zmq
-        while True:
-            try:
-                self._sock.recv(zmq.NOBLOCK)
-            except zmq.Again:
-                return
+        while self._sock.getsockopt(zmq.EVENTS) & zmq.POLLIN:
+            msg = self._sock.recv()
+            if msg[1:] in (b"ctrl/", b""):
+                self.subscribers += 1 if msg[:1] == b"\x01" else -1
 
 
 @dataclass(frozen=True, eq=False)
