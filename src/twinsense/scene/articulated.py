@@ -428,6 +428,11 @@ class KinematicTree:
 
     # ---------------------------------------------------------------- queries
     @property
+    def home(self) -> np.ndarray:
+        """(n_joints,) the home configuration: 0 clipped into each joint's limits [rad or m]."""
+        return np.clip(0.0, self._lower, self._upper)
+
+    @property
     def n_joints(self) -> int:
         """Number of movable joints (the length of q)."""
         return len(self.joint_names)
@@ -536,7 +541,8 @@ class JointMotion:
     """Base class of joint trajectories: ``q(t)`` and ``qd(t)`` of some joints.
 
     ``joint_names`` lists the joints the columns belong to (None: every movable
-    joint of the tree, in its order); joints not listed stay at 0.
+    joint of the tree, in its order); joints not listed stay at their home
+    value (0 clipped into the joint's limits).
     """
 
     joint_names: tuple | None = None
@@ -835,7 +841,7 @@ class ArticulatedBody:
     name : str
         Prefix of the scene objects: ``f"{name}/{link}"``.
     tree : KinematicTree
-    joint_motion : JointMotion, or None (every joint held at 0)
+    joint_motion : JointMotion, or None (every joint held at its home value, ``tree.home``)
     base : Pose or Motion
         Root link -> world (a Motion for a mobile base).
     """
@@ -849,7 +855,7 @@ class ArticulatedBody:
             raise ConfigError(f"{name}.tree", tree, "a KinematicTree")
         self.tree = tree
         if joint_motion is None:
-            joint_motion = JointConstantVelocity(np.zeros(tree.n_joints), np.zeros(tree.n_joints))
+            joint_motion = JointConstantVelocity(tree.home, np.zeros(tree.n_joints))
         if not isinstance(joint_motion, JointMotion):
             raise ConfigError(f"{name}.joints", joint_motion,
                               "a JointKeyframes, JointConstantVelocity or JointSetpoints (or None)")
@@ -871,14 +877,8 @@ class ArticulatedBody:
                 cols.append(tree.joint_index(n))
             cols = np.array(cols, dtype=np.intp)
         self._cols = cols
-        self._q_fixed = np.zeros(tree.n_joints)
-        rest = np.setdiff1d(np.arange(tree.n_joints), cols)
-        for col in rest:  # joints without a trajectory stay at 0, which must lie within their limits
-            lo, hi = tree.limits[col]
-            if not lo <= 0.0 <= hi:
-                raise ConfigError(f"{name}.joints.joint_names", list(names or ()),
-                                  f"a list that includes joint {tree.joint_names[col]!r}: it has no trajectory, "
-                                  f"so it would stay at 0, outside its limits [{lo:g}, {hi:g}]")
+        # Joints the motion does not drive stay at their home value.
+        self._q_fixed = tree.home.copy()
         joint_motion.check(tree, cols, f"{name}.joints")
         if base is None:
             base = Static(Pose())

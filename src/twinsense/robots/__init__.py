@@ -1,0 +1,16 @@
+"""Robots in the scene: URDF and MJCF loading, named installed descriptions, MuJoCo co-simulation.
+
+Needs the ``robots`` extra (``pip install twinsense[robots]``): yourdfpy for
+URDF, mujoco for MJCF and co-simulation, example-robot-data for the named
+robots. A missing package raises ConfigError naming the extra when used.
+"""
+
+from twinsense.robots.materials import LINK_MATERIAL_RULES, default_material, link_materials
+from twinsense.robots.mjcf import load_mjcf, mjcf_tree
+from twinsense.robots.registry import ROBOTS, load_robot, robot_names, robot_path
+from twinsense.robots.urdf import load_urdf, urdf_tree
+
+__all__ = [
+    "LINK_MATERIAL_RULES", "ROBOTS", "default_material", "link_materials", "load_mjcf", "load_robot", "load_urdf",
+    "mjcf_tree", "robot_names", "robot_path", "urdf_tree",
+]

@@ -1,0 +1,73 @@
+"""Mesh files of robot descriptions, read through trimesh and merged into one mesh per link.
+
+COLLADA (.dae) files declare their length unit (``<unit meter="0.001"/>``);
+trimesh reads the vertices as stored and only notes the unit, so the scale is
+applied here. STL and OBJ carry no unit: robot descriptions store them in
+metres, and a URDF ``scale`` attribute converts any other unit.
+"""
+
+from __future__ import annotations
+
+import functools
+import re
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from twinsense.errors import ConfigError
+from twinsense.scene.geometry import Geometry, TriangleMesh
+from twinsense.scene.pose import Pose
+
+_DAE_UNIT = re.compile(rb"<unit[^>]*\bmeter\s*=\s*\"([^\"]+)\"")
+
+
+def dae_unit(path: Path) -> float:
+    """Metres per length unit declared by a COLLADA file (1 when it declares none)."""
+    with open(path, "rb") as fh:
+        head = fh.read(8192)
+    m = _DAE_UNIT.search(head)
+    return float(m.group(1)) if m else 1.0
+
+
+@functools.lru_cache(maxsize=128)
+def _read(path: str, mtime: float) -> tuple[np.ndarray, np.ndarray]:
+    loaded = trimesh.load(path, force="mesh", process=False)
+    v = np.asarray(loaded.vertices, dtype=float)
+    f = np.asarray(loaded.faces, dtype=np.int64)
+    if path.lower().endswith(".dae"):
+        v = v * dae_unit(Path(path))
+    v.setflags(write=False)
+    f.setflags(write=False)
+    return v, f
+
+
+def read_mesh(path: Path, field_name: str, link: str) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (n, 3) [m, before any URDF scale] and faces (m, 3) of a mesh file; ConfigError naming the link."""
+    if not path.is_file():
+        raise ConfigError(field_name, str(path), f"an existing mesh file for link {link!r}")
+    try:
+        v, f = _read(str(path), path.stat().st_mtime)
+    except Exception as exc:  # trimesh raises many types for damaged or unsupported files
+        raise ConfigError(field_name, str(path), f"a readable mesh file for link {link!r} ({type(exc).__name__}: "
+                          f"{exc})") from None
+    if len(f) == 0 or not np.all(np.isfinite(v)):
+        raise ConfigError(field_name, str(path), f"a mesh file with triangles and finite vertices for link {link!r}")
+    return v, f
+
+
+def merge(parts: list[tuple[np.ndarray, np.ndarray, Pose]], name: str) -> Geometry | None:
+    """One TriangleMesh from parts (vertices (n, 3), faces (m, 3), part -> link pose); None if no parts."""
+    if not parts:
+        return None
+    verts, faces, off = [], [], 0
+    for v, f, pose in parts:
+        verts.append(pose.apply(v))
+        faces.append(np.asarray(f) + off)
+        off += len(v)
+    return TriangleMesh(np.vstack(verts), np.vstack(faces), name=name)
+
+
+def primitive_mesh(geometry: Geometry) -> tuple[np.ndarray, np.ndarray]:
+    m = geometry.mesh
+    return np.asarray(m.vertices, dtype=float), np.asarray(m.faces, dtype=np.int64)

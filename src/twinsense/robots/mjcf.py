@@ -1,0 +1,175 @@
+"""Robots from MJCF files, compiled by MuJoCo, and MuJoCo geoms as twinsense geometry.
+
+The model is compiled by ``mujoco.MjModel.from_xml_path`` and read from the
+compiled arrays, so includes, defaults, mesh scaling and MuJoCo's own mesh
+re-centring are applied exactly as MuJoCo applies them. Bodies become links
+(the world body is the root link ``"world"``), hinge and slide joints become
+revolute and prismatic joints, free and ball joints are taken as fixed (the
+kinematic tree has one axis per joint; :class:`~twinsense.robots.mujoco_cosim.MujocoCosim`
+follows free and ball joints through MuJoCo's own state).
+
+A joint anchored away from its body's origin, or a second joint in the same
+body, is expressed with frame-only intermediate links named
+``"<body>:<joint>"``, so that every body link keeps MuJoCo's body frame.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from twinsense.errors import ConfigError
+from twinsense.robots.deps import require
+from twinsense.robots.materials import link_materials
+from twinsense.robots.meshes import merge, primitive_mesh
+from twinsense.scene.articulated import ArticulatedBody, Joint, JointMotion, KinematicTree, Link
+from twinsense.scene.geometry import Box, Capsule, Cylinder, Geometry, Plane, Sphere
+from twinsense.scene.motion import Motion
+from twinsense.scene.pose import Pose
+
+#: MuJoCo geom type codes (mjtGeom).
+GEOM_PLANE, GEOM_HFIELD, GEOM_SPHERE, GEOM_CAPSULE, GEOM_ELLIPSOID, GEOM_CYLINDER, GEOM_BOX, GEOM_MESH = range(8)
+#: MuJoCo joint type codes (mjtJoint).
+JNT_FREE, JNT_BALL, JNT_SLIDE, JNT_HINGE = range(4)
+#: Side of the square drawn for an infinite MuJoCo plane (size 0) [m].
+INFINITE_PLANE_SIZE = 20.0
+#: Which geoms give a body its shape.
+GEOM_SETS = ("visual", "collision", "all")
+
+
+def load_model(model_or_path):
+    """An ``mujoco.MjModel`` from a path to an MJCF (or MuJoCo-readable URDF) file, or one passed through."""
+    mujoco = require("mujoco", "MJCF robots and MuJoCo co-simulation")
+    if isinstance(model_or_path, mujoco.MjModel):
+        return model_or_path
+    if not isinstance(model_or_path, (str, Path)):
+        raise ConfigError("mjcf", model_or_path, "a path to an MJCF file or a mujoco.MjModel")
+    p = Path(model_or_path)
+    if not p.is_file():
+        raise ConfigError("mjcf.path", str(model_or_path), "an existing MJCF (MuJoCo XML) file")
+    try:
+        return mujoco.MjModel.from_xml_path(str(p))
+    except Exception as exc:  # MuJoCo reports missing mesh files, bad XML, ... as ValueError
+        raise ConfigError("mjcf.path", str(model_or_path), f"an MJCF file MuJoCo can compile: {exc}") from None
+
+
+def _quat_pose(pos, quat_wxyz) -> Pose:
+    w, x, y, z = (float(c) for c in quat_wxyz)
+    return Pose.from_quat(np.asarray(pos, dtype=float), (x, y, z, w))
+
+
+def body_name(model, b: int) -> str:
+    n = model.body(b).name
+    return n if n else f"body{b}"
+
+
+def geom_primitive(model, g: int) -> Geometry | None:
+    """Twinsense geometry of one geom in the geom frame (None for a mesh or an unsupported type)."""
+    t = int(model.geom_type[g])
+    s = np.asarray(model.geom_size[g], dtype=float)
+    if t == GEOM_SPHERE:
+        return Sphere(float(s[0]))
+    if t == GEOM_CAPSULE:
+        return Capsule(float(s[0]), float(2 * s[1]))
+    if t == GEOM_CYLINDER:
+        return Cylinder(float(s[0]), float(2 * s[1]))
+    if t == GEOM_BOX:
+        return Box(tuple(float(2 * x) for x in s))
+    if t == GEOM_PLANE:
+        sx, sy = (2 * float(x) if x > 0 else INFINITE_PLANE_SIZE for x in s[:2])
+        return Plane((sx, sy))
+    return None
+
+
+def geom_mesh(model, g: int, field: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """Vertices (n, 3) [m] and faces (m, 3) of one geom in the geom frame (None: not drawable)."""
+    t = int(model.geom_type[g])
+    if t == GEOM_MESH:
+        mid = int(model.geom_dataid[g])
+        va, vn = int(model.mesh_vertadr[mid]), int(model.mesh_vertnum[mid])
+        fa, fn = int(model.mesh_faceadr[mid]), int(model.mesh_facenum[mid])
+        return (np.asarray(model.mesh_vert[va:va + vn], dtype=float),
+                np.asarray(model.mesh_face[fa:fa + fn], dtype=np.int64))
+    if t == GEOM_ELLIPSOID:
+        v, f = primitive_mesh(Sphere(1.0, subdivisions=3))
+        return v * np.asarray(model.geom_size[g], dtype=float), f
+    prim = geom_primitive(model, g)
+    if prim is None:
+        return None  # height fields and SDFs are left out
+    return primitive_mesh(prim)
+
+
+def body_geoms(model, b: int, which: str = "visual") -> list[int]:
+    """Geom ids of body ``b``: "visual" = the geoms that take no part in contacts if there are any
+    (contype = conaffinity = 0, MuJoCo's convention for display geoms), else all; "collision" = the others."""
+    ids = [g for g in range(int(model.body_geomadr[b]), int(model.body_geomadr[b] + model.body_geomnum[b]))]
+    visual = [g for g in ids if model.geom_contype[g] == 0 and model.geom_conaffinity[g] == 0]
+    if which == "all":
+        return ids
+    if which == "visual":
+        return visual or ids
+    return [g for g in ids if g not in visual] or ids
+
+
+def body_geometry(model, b: int, which: str = "visual", field: str = "mjcf") -> Geometry | None:
+    """One geometry for body ``b`` in its body frame: a single primitive geom at the body origin
+    stays a primitive (exact inside tests); anything else is merged into one mesh."""
+    ids = body_geoms(model, b, which)
+    if len(ids) == 1:
+        g = ids[0]
+        pose = _quat_pose(model.geom_pos[g], model.geom_quat[g])
+        prim = geom_primitive(model, g)
+        if prim is not None and pose.isclose(Pose(), atol=0.0):
+            return prim
+    parts = []
+    for g in ids:
+        mesh = geom_mesh(model, g, field)
+        if mesh is not None:
+            parts.append((*mesh, _quat_pose(model.geom_pos[g], model.geom_quat[g])))
+    return merge(parts, body_name(model, b))
+
+
+def mjcf_tree(model_or_path, *, materials=None, geoms: str = "visual", name: str | None = None) -> KinematicTree:
+    """The kinematic tree of an MJCF model (bodies -> links, hinge/slide -> revolute/prismatic)."""
+    model = load_model(model_or_path)
+    if geoms not in GEOM_SETS:
+        raise ConfigError("mjcf.geoms", geoms, "one of: " + ", ".join(GEOM_SETS))
+    names = [body_name(model, b) for b in range(model.nbody)]
+    mats = link_materials(names, materials, "mjcf.materials")
+    links = [Link(names[0])]
+    joints = []
+    for b in range(1, model.nbody):
+        parent = names[int(model.body_parentid[b])]
+        offset = _quat_pose(model.body_pos[b], model.body_quat[b])
+        jids = [j for j in range(int(model.body_jntadr[b]), int(model.body_jntadr[b] + model.body_jntnum[b]))
+                if model.body_jntadr[b] >= 0 and int(model.jnt_type[j]) in (JNT_HINGE, JNT_SLIDE)]
+        prev, origin = parent, offset
+        for k, j in enumerate(jids):
+            jname = model.joint(j).name or f"joint{j}"
+            anchor = np.asarray(model.jnt_pos[j], dtype=float)
+            last = k == len(jids) - 1
+            # The body frame itself when this is its only joint and it sits at the body origin.
+            child = names[b] if last and not np.any(anchor) else f"{names[b]}:{jname}"
+            if child != names[b]:
+                links.append(Link(child))
+            lo, hi = -math.inf, math.inf
+            if model.jnt_limited[j]:
+                lo, hi = float(model.jnt_range[j][0]), float(model.jnt_range[j][1])
+            kind = "revolute" if int(model.jnt_type[j]) == JNT_HINGE else "prismatic"
+            joints.append(Joint(jname, kind, prev, child, origin @ Pose(anchor), tuple(model.jnt_axis[j]), lo, hi))
+            prev, origin = child, Pose(-anchor)
+        geom = body_geometry(model, b, geoms, f"mjcf.bodies[{names[b]}]")
+        links.append(Link(names[b], geom, mats[names[b]]))
+        if prev != names[b]:
+            joints.append(Joint(f"{names[b]}:fixed", "fixed", prev, names[b], origin))
+    return KinematicTree(name or model.names.split(b"\0", 1)[0].decode() or "mjcf", links, joints)
+
+
+def load_mjcf(path, *, name: str | None = None, joints: JointMotion | None = None, materials=None,
+              base: Pose | Motion | None = None, geoms: str = "visual") -> ArticulatedBody:
+    """A robot from an MJCF file, ready for ``scene.add_articulated`` (kinematics only; see MujocoCosim
+    for MuJoCo's physics)."""
+    tree = mjcf_tree(path, materials=materials, geoms=geoms)
+    return ArticulatedBody(name or tree.name, tree, joints, base)

@@ -1,0 +1,113 @@
+"""Robots from URDF files, parsed by yourdfpy, with their visual meshes.
+
+Every ``<link>``'s visuals (meshes with their declared ``scale``, boxes,
+cylinders, spheres) are merged into one mesh in the link frame; every
+``<joint>`` becomes a :class:`~twinsense.scene.articulated.Joint` (revolute,
+continuous, prismatic, fixed; a floating joint is taken as fixed: the base
+pose places the robot). Mimic joints are kept as joints of their own.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from twinsense.errors import ConfigError
+from twinsense.robots.deps import require
+from twinsense.robots.materials import link_materials
+from twinsense.robots.meshes import merge, primitive_mesh, read_mesh
+from twinsense.robots.paths import resolve_uri
+from twinsense.scene.articulated import ArticulatedBody, Joint, JointMotion, KinematicTree, Link
+from twinsense.scene.geometry import Box, Cylinder, Sphere
+from twinsense.scene.motion import Motion
+from twinsense.scene.pose import Pose
+
+_JOINT_KINDS = {"revolute": "revolute", "continuous": "continuous", "prismatic": "prismatic", "fixed": "fixed",
+                "floating": "fixed"}
+#: Which elements give a link its shape: what a camera sees ("visual") or the simplified "collision" one.
+SHAPE_SOURCES = ("visual", "collision")
+
+
+def _pose(matrix) -> Pose:
+    return Pose() if matrix is None else Pose.from_matrix(np.asarray(matrix, dtype=float))
+
+
+def _shape_parts(link, source: str, base_dir: Path, field: str) -> list:
+    parts = []
+    elements = link.visuals if source == "visual" else link.collisions
+    for k, el in enumerate(elements):
+        g = el.geometry
+        origin = _pose(el.origin)
+        where = f"{field}.links[{link.name}].{source}[{k}]"
+        if g.mesh is not None:
+            path = resolve_uri(g.mesh.filename, base_dir)
+            v, f = read_mesh(path, f"{where}.mesh", link.name)
+            scale = np.ones(3) if g.mesh.scale is None else np.broadcast_to(np.asarray(g.mesh.scale, float), (3,))
+            parts.append((v * scale, f, origin))
+        elif g.box is not None:
+            parts.append((*primitive_mesh(Box(tuple(float(x) for x in g.box.size))), origin))
+        elif g.cylinder is not None:
+            parts.append((*primitive_mesh(Cylinder(float(g.cylinder.radius), float(g.cylinder.length))), origin))
+        elif g.sphere is not None:
+            parts.append((*primitive_mesh(Sphere(float(g.sphere.radius))), origin))
+    return parts
+
+
+def urdf_tree(path, *, materials=None, shapes: str = "visual", name: str | None = None) -> KinematicTree:
+    """The kinematic tree of a URDF file, with one merged mesh per link.
+
+    Parameters
+    ----------
+    path : str or Path
+    materials : dict {link name: material}, optional
+        Overrides of the default materials (see :mod:`twinsense.robots.materials`).
+    shapes : "visual" or "collision"
+        The elements that give each link its shape.
+    name : str, optional
+        Tree name (default: the URDF's robot name).
+    """
+    yourdfpy = require("yourdfpy", "reading URDF files")
+    p = Path(path)
+    field = f"urdf[{p.name}]"
+    if not p.is_file():
+        raise ConfigError("urdf.path", str(path), "an existing URDF file")
+    if shapes not in SHAPE_SOURCES:
+        raise ConfigError(f"{field}.shapes", shapes, "one of: " + ", ".join(SHAPE_SOURCES))
+    try:
+        robot = yourdfpy.URDF.load(str(p), build_scene_graph=False, load_meshes=False,
+                                   build_collision_scene_graph=False, load_collision_meshes=False).robot
+    except Exception as exc:  # lxml and yourdfpy raise many types for broken XML
+        raise ConfigError("urdf.path", str(path), f"a valid URDF file ({type(exc).__name__}: {exc})") from None
+    names = [lk.name for lk in robot.links]
+    mats = link_materials(names, materials, f"{field}.materials")
+    base_dir = p.parent.resolve()
+    links = []
+    for lk in robot.links:
+        geom = merge(_shape_parts(lk, shapes, base_dir, field), f"{lk.name}")
+        links.append(Link(lk.name, geom, mats[lk.name]))
+    joints = []
+    for j in robot.joints:
+        kind = _JOINT_KINDS.get(j.type)
+        if kind is None:
+            raise ConfigError(f"{field}.joints[{j.name}].type", j.type,
+                              "one of: " + ", ".join(_JOINT_KINDS) + " (planar joints are not supported)")
+        lo, hi = -math.inf, math.inf
+        if kind in ("revolute", "prismatic") and j.limit is not None:
+            lo = -math.inf if j.limit.lower is None else float(j.limit.lower)
+            hi = math.inf if j.limit.upper is None else float(j.limit.upper)
+        axis = (1.0, 0.0, 0.0) if j.axis is None else tuple(float(x) for x in j.axis)
+        joints.append(Joint(j.name, kind, j.parent, j.child, _pose(j.origin), axis, lo, hi))
+    return KinematicTree(name or robot.name or p.stem, links, joints)
+
+
+def load_urdf(path, *, name: str | None = None, joints: JointMotion | None = None, materials=None,
+              base: Pose | Motion | None = None, shapes: str = "visual") -> ArticulatedBody:
+    """A robot from a URDF file, ready for ``scene.add_articulated``.
+
+    ``joints`` drives the movable joints (default: held at their home values,
+    0 clipped into the limits); ``base`` places the root link in the world.
+    """
+    tree = urdf_tree(path, materials=materials, shapes=shapes)
+    return ArticulatedBody(name or tree.name, tree, joints, base)

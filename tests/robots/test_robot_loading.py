@@ -1,0 +1,142 @@
+"""Robots from URDF and MJCF: kinematics against published parameters and across formats, meshes, errors."""
+
+import time
+
+import numpy as np
+import pytest
+
+from twinsense import ConfigError
+from twinsense.errors import UnknownNameError
+from twinsense.robots import load_robot, load_urdf, mjcf_tree, robot_names
+from twinsense.robots.deps import require
+from twinsense.scene import Mount, Pose, Scene
+
+# Universal Robots' published DH parameters of the UR5 [m, rad] (d, a, alpha per joint).
+UR5_D = (0.089159, 0.0, 0.0, 0.10915, 0.09465, 0.0823)
+UR5_A = (0.0, -0.425, -0.39225, 0.0, 0.0, 0.0)
+UR5_ALPHA = (np.pi / 2, 0.0, 0.0, np.pi / 2, -np.pi / 2, 0.0)
+
+
+def _dh(q):
+    """Flange in the base frame by the standard DH product A_i = Rz(q) Tz(d) Tx(a) Rx(alpha)."""
+    t = np.eye(4)
+    for qi, d, a, al in zip(q, UR5_D, UR5_A, UR5_ALPHA):
+        c, s, ca, sa = np.cos(qi), np.sin(qi), np.cos(al), np.sin(al)
+        t = t @ np.array([[c, -s * ca, s * sa, a * c], [s, c * ca, -c * sa, a * s], [0, sa, ca, d], [0, 0, 0, 1]])
+    return t
+
+
+@pytest.fixture(scope="module")
+def ur5():
+    t0 = time.perf_counter()
+    body = load_robot("ur5")
+    print(f"ur5 URDF load: {time.perf_counter() - t0:.2f} s")
+    return body
+
+
+def test_ur5_urdf_matches_published_dh(ur5):
+    tree = ur5.tree
+    assert tree.joint_names == ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint",
+                                "wrist_2_joint", "wrist_3_joint")
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        q = rng.uniform(-3.0, 3.0, 6)
+        st = tree.forward(q)
+        rel = (st.pose("base").inverse() @ st.pose("tool0")).matrix
+        # The URDF writes pi/2 as 1.570796325 (error 2e-9 rad) and the DH lengths to 1e-6 m; over ~1 m
+        # of arm that moves the flange by ~1e-9 m. 1e-8 covers it.
+        np.testing.assert_allclose(rel, _dh(q), atol=1e-8)
+
+
+def test_ur5_meshes_have_metres_and_sane_sizes(ur5):
+    tree = ur5.tree
+    faces = {lk.name: len(lk.geometry.faces) for lk in tree.links if lk.geometry is not None}
+    assert set(faces) == {"base_link", "shoulder_link", "upper_arm_link", "forearm_link", "wrist_1_link",
+                          "wrist_2_link", "wrist_3_link"}
+    assert all(500 < n < 100_000 for n in faces.values()), faces
+    # The upper arm spans the 0.425 m shoulder-elbow distance plus the two joint housings (~0.06 m each).
+    ext = np.ptp(tree.link("upper_arm_link").geometry.bounds, axis=0)
+    assert 0.45 < ext.max() < 0.6, ext
+    assert {lk.material.name for lk in tree.links} == {"aluminium"}
+
+
+def test_panda_urdf_and_mjcf_agree_up_to_a_fixed_flange_offset(mj_model):
+    urdf = load_robot("panda", shapes="collision").tree  # the STL shapes load fastest; kinematics are the same
+    mjcf = mjcf_tree(mj_model("panda-mjcf"))
+    assert urdf.joint_names[:7] == tuple(f"panda_joint{i}" for i in range(1, 8))
+    assert urdf.joint_names[7:] == ("panda_finger_joint1", "panda_finger_joint2")
+    assert mjcf.joint_names == tuple(f"joint{i}" for i in range(1, 8))
+    # The offset, found once at the home pose: robosuite's right_hand against the URDF's panda_hand.
+    home = mjcf.home
+    offset = mjcf.forward(home).pose("right_hand").inverse() @ urdf.forward(np.r_[home, 0, 0]).pose("panda_hand")
+    # Stated in docs/robots.md: 0.5 mm along the flange z axis, 0.0282 deg about it (robosuite's quaternion
+    # (0.924, 0, 0, -0.383) is -45 deg rounded to 3 digits); the bases coincide.
+    np.testing.assert_allclose(offset.position, [0, 0, 0.0005], atol=1e-12)
+    np.testing.assert_allclose(offset.euler_deg(), [0, 0, 0.0282253], atol=1e-6)
+    rng = np.random.default_rng(11)
+    for _ in range(10):
+        q = rng.uniform(mjcf.limits[:, 0], mjcf.limits[:, 1])
+        a = urdf.forward(np.r_[q, 0.02, 0.02]).pose("panda_hand")
+        b = mjcf.forward(q).pose("right_hand") @ offset
+        # Both files hold the same link offsets; what remains is float rounding: 1e-6 m / 1e-6 rad as stated.
+        np.testing.assert_allclose(a.position, b.position, atol=1e-6)
+        np.testing.assert_allclose(a.rotation, b.rotation, atol=1e-6)
+        np.testing.assert_allclose(urdf.forward(np.r_[q, 0, 0]).pose("panda_link0").matrix, np.eye(4), atol=1e-12)
+
+
+def test_robot_in_scene_and_mount_on_link(ur5):
+    scene = Scene()
+    scene.add_articulated(ur5)
+    assert "ur5/wrist_3_link" in {o.name for o in scene.objects}
+    assert "ur5/tool0" in scene.frame_names
+    st = Mount(Pose((0, 0, 0.05)), "ur5/tool0").state_at(scene, 0.0)
+    tool = ur5.tree.forward(ur5.tree.home).pose("tool0")
+    np.testing.assert_allclose(st.pose.position, tool.apply([0, 0, 0.05]), atol=1e-12)
+
+
+def test_material_overrides_and_defaults():
+    body = load_robot("panda", materials={"panda_hand": "plastic", "panda_link3": "stainless_steel"},
+                      shapes="collision")
+    mats = {lk.name: lk.material.name for lk in body.tree.links}
+    assert mats["panda_hand"] == "plastic" and mats["panda_link3"] == "stainless_steel"
+    assert mats["panda_leftfinger"] == "plastic" and mats["panda_link1"] == "aluminium"
+    with pytest.raises(UnknownNameError, match="panda_link0"):
+        load_robot("panda", materials={"no_such_link": "plastic"})
+    with pytest.raises(UnknownNameError, match="aluminium"):
+        load_robot("panda", materials={"panda_hand": "unobtainium"})
+
+
+def test_loader_errors(tmp_path):
+    with pytest.raises(UnknownNameError, match="panda-mjcf, ur10, ur3, ur5, ur5e-mjcf"):
+        load_robot("ur7")
+    assert set(robot_names()) == {"ur3", "ur5", "ur10", "panda", "panda-mjcf", "ur5e-mjcf"}
+    with pytest.raises(ConfigError, match="urdf.path"):
+        load_urdf(tmp_path / "missing.urdf")
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text("""<robot name="arm">
+      <link name="base"/>
+      <link name="tool"><visual><geometry><mesh filename="meshes/tool.stl"/></geometry></visual></link>
+      <joint name="j" type="revolute"><parent link="base"/><child link="tool"/>
+        <axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+    </robot>""")
+    with pytest.raises(ConfigError, match=r"links\[tool\].*tool.stl.*'tool'"):
+        load_urdf(urdf)
+    with pytest.raises(ConfigError, match=r"twinsense\[robots\]"):
+        require("twinsense_no_such_module", "a test")
+
+
+def test_urdf_primitives_with_scale_and_origin(tmp_path):
+    urdf = tmp_path / "prim.urdf"
+    urdf.write_text("""<robot name="prim">
+      <link name="base"><visual><origin xyz="0 0 0.5"/><geometry><box size="0.2 0.4 1.0"/></geometry></visual></link>
+      <link name="arm"><visual><origin xyz="0.3 0 0" rpy="0 1.5707963267948966 0"/>
+        <geometry><cylinder radius="0.05" length="0.6"/></geometry></visual></link>
+      <joint name="j" type="continuous"><parent link="base"/><child link="arm"/><origin xyz="0 0 1"/>
+        <axis xyz="0 0 1"/></joint>
+    </robot>""")
+    tree = load_urdf(urdf).tree
+    np.testing.assert_allclose(tree.link("base").geometry.bounds, [[-0.1, -0.2, 0], [0.1, 0.2, 1.0]], atol=1e-12)
+    # The cylinder turned onto x by its origin: it spans x in [0, 0.6] in the link frame.
+    b = tree.link("arm").geometry.bounds
+    np.testing.assert_allclose([b[0, 0], b[1, 0]], [0.0, 0.6], atol=1e-9)
+    assert tree.limits.tolist() == [[-np.inf, np.inf]]
