@@ -1,0 +1,175 @@
+"""The Foxglove WebSocket server of a live run, read by a real WebSocket client over loopback.
+
+The client speaks the Foxglove WebSocket protocol itself (the ``websockets``
+package for the transport; foxglove-sdk servers name it ``foxglove.sdk.v1``,
+the successor of ``foxglove.websocket.v1`` with the same advertise /
+subscribe / message-data operations): it reads the channel advertisements, subscribes,
+and decodes the binary message frames; a RawImage is decoded from the
+protobuf schema the server advertises and compared with the captured depth.
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import struct
+import sys
+import threading
+
+import numpy as np
+import pytest
+from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
+from test_zmq_stream import Keep, scenario
+from websockets.sync.client import connect
+
+from twinsense.errors import ConfigError
+from twinsense.stream import FoxgloveSink, FrameSink, serve
+from twinsense.stream.sinks import QueuedSink
+
+WANTED = ("/depth/depth", "/twinsense/stats", "/tf", "/lidar/points")
+
+
+def _decoder(channel: dict):
+    """A protobuf message class from the FileDescriptorSet a channel advertises."""
+    fds = descriptor_pb2.FileDescriptorSet.FromString(base64.b64decode(channel["schema"]))
+    pool = descriptor_pool.DescriptorPool()
+    for f in fds.file:
+        pool.Add(f)
+    return message_factory.GetMessageClass(pool.FindMessageTypeByName(channel["schemaName"]))
+
+
+def _client(port: int, got: dict, ready: threading.Event, subscribed: threading.Event) -> None:
+    channels, subs = {}, {}
+    with connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1"], open_timeout=10) as ws:
+        ready.set()
+        while not all(t in got for t in WANTED):
+            msg = ws.recv(timeout=10)
+            if isinstance(msg, str):
+                m = json.loads(msg)
+                if m["op"] == "advertise":
+                    for ch in m["channels"]:
+                        channels[ch["id"]] = ch
+                        if ch["topic"] in WANTED:
+                            sid = len(subs) + 1
+                            subs[sid] = ch
+                            ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": sid,
+                                                                                     "channelId": ch["id"]}]}))
+                    if {c["topic"] for c in subs.values()} >= set(WANTED):
+                        subscribed.set()
+                continue
+            # Binary message data: opcode 0x01, uint32 subscription id, uint64 log time [ns], payload.
+            op, sid, log_ns = struct.unpack_from("<BIQ", msg)
+            assert op == 1
+            ch = subs[sid]
+            payload = msg[13:]
+            if ch["encoding"] == "json":
+                body = json.loads(payload)
+            else:
+                assert ch["encoding"] == "protobuf"
+                body = _decoder(ch).FromString(payload)
+            got.setdefault(ch["topic"], (log_ns, ch, body))
+
+
+def test_a_websocket_client_subscribes_and_decodes():
+    # A paced run (rate 1, 1 s): the client connects when the server opens and subscribes as the
+    # channels are advertised (each on its first message).
+    sc = scenario(1.0, [{"name": "lidar", "kind": "lidar", "preset": "velodyne_vlp16", "frame_rate": 10,
+                         "overrides": {"columns": 90},
+                         "mount": {"pose": {"look_at": {"eye": [0.0, 0.0, 1.0], "target": [4.0, 0.0, 1.0]}}}}])
+    got, ready, subscribed, threads = {}, threading.Event(), threading.Event(), []
+
+    def hold(n):
+        # After 10 of the 20 frames every channel has been advertised; the run waits here (on its own
+        # thread, as a slow capture would) until the client has subscribed to all it wants.
+        if n == 10:
+            subscribed.wait(20)
+
+    sink, keep = FoxgloveSink(port=0, stats_interval=0.05), Keep(hold)
+
+    def on_open(sinks):
+        th = threading.Thread(target=_client, args=(sink.port, got, ready, subscribed))
+        th.start()
+        threads.append(th)
+        ready.wait(10)
+
+    res = serve(sc.scene, sc.sensors, sc.duration, [keep, sink], rate=1.0, seed=sc.seed, on_open=on_open)
+    threads[0].join()
+    assert isinstance(sink, FrameSink) and sink.server is None and res.dropped["foxglove"] == {"depth": 0, "lidar": 0}
+    assert set(got) >= set(WANTED)
+
+    log_ns, ch, img = got["/depth/depth"]
+    assert ch["schemaName"] == "foxglove.RawImage" and img.encoding == "32FC1" and img.frame_id == "depth_optical_frame"
+    t = img.timestamp.seconds + img.timestamp.nanos * 1e-9
+    k = round(t * 10)  # 10 Hz: frame k at k / 10 s
+    assert log_ns == round(k / 10 * 1e9)
+    depth = np.frombuffer(img.data, dtype="<f4").reshape(img.height, img.width)
+    # float32 pixels copied into the message: equal bit for bit (tolerance 0).
+    np.testing.assert_array_equal(depth, keep.frames["depth", k][1]["depth"])
+
+    _, _, tf = got["/tf"]
+    frames = {(x.parent_frame_id, x.child_frame_id) for x in tf.transforms}
+    assert {("world", "depth_link"), ("depth_link", "depth_optical_frame"), ("world", "cart")} <= frames
+
+    _, ch, cloud = got["/lidar/points"]
+    assert ch["schemaName"] == "foxglove.PointCloud" and [f.name for f in cloud.fields] == [
+        "x", "y", "z", "intensity", "ring", "time"]
+    k = round((cloud.timestamp.seconds + cloud.timestamp.nanos * 1e-9) * 10)
+    arrays = keep.frames["lidar", k][1]
+    assert len(cloud.data) == cloud.point_stride * int(np.isfinite(arrays["range"]).sum())
+    xyz = np.frombuffer(cloud.data, dtype=np.dtype({"names": ["x", "y", "z"], "formats": ["<f4"] * 3,
+                                                     "offsets": [0, 4, 8], "itemsize": cloud.point_stride}))
+    np.testing.assert_array_equal(np.stack([xyz["x"], xyz["y"], xyz["z"]], -1),
+                                  arrays["xyz"][np.isfinite(arrays["range"])])
+
+    _, ch, stats = got["/twinsense/stats"]
+    assert ch["encoding"] == "json" and set(stats) == {"sent", "dropped", "queued"}
+    assert stats["dropped"] == {"depth": 0, "lidar": 0}
+
+
+class Stuck(QueuedSink):
+    """A transport whose send blocks until released (a client on a dead link)."""
+
+    name = "stuck"
+
+    def __init__(self, queue_size):
+        super().__init__(queue_size)
+        self.taken, self.release, self.published = threading.Event(), threading.Event(), []
+
+    def _publish(self, sensor, t, frame):
+        self.taken.set()
+        self.release.wait(30)
+        self.published.append(t)
+
+
+def test_a_stuck_transport_never_blocks_send():
+    class S:
+        name, kind = "s", "x"
+
+    sink = Stuck(queue_size=3)
+    sink.open(None, [S()])
+    sink.send(S(), 0.0, None)
+    assert sink.taken.wait(10)  # the sender thread holds frame 0 and blocks
+    for k in range(1, 50):
+        sink.send(S(), k * 0.1, None)  # returns at once: a blocking send would hang the test here
+    assert sink.queued == 3 and sink.dropped == {"s": 46}
+    sink.release.set()
+    sink.close()
+    # Frame 0 and the three queued frames are delivered after the release; nothing else was held.
+    assert sink.published == [0.0, 0.1, 0.2, pytest.approx(0.3, rel=0, abs=1e-15)] and sink.sent == {"s": 4}
+
+
+def test_foxglove_bad_inputs_and_missing_extra(monkeypatch):
+    with pytest.raises(ConfigError, match="FoxgloveSink.port"):
+        FoxgloveSink(port=70000)
+    with pytest.raises(ConfigError, match="FoxgloveSink.queue_size"):
+        FoxgloveSink(queue_size=0)
+    a = FoxgloveSink(port=0)
+    a.open(scenario(0.1).scene, [])
+    try:
+        with pytest.raises(ConfigError, match="foxglove_port"):
+            FoxgloveSink(port=a.port).open(scenario(0.1).scene, [])
+    finally:
+        a.close()
+    monkeypatch.setitem(sys.modules, "foxglove", None)
+    with pytest.raises(ImportError, match=r"twinsense\[stream\]"):
+        FoxgloveSink(port=0).open(scenario(0.1).scene, [])
