@@ -1,0 +1,707 @@
+"""People in the scene: an articulated human that stands, turns, walks and reaches.
+
+:func:`human_tree` builds the body as a :class:`~twinsense.scene.articulated.KinematicTree`
+of capsules and boxes sized by segment-length ratios of the body height H.
+The ratios are Drillis and Contini's (1966) as tabulated by D. A. Winter,
+*Biomechanics and Motor Control of Human Movement*, 4th ed., Wiley 2009,
+fig. 4.1: hip joint 0.530 H above the floor, thigh 0.245 H, shank 0.246 H,
+ankle 0.039 H, foot 0.152 H long and 0.055 H wide, shoulder 0.818 H, chin
+0.870 H, upper arm 0.186 H, forearm 0.146 H, hand 0.108 H, shoulder width
+0.259 H, hip width 0.191 H. Segment radii are not in that table; they are
+chosen so that widths and depths match an average adult (chest 0.22 H wide,
+0.13 H deep; head 0.11 H wide).
+
+The motion (:class:`PersonMotion`) gives both the root (pelvis) motion and
+the joint trajectory, each with exact time derivatives:
+
+- walking: the Boulic-Magnenat-Thalmann-Thalmann model of
+  :mod:`twinsense.scene.gait` along a straight heading or a waypoint path
+  whose heading turns smoothly (a C1 ramp of the heading over ``turn_length``
+  around each waypoint, so the yaw rate is continuous);
+- standing: legs straight, arms hanging, optional sway of the pelvis;
+- turning on the spot: the heading ramps to a new value;
+- reaching: analytic two-link inverse kinematics of shoulder (flexion,
+  abduction) and elbow towards a world point, blended in and out with a C1
+  ramp; a point beyond the arm's reach is not an error: the arm points at
+  it fully stretched (the distance is clamped into the arm's range), and
+  every angle is clamped into its joint limits.
+
+:class:`Walker` and :func:`add_person` put a person in a scene.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.interpolate import CubicHermiteSpline
+
+from twinsense import validation as V
+from twinsense.errors import ConfigError
+from twinsense.scene.articulated import ArticulatedBody, Joint, JointMotion, KinematicTree, Link
+from twinsense.scene.gait import GaitTiming, LegGeometry, WalkCycle, smoothstep
+from twinsense.scene.geometry import Box, Capsule
+from twinsense.scene.motion import Motion, MotionState, check_time
+from twinsense.scene.pose import Pose
+
+# ---------------------------------------------------------------- anthropometry (Winter 2009, fig. 4.1)
+HIP_HEIGHT = 0.530
+THIGH = 0.245
+SHANK = 0.246
+ANKLE_HEIGHT = 0.039
+FOOT_LENGTH = 0.152
+FOOT_WIDTH = 0.055
+SHOULDER_HEIGHT = 0.818
+CHIN_HEIGHT = 0.870
+UPPER_ARM = 0.186
+FOREARM = 0.146
+HAND = 0.108
+SHOULDER_WIDTH = 0.259
+HIP_WIDTH = 0.191
+# Ours (not in the table): the hip joint centres sit about a quarter of the hip
+# width either side of the mid-line, the ankle a quarter of the foot length
+# in front of the heel, the shoulder joints 0.02 H below and inside the acromion.
+HIP_JOINT_HALF_WIDTH = HIP_WIDTH / 4
+HEEL_BEHIND_ANKLE = 0.25 * FOOT_LENGTH
+SHOULDER_JOINT_DROP = 0.02
+SHOULDER_JOINT_HALF_WIDTH = SHOULDER_WIDTH / 2 - 0.02
+
+HEIGHT_RANGE = (0.5, 2.5)  # [m] body heights accepted
+SKIN = "human_skin"
+CLOTHING_LAYERS = ("tof", "camera", "lidar", "ultrasonic")
+SIDES = (("right", -1.0), ("left", 1.0))
+_DEG = math.pi / 180
+# Joint limits [deg]: typical active ranges of motion of adults (AAOS, Greene & Heckman 1994).
+LIMITS_DEG = {
+    "torso_rotation": (-45, 45), "torso_tilt": (-30, 90), "neck_flexion": (-60, 70), "neck_rotation": (-80, 80),
+    "shoulder_flexion": (-60, 180), "shoulder_abduction": (-30, 180), "elbow": (0, 150),
+    "hip_flexion": (-30, 120), "hip_abduction": (-30, 45), "hip_rotation": (-45, 45), "knee": (-5, 140),
+    "ankle": (-50, 30),
+}
+ARM_REST_ABDUCTION = 8 * _DEG  # arms hang clear of the chest
+ELBOW_REST = 8 * _DEG
+
+
+def _limits(kind: str) -> tuple[float, float]:
+    lo, hi = LIMITS_DEG[kind]
+    return lo * _DEG, hi * _DEG
+
+
+def _capsule_down(length: float, radius: float) -> tuple[Capsule, Pose]:
+    """A capsule from the link origin down to -z ``length`` [m] (end to end)."""
+    radius = min(radius, 0.45 * length)
+    return Capsule(radius=radius, height=length - 2 * radius), Pose((0.0, 0.0, -0.5 * length))
+
+
+def _capsule_across(width: float, radius: float, z: float) -> tuple[Capsule, Pose]:
+    """A capsule along y, ``width`` end to end, centred at height ``z`` [m]."""
+    rot = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])  # local z -> y
+    return Capsule(radius=radius, height=width - 2 * radius), Pose((0.0, 0.0, z), rot)
+
+
+def check_height(height) -> float:
+    return V.number("person.height", height, lo=HEIGHT_RANGE[0], hi=HEIGHT_RANGE[1], unit="m")
+
+
+def leg_geometry(height: float = 1.75) -> LegGeometry:
+    """The sagittal leg of :func:`human_tree` (the walk's body translation is fitted to it)."""
+    h = check_height(height)
+    return LegGeometry(THIGH * h, SHANK * h, ANKLE_HEIGHT * h, HEEL_BEHIND_ANKLE * h,
+                       (FOOT_LENGTH - HEEL_BEHIND_ANKLE) * h, HIP_JOINT_HALF_WIDTH * h)
+
+
+def human_tree(height: float = 1.75, *, clothing: str | None = None, clothing_thickness: float = 0.004,
+               name: str = "human") -> KinematicTree:
+    """An articulated human of ``height`` [m] standing at q = 0.
+
+    The root link "pelvis" has its origin at the midpoint of the hip joints,
+    x forward, y left, z up; at q = 0 the soles lie 0.530 H below it. All
+    links are ``human_skin``. ``clothing`` (a material name such as
+    "fabric") adds a layer ``clothing_thickness`` [m] over the trunk, arms
+    and legs, seen only by ToF, camera, LiDAR and ultrasonic sensors (fabric
+    is nearly transparent to mm-wave radar, and capacitive and inductive
+    sensors respond to the body beneath).
+
+    Joints (revolute, angles > 0): torso_rotation (left), torso_tilt
+    (forward lean), neck_flexion (chin down), neck_rotation (left), and per
+    side (``right_``, ``left_``): shoulder_flexion (arm forward),
+    shoulder_abduction (arm out), elbow (flexion), hip_flexion (thigh
+    forward), hip_abduction (leg out), hip_rotation (about the pelvis z,
+    left > 0), knee (flexion), ankle (dorsiflexion, toes up); the hands are
+    fixed to the forearms.
+    """
+    H = check_height(height)
+    if clothing is not None and not isinstance(clothing, str):
+        raise ConfigError("person.clothing", clothing, "a material name (e.g. 'fabric') or None")
+    V.number("person.clothing_thickness", clothing_thickness, lo=0.0005, hi=0.05, unit="m")
+    links: list[Link] = []
+    joints: list[Joint] = []
+
+    def link(lname, geom_pose, clothed=False):
+        geom, origin = geom_pose
+        links.append(Link(lname, geom, SKIN, origin))
+        if clothing is not None and clothed:
+            c = clothing_thickness
+            if isinstance(geom, Capsule):
+                outer = Capsule(radius=geom.radius + c, height=geom.height)
+            else:
+                outer = Box(tuple(np.asarray(geom.size) + 2 * c))
+            links.append(Link(f"{lname}_clothing", outer, clothing, origin, layers=CLOTHING_LAYERS))
+            joints.append(Joint(f"{lname}_clothing", "fixed", lname, f"{lname}_clothing"))
+
+    def joint(jname, kind, parent, child, xyz, axis):
+        lo, hi = _limits(kind)
+        joints.append(Joint(jname, "revolute", parent, child, Pose(np.asarray(xyz, float) * H), axis, lo, hi))
+
+    trunk = SHOULDER_HEIGHT - HIP_HEIGHT  # 0.288 H from the hip joints to the shoulders
+    link("pelvis", _capsule_across(0.20 * H, 0.06 * H, 0.03 * H), True)
+    joint("torso_rotation", "torso_rotation", "pelvis", "abdomen", (0, 0, 0.07), (0, 0, 1))
+    link("abdomen", _capsule_across(0.19 * H, 0.06 * H, 0.03 * H), True)
+    joint("torso_tilt", "torso_tilt", "abdomen", "thorax", (0, 0, 0.06), (0, -1, 0))
+    link("thorax", (Capsule(radius=0.065 * H, height=0.09 * H),
+                    Pose((0, 0, (trunk - 0.13 - 0.065) * H), _capsule_across(1, 0.1, 0)[1].rotation)), True)
+    joint("neck_flexion", "neck_flexion", "thorax", "neck", (0, 0, trunk - 0.13), (0, -1, 0))
+    link("neck", (Capsule(radius=0.03 * H, height=0.0), Pose((0, 0, 0.026 * H))))
+    joint("neck_rotation", "neck_rotation", "neck", "head", (0, 0, CHIN_HEIGHT - SHOULDER_HEIGHT), (0, 0, 1))
+    link("head", (Capsule(radius=0.055 * H, height=0.03 * H), Pose((0.01 * H, 0, 0.065 * H))))
+    shoulder_z = trunk - 0.13 - SHOULDER_JOINT_DROP
+    for side, s in SIDES:
+        p = f"{side}_"
+        joint(p + "shoulder_flexion", "shoulder_flexion", "thorax", p + "shoulder",
+              (0, s * SHOULDER_JOINT_HALF_WIDTH, shoulder_z), (0, -1, 0))
+        link(p + "shoulder", (Capsule(radius=0.028 * H, height=0.0), Pose()))
+        joint(p + "shoulder_abduction", "shoulder_abduction", p + "shoulder", p + "upper_arm", (0, 0, 0), (s, 0, 0))
+        link(p + "upper_arm", _capsule_down(UPPER_ARM * H, 0.026 * H), True)
+        joint(p + "elbow", "elbow", p + "upper_arm", p + "forearm", (0, 0, -UPPER_ARM), (0, -1, 0))
+        link(p + "forearm", _capsule_down(FOREARM * H, 0.021 * H), True)
+        joints.append(Joint(p + "wrist", "fixed", p + "forearm", p + "hand", Pose((0, 0, -FOREARM * H))))
+        links.append(Link(p + "hand", Box((0.025 * H, 0.05 * H, HAND * H)), SKIN, Pose((0, 0, -0.5 * HAND * H))))
+        # Hip rotation (inward > 0 for the right leg's z), flexion, abduction: frames between the axes.
+        joint(p + "hip_rotation", "hip_rotation", "pelvis", p + "hip_turn", (0, s * HIP_JOINT_HALF_WIDTH, 0), (0, 0, 1))
+        links.append(Link(p + "hip_turn"))
+        joint(p + "hip_flexion", "hip_flexion", p + "hip_turn", p + "hip", (0, 0, 0), (0, -1, 0))
+        links.append(Link(p + "hip"))
+        joint(p + "hip_abduction", "hip_abduction", p + "hip", p + "thigh", (0, 0, 0), (s, 0, 0))
+        link(p + "thigh", _capsule_down(THIGH * H, 0.045 * H), True)
+        joint(p + "knee", "knee", p + "thigh", p + "shank", (0, 0, -THIGH), (0, 1, 0))
+        link(p + "shank", _capsule_down(SHANK * H, 0.032 * H), True)
+        joint(p + "ankle", "ankle", p + "shank", p + "foot", (0, 0, -SHANK), (0, -1, 0))
+        heel = HEEL_BEHIND_ANKLE
+        link(p + "foot", (Box((FOOT_LENGTH * H, FOOT_WIDTH * H, ANKLE_HEIGHT * H)),
+                          Pose(((0.5 * FOOT_LENGTH - heel) * H, 0, -0.5 * ANKLE_HEIGHT * H))))
+    return KinematicTree(name, links, joints)
+
+
+def foot_sole_points(height: float) -> np.ndarray:
+    """(2, 3) heel and toe points of a sole (on the mid-line) in the foot link frame [m]."""
+    h = check_height(height)
+    return np.array([[-HEEL_BEHIND_ANKLE * h, 0, -ANKLE_HEIGHT * h],
+                     [(FOOT_LENGTH - HEEL_BEHIND_ANKLE) * h, 0, -ANKLE_HEIGHT * h]])
+
+
+# ---------------------------------------------------------------- paths
+def _wrap(a):
+    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
+
+
+class HeadingPath:
+    """A floor path whose heading turns smoothly: position and heading by arc length.
+
+    ``points`` (n >= 2, 2 or 3) [m] are waypoints on the floor (z ignored);
+    at each inner waypoint the heading ramps from the incoming to the
+    outgoing direction over ``turn_length`` [m] of path (C1 ramp, so the
+    heading rate is continuous), which rounds the corner. ``points`` of one
+    row plus ``heading`` [rad] give an endless straight line.
+    """
+
+    NODE_SPACING = 0.01  # [m] between the nodes of the position spline
+
+    def __init__(self, points, heading: float | None = None, turn_length: float = 1.0):
+        p = np.asarray(points, float) if not isinstance(points, str) else points
+        if not isinstance(p, np.ndarray) or p.ndim != 2 or p.shape[1] not in (2, 3) or len(p) < 1 \
+                or not np.all(np.isfinite(p)) or np.any(np.abs(p) > V.LENGTH_MAX):
+            raise ConfigError("walk.path", points, "waypoints (n, 2) or (n, 3) [m], finite, within 10 km")
+        self.turn_length = V.number("walk.turn_length", turn_length, lo=0.05, hi=100.0, unit="m")
+        self.start = p[0, :2].copy()
+        if len(p) == 1:
+            if heading is None:
+                raise ConfigError("walk.heading_deg", heading, "a heading [deg] for a walk without a path")
+            self.headings = np.array([V.number("walk.heading", heading, unit="rad")])
+            self.length = math.inf
+            self._spline = None
+            return
+        seg = np.diff(p[:, :2], axis=0)
+        lens = np.linalg.norm(seg, axis=1)
+        if np.any(lens < 1e-3):
+            raise ConfigError("walk.path", points, "waypoints at least 1 mm apart on the floor")
+        self.headings = np.arctan2(seg[:, 1], seg[:, 0])
+        turns = _wrap(np.diff(self.headings))
+        if np.any(np.abs(turns) > np.radians(175)):
+            raise ConfigError("walk.path", points, "turns of less than 175 deg at each waypoint")
+        # Ramp centres at the waypoints' arc lengths, each ramp at most half of
+        # either neighbouring segment long.
+        cum = np.concatenate([[0.0], np.cumsum(lens)])
+        ell = np.minimum(self.turn_length, 0.5 * np.minimum(lens[:-1], lens[1:]))
+        self._centres, self._ells, self._turns = cum[1:-1], ell, turns
+        self.length = float(cum[-1])
+        n = max(math.ceil(self.length / self.NODE_SPACING), 2)
+        s = np.linspace(0.0, self.length, n + 1)
+        # Node positions: 5-point Gauss-Legendre on each interval of the unit tangent.
+        gx, gw = np.polynomial.legendre.leggauss(5)
+        h = np.diff(s)
+        mid = 0.5 * (s[:-1] + s[1:])
+        q = mid[:, None] + 0.5 * h[:, None] * gx[None, :]
+        psi_q = self._psi(q.ravel())[0].reshape(q.shape)
+        dx = 0.5 * h * (np.cos(psi_q) @ gw)
+        dy = 0.5 * h * (np.sin(psi_q) @ gw)
+        xy = self.start + np.column_stack([np.concatenate([[0], np.cumsum(dx)]), np.concatenate([[0], np.cumsum(dy)])])
+        psi = self._psi(s)[0]
+        self._spline = CubicHermiteSpline(s, xy, np.column_stack([np.cos(psi), np.sin(psi)]), axis=0)
+
+    def _psi(self, s):
+        """Heading [rad] and d heading / ds [rad/m] at arc lengths ``s``."""
+        s = np.asarray(s, float)
+        psi = np.full(s.shape, self.headings[0])
+        dpsi = np.zeros(s.shape)
+        if len(self.headings) == 1:
+            return psi, dpsi
+        for c, ell, turn in zip(self._centres, self._ells, self._turns, strict=True):
+            w, wd = smoothstep((s - c + 0.5 * ell) / ell)
+            psi = psi + turn * w
+            dpsi = dpsi + turn * wd / ell
+        return psi, dpsi
+
+    def at(self, s) -> tuple[np.ndarray, np.ndarray, float, float]:
+        """Floor point (2,) [m], unit tangent (2,), heading [rad], d heading/ds [rad/m] at arc length ``s``."""
+        s = float(s)
+        psi, dpsi = self._psi(s)
+        psi, dpsi = float(psi), float(dpsi)
+        tangent = np.array([math.cos(psi), math.sin(psi)])
+        if self._spline is None:
+            return self.start + s * tangent, tangent, psi, dpsi
+        if s <= 0:
+            return self.start + s * tangent, tangent, psi, dpsi
+        if s >= self.length:
+            end = self._spline(self.length)
+            return end + (s - self.length) * tangent, tangent, psi, dpsi
+        return self._spline(s), tangent, psi, dpsi
+
+
+# ---------------------------------------------------------------- what a person does
+@dataclass(frozen=True)
+class Walk:
+    """Walk at ``speed`` [m/s] from ``start_time`` [s] along ``path`` (waypoints (n, 2|3) [m],
+    starting at the first) or, without a path, endlessly along ``heading_deg`` [deg, from +x
+    towards +y]. ``turn_length`` [m]: path length over which a corner's heading change ramps."""
+
+    speed: float = 1.3
+    path: tuple | None = None
+    heading_deg: float | None = None
+    start_time: float = 0.0
+    turn_length: float = 1.0
+
+    def __post_init__(self):
+        V.positive("walk.speed", self.speed, "m/s")
+        V.time("walk.start_time", self.start_time)
+        if self.path is None and self.heading_deg is None:
+            raise ConfigError("walk.path", None, "a path (waypoints) or a heading_deg")
+        if self.heading_deg is not None:
+            V.number("walk.heading_deg", self.heading_deg, unit="deg")
+
+
+@dataclass(frozen=True)
+class Reach:
+    """Move the ``side`` hand ("right"/"left") to world point ``target`` (3,) [m].
+
+    The arm moves over ``duration`` [s] from ``start_time`` [s], holds for
+    ``hold`` [s], and returns over ``duration`` (``hold`` = inf keeps it there).
+    """
+
+    target: tuple = (0.5, 0.0, 1.2)
+    start_time: float = 0.0
+    duration: float = 1.0
+    hold: float = 1.0
+    side: str = "right"
+
+    def __post_init__(self):
+        V.vector("reach.target", self.target, 3, "m")
+        V.time("reach.start_time", self.start_time)
+        V.number("reach.duration", self.duration, lo=0.05, hi=60.0, unit="s")
+        if not (isinstance(self.hold, (int, float)) and not isinstance(self.hold, bool)
+                and (self.hold == math.inf or 0 <= self.hold <= V.TIME_MAX)):
+            raise ConfigError("reach.hold", self.hold, "a time >= 0 [s] or inf")
+        V.choice("reach.side", self.side, ("right", "left"))
+
+
+@dataclass(frozen=True)
+class Turn:
+    """Turn on the spot (while standing) to ``heading_deg`` [deg] over ``duration`` [s] from ``start_time`` [s]."""
+
+    heading_deg: float = 0.0
+    start_time: float = 0.0
+    duration: float = 1.0
+
+    def __post_init__(self):
+        V.number("turn.heading_deg", self.heading_deg, unit="deg")
+        V.time("turn.start_time", self.start_time)
+        V.number("turn.duration", self.duration, lo=0.05, hi=60.0, unit="s")
+
+
+START_BLEND = 0.6  # [s] from standing into the gait (and from the gait to standing at a path's end)
+SWAY_FREQUENCY = 0.2  # [Hz] of a standing person's lateral sway
+
+
+def _pair(vd) -> tuple[float, float]:
+    """(value, rate) of a curve at one time as floats."""
+    return float(np.ravel(vd[0])[0]), float(np.ravel(vd[1])[0])
+
+
+def _rot_z(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _rot_x(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+@dataclass
+class _Plan:
+    """Base position/velocity, yaw, roll (and rates), and q, qd at one time."""
+
+    p: np.ndarray
+    v: np.ndarray
+    yaw: float
+    yaw_d: float
+    roll: float
+    roll_d: float
+    q: np.ndarray
+    qd: np.ndarray
+
+    def blend(self, other: _Plan, w: float, wd: float) -> _Plan:
+        """(1 - w) self + w other, with the rate of w (``wd`` [1/s]) in the derivatives."""
+        def mix(a, b, ad, bd):
+            return (1 - w) * a + w * b, (1 - w) * ad + w * bd + wd * (b - a)
+        p, v = mix(self.p, other.p, self.v, other.v)
+        dyaw = float(_wrap(other.yaw - self.yaw))
+        yaw, yaw_d = self.yaw + w * dyaw, (1 - w) * self.yaw_d + w * other.yaw_d + wd * dyaw
+        roll, roll_d = mix(self.roll, other.roll, self.roll_d, other.roll_d)
+        q, qd = mix(self.q, other.q, self.qd, other.qd)
+        return _Plan(p, v, yaw, yaw_d, roll, roll_d, q, qd)
+
+
+class PersonMotion:
+    """Everything one person does, as exact functions of time.
+
+    Parameters
+    ----------
+    tree : KinematicTree
+        From :func:`human_tree` (its height is ``height``).
+    height : float
+        Body height [m].
+    position : (2,) or (3,) float
+        Where the person stands at first (floor point; z is the floor height) [m].
+    heading_deg : float
+        Where the person faces at first [deg, from +x towards +y].
+    walk : Walk, optional
+    turn : Turn, optional
+        A turn on the spot while standing (before the walk starts).
+    reach : Reach, optional
+    sway : float
+        Lateral sway amplitude of a standing person [m] (0.2 Hz).
+    """
+
+    def __init__(self, tree: KinematicTree, height: float, position=(0.0, 0.0), heading_deg: float = 0.0,
+                 walk: Walk | None = None, turn: Turn | None = None, reach: Reach | None = None,
+                 sway: float = 0.0):
+        self.tree = tree
+        self.height = H = check_height(height)
+        pos = V.array("person.position", position, (None,), "m")
+        if pos.shape not in ((2,), (3,)):
+            raise ConfigError("person.position", position, "a floor point (x, y) or (x, y, z) [m]")
+        self.floor = float(pos[2]) if len(pos) == 3 else 0.0
+        self.heading = math.radians(V.number("person.heading_deg", heading_deg, unit="deg"))
+        for name, obj, cls in (("walk", walk, Walk), ("turn", turn, Turn), ("reach", reach, Reach)):
+            if obj is not None and not isinstance(obj, cls):
+                raise ConfigError(f"person.{name}", obj, f"a {cls.__name__} or None")
+        self.walk, self.turn, self.reach = walk, turn, reach
+        self.sway = V.number("person.sway", sway, lo=0.0, hi=0.1, unit="m")
+        self.leg = leg_geometry(H)
+        self._col = {n: i for i, n in enumerate(tree.joint_names)}
+        q_rest = np.zeros(tree.n_joints)
+        for side, _ in SIDES:
+            q_rest[self._col[f"{side}_shoulder_abduction"]] = ARM_REST_ABDUCTION
+            q_rest[self._col[f"{side}_elbow"]] = ELBOW_REST
+        self._q_rest = q_rest
+        self.cycle = None
+        self.path = None
+        self.stop_time = math.inf
+        self.start_xy = start_xy = pos[:2].copy()
+        if walk is not None:
+            self.cycle = WalkCycle(GaitTiming(walk.speed, self.leg.leg_length), self.leg)
+            if walk.path is not None:
+                # The walk starts where the person stands and then passes the waypoints.
+                pts = V.array("walk.path", walk.path, (None, None), "m")
+                if pts.shape[1] not in (2, 3) or len(pts) < 1:
+                    raise ConfigError("walk.path", walk.path, "waypoints (n, 2) or (n, 3) [m]")
+                self.path = HeadingPath(np.vstack([start_xy, pts[:, :2]]), None, walk.turn_length)
+            else:
+                self.path = HeadingPath(start_xy[None], math.radians(walk.heading_deg), walk.turn_length)
+            if math.isfinite(self.path.length):
+                # Walking covers the path at the mean speed; the last START_BLEND
+                # seconds blend into standing at the path's end.
+                self.stop_time = walk.start_time + self.path.length / walk.speed
+        self._reach_q = None
+        self._last = None
+
+    # ------------------------------------------------------------ pieces
+    def _standing(self, t: float, xy, heading: float) -> _Plan:
+        yaw, yaw_d = heading, 0.0
+        if self.turn is not None and (self.walk is None or t < self.walk.start_time):
+            w, wd = smoothstep((t - self.turn.start_time) / self.turn.duration)
+            dturn = float(_wrap(math.radians(self.turn.heading_deg) - heading))
+            yaw, yaw_d = heading + dturn * float(w), dturn * float(wd) / self.turn.duration
+        q, qd = self._q_rest.copy(), np.zeros(self.tree.n_joints)
+        d, dd = 0.0, 0.0
+        if self.sway > 0:
+            arg = 2 * math.pi * SWAY_FREQUENCY * t
+            d, dd = self.sway * math.sin(arg), self.sway * 2 * math.pi * SWAY_FREQUENCY * math.cos(arg)
+        self._hip_abduction(q, qd, d, dd, 0.0, 0.0)
+        n = np.array([-math.sin(yaw), math.cos(yaw)])
+        p = np.array([xy[0] + d * n[0], xy[1] + d * n[1], self.floor + self.leg.leg_length])
+        v = np.array([dd * n[0] - d * math.cos(yaw) * yaw_d, dd * n[1] - d * math.sin(yaw) * yaw_d, 0.0])
+        return _Plan(p, v, yaw, yaw_d, 0.0, 0.0, q, qd)
+
+    def _hip_abduction(self, q, qd, d, dd, roll, roll_d) -> None:
+        """Legs that stay in their lanes under a lateral pelvis offset d [m] and a list (roll) [rad]."""
+        ht = self.leg.leg_length
+        a = math.atan(d / ht)
+        ad = dd / ht / (1 + (d / ht) ** 2)
+        for side, s in SIDES:
+            c = self._col[f"{side}_hip_abduction"]
+            q[c] = -s * (a + roll)
+            qd[c] = -s * (ad + roll_d)
+
+    def _walking(self, t: float) -> _Plan:
+        wc, path = self.cycle, self.path
+        tg = t - self.walk.start_time
+        (p,), (v,) = wc.body_translation(tg)
+        s, sd = float(p[0]), float(v[0])
+        xy, tangent, psi, dpsi = path.at(s)
+        psi_d = dpsi * sd
+        normal = np.array([-tangent[1], tangent[0]])
+        lat, lat_d = float(p[1]), float(v[1])
+        pos = np.array([*(xy + lat * normal), self.floor + p[2]])
+        vel = np.array([*(sd * tangent + lat_d * normal - lat * psi_d * tangent), v[2]])
+        g = wc.gait
+        tors, tors_d = _pair(g.curve("pelvis_torsion", tg))
+        lst, lst_d = _pair(g.curve("pelvis_list", tg))
+        roll, roll_d = -lst, -lst_d
+        q, qd = self._q_rest.copy(), np.zeros(self.tree.n_joints)
+        col = self._col
+        for side, off in (("right", 0.0), ("left", 0.5)):
+            for joint, curve in (("hip_flexion", "hip_flexion"), ("knee", "knee_flexion"), ("ankle", "ankle_flexion"),
+                                 ("shoulder_flexion", "shoulder_flexion"), ("elbow", "elbow_flexion")):
+                q[col[f"{side}_{joint}"]], qd[col[f"{side}_{joint}"]] = _pair(wc.joint_curve(curve, tg, off))
+        self._hip_abduction(q, qd, lat, lat_d, roll, roll_d)
+        # The legs turn against the pelvis torsion and keep swinging along the path.
+        for side, _ in SIDES:
+            q[col[f"{side}_hip_rotation"]], qd[col[f"{side}_hip_rotation"]] = -tors, -tors_d
+        thor, thor_d = _pair(g.curve("thorax_torsion", tg))
+        tilt, tilt_d = _pair(g.curve("pelvis_tilt", tg))
+        # The thorax turns against the pelvis (-thor in the world), the head keeps facing the path.
+        for name, val, der in (("torso_rotation", -thor - tors, -thor_d - tors_d), ("torso_tilt", tilt, tilt_d),
+                               ("neck_flexion", -tilt, -tilt_d), ("neck_rotation", thor, thor_d)):
+            q[col[name]], qd[col[name]] = val, der
+        return _Plan(pos, vel, psi + tors, psi_d + tors_d, roll, roll_d, q, qd)
+
+    def _plan(self, t: float) -> _Plan:
+        walk = self.walk
+        if walk is None or t <= walk.start_time:
+            plan = self._standing(t, self.start_xy, self.heading)
+        elif t < self.stop_time - START_BLEND:
+            plan = self._walking(t)
+            if t < walk.start_time + START_BLEND:
+                # From standing into the gait: the body accelerates over START_BLEND.
+                w, wd = smoothstep((t - walk.start_time) / START_BLEND)
+                stand = self._standing(walk.start_time, self.start_xy, self.heading)
+                plan = stand.blend(plan, float(w), float(wd) / START_BLEND)
+        else:
+            end_xy, _, end_psi, _ = self.path.at(self.path.length)
+            stand = self._standing(t, end_xy, end_psi)
+            if t < self.stop_time:
+                w, wd = smoothstep((t - self.stop_time + START_BLEND) / START_BLEND)
+                plan = self._walking(t).blend(stand, float(w), float(wd) / START_BLEND)
+            else:
+                plan = stand
+        if self.reach is not None:
+            self._apply_reach(t, plan)
+        return plan
+
+    # ------------------------------------------------------------ reaching
+    def _arm_ik(self, target_thorax: np.ndarray, side: str) -> np.ndarray:
+        """(shoulder_flexion, shoulder_abduction, elbow) [rad] putting the hand centre at a thorax-frame point.
+
+        Upper arm a along -z from the shoulder, forearm + half hand b; the
+        elbow flexes in the arm's sagittal plane. With h0 = (b sin e, 0,
+        -a - b cos e) the hand at zero shoulder angles, the abduction solves
+        the lateral component and the flexion turns the rest in the x-z
+        plane. The distance is clamped into [|a - b|, a + b] (1 mm inside)
+        and every angle into its joint limits.
+        """
+        H = self.height
+        s = 1.0 if side == "left" else -1.0
+        shoulder = self.tree.joint(f"{side}_shoulder_flexion").origin.position
+        a, b = UPPER_ARM * H, (FOREARM + 0.5 * HAND) * H
+        d = np.asarray(target_thorax, float) - shoulder
+        r = float(np.linalg.norm(d))
+        r_c = min(max(r, abs(a - b) + 1e-3), a + b - 1e-3)
+        d = d * (r_c / r) if r > 0 else np.array([0.0, 0.0, -r_c])
+        cos_inner = (a * a + b * b - r_c * r_c) / (2 * a * b)
+        elbow = math.pi - math.acos(max(-1.0, min(1.0, cos_inner)))
+        px, qz = b * math.sin(elbow), -a - b * math.cos(elbow)
+        gamma = math.asin(max(-1.0, min(1.0, -d[1] / qz)))  # rotation about +x
+        phi = math.atan2(d[2], d[0]) - math.atan2(qz * math.cos(gamma), px)
+        phi = float(_wrap(phi))
+        out = np.array([phi, s * gamma, elbow])
+        for i, kind in enumerate(("shoulder_flexion", "shoulder_abduction", "elbow")):
+            lo, hi = _limits(kind)
+            out[i] = min(max(out[i], lo), hi)
+        return out
+
+    def _apply_reach(self, t: float, plan: _Plan) -> None:
+        rc = self.reach
+        t1 = rc.start_time + rc.duration
+        t2 = t1 + rc.hold
+        if t <= rc.start_time or t >= t2 + rc.duration:
+            return
+        if self._reach_q is None:
+            # Solved once, in the thorax frame at the reach's start (exact for a
+            # standing person; a walking one carries the arm pose along).
+            st = self.tree.forward(*self._at(rc.start_time, reach=False))
+            thorax = st.pose("thorax")
+            self._reach_q = self._arm_ik(thorax.inverse().apply(np.asarray(rc.target, float)), rc.side)
+        if t < t1:
+            w, wd = smoothstep((t - rc.start_time) / rc.duration)
+        elif t <= t2:
+            w, wd = 1.0, 0.0
+        else:
+            w, wd = smoothstep((t - t2) / rc.duration)
+            w, wd = 1.0 - w, -wd
+        w, wd = float(w), float(wd) / rc.duration
+        for k, joint in enumerate(("shoulder_flexion", "shoulder_abduction", "elbow")):
+            c = self._col[f"{rc.side}_{joint}"]
+            a, ad = plan.q[c], plan.qd[c]
+            plan.q[c] = (1 - w) * a + w * self._reach_q[k]
+            plan.qd[c] = (1 - w) * ad + wd * (self._reach_q[k] - a)
+
+    # ------------------------------------------------------------ outputs
+    def _at(self, t: float, reach: bool = True):
+        """(q, qd, base MotionState) at t (the last time is cached: links ask in turn)."""
+        t = check_time(t)
+        key = (t, reach)
+        if self._last is not None and self._last[0] == key:
+            return self._last[1]
+        saved = self.reach
+        if not reach:
+            self.reach = None
+        try:
+            plan = self._plan(t)
+        finally:
+            self.reach = saved
+        rz = _rot_z(plan.yaw)
+        rot = rz @ _rot_x(plan.roll)
+        omega = np.array([0.0, 0.0, plan.yaw_d]) + rz[:, 0] * plan.roll_d
+        base = MotionState(Pose(plan.p, rot), plan.v, omega)
+        out = (plan.q, plan.qd, base)
+        self._last = (key, out)
+        return out
+
+    def q(self, t: float) -> np.ndarray:
+        return self._at(t)[0].copy()
+
+    def qd(self, t: float) -> np.ndarray:
+        return self._at(t)[1].copy()
+
+    def base_state(self, t: float) -> MotionState:
+        return self._at(t)[2]
+
+    def to_dict(self) -> dict:
+        def spec(o):
+            return None if o is None else {k: (list(v) if isinstance(v, tuple) else v) for k, v in vars(o).items()}
+        return {"type": "person", "height": self.height, "position": [*self.start_xy.tolist(), self.floor],
+                "heading_deg": math.degrees(self.heading), "walk": spec(self.walk), "turn": spec(self.turn),
+                "reach": spec(self.reach), "sway": self.sway}
+
+
+class PersonJoints(JointMotion):
+    """The joint trajectory of a :class:`PersonMotion` (every joint of its tree)."""
+
+    def __init__(self, person: PersonMotion):
+        self.person = person
+
+    @property
+    def n_columns(self) -> int:
+        return self.person.tree.n_joints
+
+    def q(self, t):
+        return self.person.q(t)
+
+    def qd(self, t):
+        return self.person.qd(t)
+
+    def q_qd(self, t):
+        q, qd, _ = self.person._at(t)
+        return q.copy(), qd.copy()
+
+    def to_dict(self):
+        return self.person.to_dict()
+
+
+@dataclass(frozen=True, eq=False)
+class PersonBase(Motion):
+    """The pelvis (root link) motion of a :class:`PersonMotion`."""
+
+    person: PersonMotion = field(default=None)
+
+    def state(self, t):
+        return self.person.base_state(t)
+
+    def to_dict(self):
+        return self.person.to_dict()
+
+
+def Walker(name: str = "person", height: float = 1.75, speed: float = 1.3, start=(0.0, 0.0),
+           heading_deg: float | None = 0.0, path=None, start_time: float = 0.0, *,
+           reach: Reach | None = None, clothing: str | None = None, turn_length: float = 1.0) -> ArticulatedBody:
+    """A walking person as an :class:`ArticulatedBody` (add it with ``body.add_to(scene)``).
+
+    Walks at ``speed`` [m/s] from ``start`` (floor point [m]) from
+    ``start_time`` [s], through the waypoints ``path`` (then stops), or
+    without a path endlessly along ``heading_deg``.
+    """
+    walk = Walk(speed, None if path is None else tuple(map(tuple, np.atleast_2d(np.asarray(path, float)))),
+                heading_deg if path is None else None, start_time, turn_length)
+    return person_body(name, height, start, heading_deg if heading_deg is not None else 0.0, walk=walk,
+                       reach=reach, clothing=clothing)
+
+
+def person_body(name: str, height: float = 1.75, position=(0.0, 0.0), heading_deg: float = 0.0, *,
+                walk: Walk | None = None, turn: Turn | None = None, reach: Reach | None = None,
+                sway: float = 0.0, clothing: str | None = None) -> ArticulatedBody:
+    """A person (standing, turning, walking, reaching) as an :class:`ArticulatedBody`."""
+    tree = human_tree(height, clothing=clothing, name=name if isinstance(name, str) and name else "human")
+    motion = PersonMotion(tree, height, position, heading_deg, walk=walk, turn=turn, reach=reach, sway=sway)
+    return ArticulatedBody(name, tree, PersonJoints(motion), PersonBase(motion))
+
+
+def add_person(scene, name: str = "person", height: float = 1.75, position=(0.0, 0.0), heading_deg: float = 0.0,
+               *, walk: Walk | None = None, turn: Turn | None = None, reach: Reach | None = None,
+               sway: float = 0.0, clothing: str | None = None) -> ArticulatedBody:
+    """Build a person (see :func:`person_body`) and add its links to ``scene`` as ``f"{name}/{link}"``."""
+    body = person_body(name, height, position, heading_deg, walk=walk, turn=turn, reach=reach, sway=sway,
+                       clothing=clothing)
+    body.add_to(scene)
+    return body
