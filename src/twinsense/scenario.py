@@ -245,6 +245,16 @@ class ObjectSpec(_Model):
     magnet: MagnetSpec | None = None
 
 
+class RobotSpec(_Model):
+    """An articulated robot: an installed description or a .urdf / MJCF file, its base pose, its joint motion."""
+
+    name: str = Field(min_length=1, pattern=r"^[^/]+$")
+    description: str = Field(min_length=1)
+    base: PoseSpec = PoseSpec()
+    joints: dict[str, Any] | None = None  # see twinsense.robots.spec.joint_motion_from_dict
+    materials: dict[str, str] = {}
+
+
 class MountSpec(_Model):
     pose: PoseSpec = PoseSpec()
     parent: str | None = None
@@ -295,10 +305,11 @@ class ScenarioSpec(_Model):
     seed: Int = Field(0, ge=0, lt=2**64)
     materials: list[MaterialSpec] = []
     objects: list[ObjectSpec] = []
+    robots: list[RobotSpec] = []
     sensors: list[SensorSpec] = []
     outputs: OutputsSpec = OutputsSpec()
 
-    @field_validator("objects", "sensors", "materials")
+    @field_validator("objects", "robots", "sensors", "materials")
     @classmethod
     def _unique_names(cls, v, info):
         names = [o.name for o in v]
@@ -496,11 +507,18 @@ def scenario_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None 
                 continue
         if len(parts) == 2:
             scene.add(SceneObject(os_.name, parts[0], mat, parts[1], frozenset(os_.layers), magnet))
+    problems += _add_robots(spec, scene, base_dir)
+    parents = [o.name for o in spec.objects] + [n for n in (*[o.name for o in scene.objects], *scene.frame_names)
+                                                if "/" in n]
+    failed_robots = {r.name for r in spec.robots} - {n.split("/")[0] for n in parents}  # reported once, above
     sensors = []
     for i, ss in enumerate(spec.sensors):
-        if ss.mount.parent is not None and ss.mount.parent not in {o.name for o in spec.objects}:
+        if ss.mount.parent is not None and ss.mount.parent.split("/")[0] in failed_robots:
+            continue
+        if ss.mount.parent is not None and ss.mount.parent not in parents:
             problems.append((f"sensors[{i}].mount.parent", ss.mount.parent,
-                             "the name of an object in this scenario: " + ", ".join(o.name for o in spec.objects)))
+                             "the name of an object or robot link ('robot/link') in this scenario: "
+                             + ", ".join(parents)))
             continue
         try:
             mount = Mount(ss.mount.pose.build(f"sensors[{i}].mount.pose"), ss.mount.parent)
@@ -529,6 +547,22 @@ def scenario_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None 
     if problems:
         raise ScenarioError(source, problems)
     return Scenario(spec.name, scene, sensors, spec.duration, spec.seed, spec.outputs, source, data, limits)
+
+
+def _add_robots(spec: ScenarioSpec, scene: Scene, base_dir: Path) -> list:
+    """Add the ``robots:`` entries to ``scene`` (one object per link, "robot/link"); their problems."""
+    problems = []
+    for i, rs in enumerate(spec.robots):
+        try:
+            from twinsense.robots.spec import robot_from_dict
+
+            body = robot_from_dict(rs.name, rs.description, base=rs.base.build(f"robots[{i}].base"),
+                                   joints=rs.joints, materials=rs.materials, base_dir=base_dir)
+            body.add_to(scene)
+        except ConfigError as e:
+            tail = e.field.removeprefix(f"{rs.name}.")
+            problems.append((e.field if e.field.startswith("robots[") else f"robots[{i}].{tail}", e.value, e.allowed))
+    return problems
 
 
 def _replay_sensor(ss: SensorSpec, i: int, mount: Mount, base_dir: Path, sensors: list) -> list:

@@ -1,0 +1,94 @@
+"""Robots described by plain data (a scenario file's ``robots:`` entries).
+
+``joints`` holds exactly one of::
+
+    keyframes: {times: [0, 2, 4], values: [[...], [...], [...]]}   # rows: one value per joint
+    constant_velocity: {q0: [...], qd: [...]}
+    fixed: [...]                    # or {joint name: value}
+    setpoints: [...]                # initial values; pushed from outside while running
+
+with an optional ``joint_names`` list naming the columns (default: every
+movable joint in the description's order). Joints not named hold their home
+value.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from twinsense.errors import ConfigError
+from twinsense.robots.registry import ROBOTS, load_robot, robot_names
+from twinsense.scene.articulated import (
+    ArticulatedBody,
+    JointConstantVelocity,
+    JointKeyframes,
+    JointMotion,
+    JointSetpoints,
+)
+from twinsense.scene.motion import Motion
+from twinsense.scene.pose import Pose
+
+JOINT_MOTION_KINDS = ("keyframes", "constant_velocity", "fixed", "setpoints")
+
+
+def joint_motion_from_dict(data: Any, field: str = "joints") -> JointMotion | None:
+    """A joint motion from a mapping with one of ``JOINT_MOTION_KINDS`` (None for None)."""
+    if data is None:
+        return None
+    if not isinstance(data, dict):
+        raise ConfigError(field, data, "a mapping with one of: " + ", ".join(JOINT_MOTION_KINDS))
+    extra = set(data) - {*JOINT_MOTION_KINDS, "joint_names"}
+    kinds = [k for k in JOINT_MOTION_KINDS if k in data]
+    if extra or len(kinds) != 1:
+        raise ConfigError(field, sorted(data), "exactly one of: " + ", ".join(JOINT_MOTION_KINDS)
+                          + " (and optionally joint_names)")
+    kind, value = kinds[0], data[kinds[0]]
+    names = data.get("joint_names")
+    if kind == "fixed" and isinstance(value, dict):
+        if names is not None:
+            raise ConfigError(f"{field}.joint_names", names, "no joint_names when fixed is a {joint: value} mapping")
+        names, value = list(value), list(value.values())
+    try:
+        if kind == "keyframes":
+            if not isinstance(value, dict) or set(value) != {"times", "values"}:
+                raise ConfigError(f"{field}.keyframes", value, "a mapping {times: [...], values: [[...], ...]}")
+            return JointKeyframes(value["times"], value["values"], names)
+        if kind == "constant_velocity":
+            if not isinstance(value, dict) or set(value) != {"q0", "qd"}:
+                raise ConfigError(f"{field}.constant_velocity", value, "a mapping {q0: [...], qd: [...]}")
+            return JointConstantVelocity(value["q0"], value["qd"], names)
+        if not isinstance(value, (list, tuple)):
+            raise ConfigError(f"{field}.{kind}", value, "a list of joint values [rad or m]"
+                              + (" or a mapping {joint: value}" if kind == "fixed" else ""))
+        if kind == "fixed":
+            return JointConstantVelocity(value, np.zeros(len(value)), names)
+        return JointSetpoints(value, names)
+    except ConfigError as e:
+        f = e.field if e.field.startswith(f"{field}.") else f"{field}.{e.field.removeprefix('joints.')}"
+        raise ConfigError(f, e.value, e.allowed) from None
+
+
+def robot_from_dict(name: str, description: str, *, base: Pose | Motion | None = None, joints: Any = None,
+                    materials: dict | None = None, base_dir: Path | None = None) -> ArticulatedBody:
+    """An articulated robot from a description (installed name or file path, relative to ``base_dir``)."""
+    if not isinstance(description, str) or not description:
+        raise ConfigError("description", description, "an installed robot (" + ", ".join(robot_names())
+                          + ") or the path of a .urdf / MJCF .xml file")
+    motion = joint_motion_from_dict(joints)
+    if description in ROBOTS:
+        target: Any = description
+    else:
+        p = Path(description)
+        if not p.is_absolute() and base_dir is not None:
+            p = base_dir / p
+        if p.suffix.lower() not in (".urdf", ".xml", ".mjcf"):
+            raise ConfigError("description", description, "an installed robot (" + ", ".join(robot_names())
+                              + ") or the path of a .urdf / MJCF .xml file")
+        if not p.is_file():
+            raise ConfigError("description", str(p), "an existing robot description file (.urdf or MJCF .xml), "
+                              "or an installed robot: " + ", ".join(robot_names()))
+        target = p
+    return load_robot(target, name=name, joints=motion, materials=materials or None, base=base)
