@@ -4,6 +4,8 @@ radar range coordinate matches the closed form c fs / (2 S n_fft)."""
 
 from __future__ import annotations
 
+import json
+import re
 import sys
 from pathlib import Path
 
@@ -123,3 +125,20 @@ def test_missing_xarray_names_the_extra(rec_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "xarray", None)  # as if not installed: import raises ImportError
     with pytest.raises(ConfigError, match=r"pip install 'twinsense\[xarray\]'"):
         open_xarray(rec_path)
+
+
+def test_matlab_snippet_paths_exist_in_a_recording(rec_path):
+    # The recording-format page's MATLAB block reads the depth camera of examples/office_depth.yaml.
+    text = (ROOT / "docs" / "recording-format.md").read_text()
+    (block,) = re.findall(r"```matlab\n(.*?)```", text, flags=re.S)
+    paths = re.findall(r"h5(?:read|info|disp)\(f, '([^']+)'\)", block)
+    attrs = re.findall(r"h5readatt\(f, '([^']+)', '([^']+)'\)", block)
+    assert {"/depth/depth", "/depth/timestamps"} <= set(paths) and attrs
+    with h5py.File(rec_path, "r") as f:
+        for p in paths:
+            assert p in f, p
+        for group, attr in attrs:
+            assert attr in f[group].attrs
+        cam = json.loads(f["depth"].attrs["config"])["config"]["camera"]
+        # Stored (n_frames, H, W) in C order: MATLAB, column-major, lists it as W x H x n_frames.
+        assert f["depth/depth"].shape == (len(f["depth/timestamps"]), cam["height"], cam["width"])
