@@ -86,3 +86,12 @@ def test_cull_keeps_every_ray_that_hits_and_moves_it_exactly(shared):
     # Local rays: the bits of the NumPy rotation.
     np.testing.assert_array_equal(o_local, _rotate(np.take(o, sel, axis=0) - pos, rot))
     np.testing.assert_array_equal(d_local, _rotate(np.take(d, sel, axis=0), rot))
+
+
+def test_rotate_rows_gives_the_bits_of_the_numpy_form():
+    from twinsense.linalg import rotate_rows as numpy_rotate
+    from twinsense.render.kernels import rotate_rows
+
+    v = np.random.default_rng(2).normal(size=(5000, 3))
+    m = Pose.from_euler_deg((0, 0, 0), (12.0, -40.0, 75.0)).rotation
+    np.testing.assert_array_equal(rotate_rows(v, m), numpy_rotate(v, m))

@@ -20,6 +20,7 @@ import numpy as np
 
 from twinsense.linalg import rotate_rows
 from twinsense.render import Hits, PinholeCamera, Rays, caster_for
+from twinsense.render.kernels import rotate_rows as rotate_rows_once
 from twinsense.render.parallel import default_workers
 from twinsense.scene.scene import Scene
 from twinsense.tof.config import ToFConfig
@@ -81,7 +82,8 @@ class ToFRenderer:
         key = rotation.tobytes() + position.tobytes()
         r = self._rays.get(key)
         if r is None:
-            d = rotate_rows(self._sub_rows, rotation.T)
+            # One compiled pass (the bits of linalg.rotate_rows): a moving camera pays it every frame.
+            d = rotate_rows_once(self._sub_rows, np.ascontiguousarray(rotation.T, dtype=float))
             d.setflags(write=False)
             o = np.array(position, dtype=float)
             o.setflags(write=False)
