@@ -33,6 +33,9 @@ class ServeResult:
         slower than ``rate`` there).
     stopped : BaseException or None
         What stopped the run early (a stop request, an error).
+    errors : dict[str, str]
+        Per sink name, the error that stopped a sink's transport during the
+        run (its later frames are counted as dropped; the run went on).
     """
 
     result: SimulationResult | None
@@ -41,6 +44,7 @@ class ServeResult:
     wall_time: float = 0.0
     late: int = 0
     stopped: BaseException | None = None
+    errors: dict[str, str] = field(default_factory=dict)
 
     def summary(self) -> str:
         """One line per sink: frames sent and dropped per sensor."""
@@ -48,7 +52,8 @@ class ServeResult:
         for sink, sent in self.sent.items():
             drops = self.dropped.get(sink, {})
             per = ", ".join(f"{s}: {n} sent, {drops.get(s, 0)} dropped" for s, n in sent.items())
-            lines.append(f"{sink}: {per or 'no sensors'}")
+            err = f" (transport failed: {self.errors[sink]})" if sink in self.errors else ""
+            lines.append(f"{sink}: {per or 'no sensors'}{err}")
         return "\n".join(lines)
 
 
@@ -126,7 +131,9 @@ def serve(scene, sensors, duration: float, sinks: Sequence[FrameSink], *, rate: 
                 res.stopped = res.stopped or err
         for name, s in zip(names, sinks):
             res.dropped[name] = dict(s.dropped)
-            res.sent[name] = dict(getattr(s, "sent", {}))
+            res.sent[name] = dict(getattr(s, "sent", {}) or {s2: 0 for s2 in s.dropped})
+            if getattr(s, "error", None) is not None:
+                res.errors[name] = f"{type(s.error).__name__}: {s.error}"
         res.wall_time = clock() - start
     return res
 
