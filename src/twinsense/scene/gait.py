@@ -68,6 +68,7 @@ from twinsense.errors import ConfigError
 STRIDE_COEFF = 1.346  # RL_c = 1.346 sqrt(RV)  (Boulic 1990, eq. 1)
 SUPPORT_SLOPE = 0.752  # D_s = 0.752 D_c - 0.143 [s]  (Boulic 1990, eq. 3)
 SUPPORT_OFFSET = 0.143  # [s]
+MERGE_GAP = 0.02  # [cycle] control points closer than this blend into one
 RV_MAX = 3.0  # the upper end of the model's third RV range [1/s]
 
 # The curves a walker uses, by name. "forward", "lateral", "vertical" are
@@ -138,37 +139,61 @@ class GaitTiming:
         return self.support_duration / self.cycle_duration
 
 
+def smoothstep(s) -> tuple[np.ndarray, np.ndarray]:
+    """C1 ramp 3 s^2 - 2 s^3 on [0, 1] (0 before, 1 after) and its derivative d/ds."""
+    s = np.clip(np.asarray(s, float), 0.0, 1.0)
+    return s * s * (3 - 2 * s), 6 * s * (1 - s)
+
+
+def _periodic_pchip(x: np.ndarray, y: np.ndarray) -> PchipInterpolator:
+    """PCHIP through 1-periodic points (x in [0, 1), sorted), repeated a period either side."""
+    return PchipInterpolator(np.concatenate([x - 1.0, x, x + 1.0]), np.concatenate([y, y, y]))
+
+
 @dataclass(frozen=True, eq=False)
 class PeriodicCurve:
     """A 1-periodic curve through control points (x [cycle], y), PCHIP-interpolated.
 
     The control points are repeated one period either side so that the
-    interpolant and its derivative join smoothly across u = 0 == 1.
+    interpolant and its derivative join smoothly across u = 0 == 1. Two
+    points closer than ``MERGE_GAP`` (x1 + 1 == x3 in the hip curve below
+    RV 1.3, and just apart above it) would bend the curve sharply between
+    them: the curve through them blends, with weight smoothstep(gap /
+    MERGE_GAP), with the curve through their midpoint, so it changes
+    continuously as the points separate with RV.
     """
 
     x: tuple
     y: tuple
-    _spline: PchipInterpolator = field(init=False, repr=False)
-    _deriv: PchipInterpolator = field(init=False, repr=False)
+    _parts: tuple = field(init=False, repr=False)
 
     def __post_init__(self):
         x = np.mod(np.asarray(self.x, float), 1.0)
         y = np.asarray(self.y, float)
         order = np.argsort(x, kind="stable")
         x, y = x[order], y[order]
-        # A point one period from another (x1 + 1 == x3 in the hip curve) is the same point.
-        keep = np.concatenate([[True], np.diff(x) > 1e-12])
-        x, y = x[keep], y[keep]
-        xs = np.concatenate([x - 1.0, x, x + 1.0])
-        ys = np.concatenate([y, y, y])
-        spline = PchipInterpolator(xs, ys)
-        object.__setattr__(self, "_spline", spline)
-        object.__setattr__(self, "_deriv", spline.derivative())
+        gaps = np.diff(np.append(x, x[0] + 1.0))
+        i = int(np.argmin(gaps))
+        parts = []
+        if gaps[i] < MERGE_GAP:
+            j = (i + 1) % len(x)
+            xm, ym = np.mod(x[i] + 0.5 * gaps[i], 1.0), 0.5 * (y[i] + y[j])
+            xs, ys = np.append(np.delete(x, [i, j]), xm), np.append(np.delete(y, [i, j]), ym)
+            o = np.argsort(xs, kind="stable")
+            w = float(smoothstep(gaps[i] / MERGE_GAP)[0])
+            parts.append((1.0 - w, _periodic_pchip(xs[o], ys[o])))
+            if w > 0:
+                parts.append((w, _periodic_pchip(x, y)))
+        else:
+            parts.append((1.0, _periodic_pchip(x, y)))
+        object.__setattr__(self, "_parts", tuple((w, sp, sp.derivative()) for w, sp in parts))
 
     def __call__(self, u) -> tuple[np.ndarray, np.ndarray]:
         """Value and d/du at phase(s) ``u`` [cycles] (any real; taken mod 1)."""
         w = np.mod(np.asarray(u, float), 1.0)
-        return self._spline(w), self._deriv(w)
+        val = sum(k * sp(w) for k, sp, _ in self._parts)
+        der = sum(k * dp(w) for k, _, dp in self._parts)
+        return val, der
 
 
 def _ramp(rv: float, lo: float, span: float) -> float:
@@ -346,12 +371,6 @@ _GRID = 1024  # phase samples per stance to find where the contact rolls from he
 HIP_SCALE_RANGE = (0.05, 3.0)
 MIN_TRANSFER = 0.02  # [cycle] shortest weight transfer between the feet
 SWING_CLEARANCE = 0.01  # [m] lowest sole point of a swinging foot above the floor
-
-
-def smoothstep(s) -> tuple[np.ndarray, np.ndarray]:
-    """C1 ramp 3 s^2 - 2 s^3 on [0, 1] (0 before, 1 after) and its derivative d/ds."""
-    s = np.clip(np.asarray(s, float), 0.0, 1.0)
-    return s * s * (3 - 2 * s), 6 * s * (1 - s)
 
 
 class WalkCycle:

@@ -1,0 +1,139 @@
+"""The Boulic walking model: timing formulas, curves and their exact derivatives, the planted-foot body translation."""
+
+import numpy as np
+import pytest
+
+from twinsense.errors import ConfigError
+from twinsense.scene.gait import CURVE_NAMES, BoulicGait, GaitTiming, LegGeometry, PeriodicCurve, WalkCycle
+
+H = 1.75
+LEG = LegGeometry(0.245 * H, 0.246 * H, 0.039 * H, 0.038 * H, 0.114 * H, 0.0478 * H)
+
+
+@pytest.mark.parametrize("speed", [0.9, 1.3, 1.8])
+def test_timing_follows_boulic_formulas(speed):
+    # Boulic 1990: RV = v / H_t, RL_c = 1.346 sqrt(RV) (stride in H_t), D_c = RL_c / RV [s],
+    # D_s = 0.752 D_c - 0.143 [s]. Written out here independently; only float rounding differs (1e-12).
+    ht = LEG.leg_length
+    rv = speed / ht
+    tm = GaitTiming(speed, ht)
+    assert tm.relative_velocity == pytest.approx(rv, rel=1e-12, abs=0)
+    assert tm.stride_length == pytest.approx(1.346 * np.sqrt(rv) * ht, rel=1e-12, abs=0)
+    assert tm.step_length == pytest.approx(0.673 * np.sqrt(rv) * ht, rel=1e-12, abs=0)
+    assert tm.cycle_duration == pytest.approx(1.346 / np.sqrt(rv), rel=1e-12, abs=0)
+    assert tm.cadence == pytest.approx(120 * np.sqrt(rv) / 1.346, rel=1e-12, abs=0)
+    assert tm.support_duration == pytest.approx(0.752 * 1.346 / np.sqrt(rv) - 0.143, rel=1e-12, abs=0)
+    # Stride / cycle time is the speed: the walker covers exactly v D_c per cycle.
+    assert tm.stride_length / tm.cycle_duration == pytest.approx(speed, rel=1e-12, abs=0)
+
+
+def test_timing_against_gait_laboratory_figures():
+    # A 1.75 m adult at 1.3-1.4 m/s: cadence ~105-115 steps/min and step ~0.7-0.75 m
+    # (Perry & Burnfield, Gait Analysis, 2nd ed. 2010, ch. 1: free walking 1.37 m/s, 113 steps/min,
+    # stride 1.41 m). The model gives 107 steps/min and a 1.53 m stride at 1.4 m/s: within 10 %.
+    tm = GaitTiming(1.4, LEG.leg_length)
+    assert tm.cadence == pytest.approx(113, rel=0.1, abs=0)
+    assert tm.stride_length == pytest.approx(1.41, rel=0.1, abs=0)
+
+
+def test_curves_pass_through_the_control_points():
+    # PCHIP interpolates: the published control points (RV in [0.5, 1.3)) are hit exactly.
+    g = BoulicGait(GaitTiming(1.0, LEG.leg_length))
+    dc = g.cycle_duration
+    rv = 1.0 / LEG.leg_length
+    for name, u, deg in (("hip_flexion", 0.5, -15), ("hip_flexion", 0.9, 25), ("knee_flexion", 0.75, 70),
+                         ("knee_flexion", 0.4, 3), ("ankle_flexion", 0.08, -18), ("ankle_flexion", 0.5, 8),
+                         ("thorax_torsion", 0.4, -4.5 / 3 * rv), ("elbow_flexion", 0.05, 8 * (rv - 0.5) / 0.8 + 6)):
+        assert np.degrees(g.curve(name, u * dc)[0]) == pytest.approx(deg, rel=1e-12, abs=1e-12)
+    # Closed forms: shoulder 3 - a/2 - a cos 2 pi u with a = 9.88 RV [deg]; torsion 4 RV cos 2 pi u.
+    assert np.degrees(g.curve("shoulder_flexion", 0.0)[0]) == pytest.approx(3 - 1.5 * 9.88 * rv, rel=1e-12, abs=0)
+    assert np.degrees(g.curve("pelvis_torsion", 0.0)[0]) == pytest.approx(4 * rv, rel=1e-12, abs=0)
+
+
+@pytest.mark.parametrize("speed", [0.9, 1.4, 2.2])
+def test_curve_derivatives_are_exact_and_periodic(speed):
+    g = BoulicGait(GaitTiming(speed, LEG.leg_length))
+    dc = g.cycle_duration
+    t = np.linspace(0.013, 2.9, 173)
+    h = 1e-6
+    for name in CURVE_NAMES:
+        v, d = g.curve(name, t)
+        fd = (g.curve(name, t + h)[0] - g.curve(name, t - h)[0]) / (2 * h)
+        # Central difference: truncation h^2 |f'''| / 6 < 1e-9 (|f'''| < 1e3 rad/s^3 for these curves)
+        # plus rounding 1e-16 / h = 1e-10; the list's cosine pieces join with a jump in f'', which a
+        # difference straddling a join sees as ~h |f''| < 1e-5 (not at these sample times).
+        np.testing.assert_allclose(d, fd, rtol=0, atol=1e-6, err_msg=name)
+        # One cycle later, the same value and rate (periodic control points; u mod 1 in the closed forms).
+        v1, d1 = g.curve(name, t + dc)
+        np.testing.assert_allclose(v1, v, rtol=0, atol=1e-12, err_msg=name)
+        np.testing.assert_allclose(d1, d, rtol=0, atol=1e-9, err_msg=name)
+
+
+def test_periodic_curve_joins_smoothly_across_the_cycle_end():
+    c = PeriodicCurve((0.2, 0.5, 0.9), (25.0, -15.0, 30.0))
+    lo, dlo = c(1.0 - 1e-12)
+    hi, dhi = c(0.0)
+    assert lo == pytest.approx(hi, rel=0, abs=1e-9)  # C0: slope ~100/cycle times 1e-12
+    assert dlo == pytest.approx(dhi, rel=0, abs=1e-6)  # C1: PCHIP slopes from periodic neighbours
+
+
+@pytest.mark.parametrize("rv_edge", [0.5, 1.3, 1.3 + 0.1 * 1.7])
+def test_curves_are_continuous_across_the_speed_ranges(rv_edge):
+    # The three RV ranges join continuously (the book's script flips the sign of two
+    # amplitudes and has one typo; the continuous reading is used), and so does the hip
+    # curve where its two close control points stop blending (RV = 1.47). dRV = 1e-9 moves the
+    # curves by at most ~1e-7 rad (slopes of the control points in RV are < 100 deg per unit RV).
+    ht = LEG.leg_length
+    a = BoulicGait(GaitTiming((rv_edge - 1e-9) * ht, ht))
+    b = BoulicGait(GaitTiming((rv_edge + 1e-9) * ht, ht))
+    u = np.linspace(0, 0.99, 50)
+    for name in CURVE_NAMES:
+        np.testing.assert_allclose(a._per_cycle(name, u)[0], b._per_cycle(name, u)[0], rtol=0, atol=1e-6,
+                                   err_msg=name)
+
+
+@pytest.mark.parametrize("speed", [1.0, 1.4, 1.9])
+def test_walk_cycle_mean_speed_and_planted_stance_foot(speed):
+    w = WalkCycle(GaitTiming(speed, LEG.leg_length), LEG)
+    dc = w.timing.cycle_duration
+    t = np.linspace(0.0, dc, 1201)[:-1]
+    p, v = w.body_translation(t)
+    p1, _ = w.body_translation(t + 3 * dc)
+    # Three cycles later the pelvis is three strides ahead, at the same height and sway:
+    # the mean speed is exactly v (rounding only).
+    np.testing.assert_allclose(p1[:, 0] - p[:, 0], 3 * w.timing.stride_length, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(p1[:, 1:], p[:, 1:], rtol=0, atol=1e-9)
+    # Velocities are exact derivatives: central differences agree to 1e-6 m/s away from the
+    # few instants where the contact rolls from heel to toe (a jump in the pelvis acceleration).
+    h = 1e-7
+    fd = (w.body_translation(t + h)[0] - w.body_translation(t - h)[0]) / (2 * h)
+    assert np.median(np.abs(fd - v)) < 1e-6
+    # In single support the standing foot's contact point does not move (sagittal model, exact).
+    _, z, xd, _ = w.sole_points(t)
+    u = t / dc
+    single = (u > w.double_support + 0.01) & (u < 0.49)
+    low = np.argmin(z[:2], axis=0)
+    cols = np.arange(len(t))
+    np.testing.assert_allclose((xd[low, cols] + v[:, 0])[single], 0.0, rtol=0, atol=1e-9)
+    np.testing.assert_allclose((z[low, cols] + p[:, 2])[single], 0.0, rtol=0, atol=1e-12)
+
+
+def test_walk_cycle_fits_the_hip_amplitude_near_the_published_curves_at_normal_speed():
+    # At 1.4 m/s the published hip excursion nearly matches the model's step: the scale stays within 15 %.
+    w = WalkCycle(GaitTiming(1.4, LEG.leg_length), LEG)
+    assert w.hip_scale == pytest.approx(1.0, rel=0.15, abs=0)
+
+
+@pytest.mark.parametrize("speed", [0.0, -1.0, float("nan"), "fast", 3.5])
+def test_bad_speeds(speed):
+    with pytest.raises(ConfigError, match="walk.speed"):
+        GaitTiming(speed, LEG.leg_length)
+
+
+def test_bad_leg_and_names():
+    with pytest.raises(ConfigError, match="walk.leg_length"):
+        GaitTiming(1.0, 7.0)
+    with pytest.raises(ConfigError, match="gait.leg"):
+        WalkCycle(GaitTiming(1.0, 0.9), "leg")
+    with pytest.raises(ConfigError, match="gait.curve"):
+        BoulicGait(GaitTiming(1.0, 0.9)).curve("tail", 0.0)
