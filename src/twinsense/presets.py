@@ -28,6 +28,7 @@ BUILTIN_KINDS: dict[str, str] = {
     "lidar": "twinsense.lidar",
     "magnetic": "twinsense.magnetic",
     "inductive": "twinsense.inductive",
+    "tactile": "twinsense.capacitive.tactile",
 }
 
 _Entry = tuple[Callable[..., Any], str]

@@ -18,11 +18,13 @@ inverts the closed form with that gain:
 
     e = (r / g) / (1 + r / g),   p = M e.
 
-A contact's force is the estimated pressure summed over its taxels times the
-taxel area (taxels above a threshold, grouped into connected patches). The
-calibration holds for the confined state; under a finger the layer also
-bulges sideways and the local strain differs, which the demo and
-docs/tactile.md quantify against the mechanics' ground truth.
+The pressure map holds for the confined state; under a finger the layer
+also bulges sideways, which makes it read several times high there (the
+confined modulus of a rubber at nu = 0.49 is 17 E). A contact's force is
+therefore estimated the way a skin is calibrated on the bench: the summed
+mutual-capacitance rise over the contact's taxels (taxels above a pressure
+threshold, grouped into connected patches) times a gain measured on one
+reference press (:attr:`TactileSensor.force_gain`).
 """
 
 from __future__ import annotations
@@ -93,15 +95,16 @@ class ContactEstimate:
     position: np.ndarray
 
 
-def estimate_contacts(pressure: np.ndarray, x: np.ndarray, y: np.ndarray, area: float,
-                      threshold: float) -> ContactEstimate:
+def estimate_contacts(pressure: np.ndarray, x: np.ndarray, y: np.ndarray, threshold: float,
+                      taxel_force: np.ndarray) -> ContactEstimate:
     """Group taxels above ``threshold`` [Pa] into connected patches (4-neighbours) and sum their forces.
 
     Parameters
     ----------
-    pressure : (rows, cols) float [Pa].
+    pressure : (rows, cols) float, estimated pressure [Pa] (decides the patches).
     x : (cols,) float, y : (rows,) float, taxel centres [m].
-    area : float, taxel area [m^2].
+    threshold : float [Pa].
+    taxel_force : (rows, cols) float, force attributed to each taxel [N].
     """
     labels, n = ndimage.label(pressure > threshold)
     forces, pos = [], []
@@ -109,7 +112,7 @@ def estimate_contacts(pressure: np.ndarray, x: np.ndarray, y: np.ndarray, area: 
     for k in range(1, n + 1):
         m = labels == k
         w = pressure[m]
-        forces.append(float(w.sum() * area))
+        forces.append(float(taxel_force[m].sum()))
         pos.append((float((X[m] * w).sum() / w.sum()), float((Y[m] * w).sum() / w.sum())))
     order = np.argsort(forces)[::-1]
     return ContactEstimate(np.asarray(forces)[order] if n else np.zeros(0),

@@ -11,9 +11,13 @@ over the robot link's grounded metal (the shield at z = 0).
 
 - ``tactile_pad_4x4``: 16 square 4 mm pads at 5 mm pitch over a common Tx
   plane, 1 mm Ecoflex 00-30, 0.5 mm Ecoflex cover: one channel per taxel.
-- ``skin_patch_8x8``: 8 Tx rows x 8 Rx columns, 2 mm wide at 4 mm pitch
-  (32 mm x 32 mm), 1.5 mm Ecoflex 00-30, 0.5 mm Sylgard 184 cover.
-- ``skin_patch_16x16``: 16 x 16, 2.5 mm electrodes at 5 mm pitch
+- ``skin_patch_8x8``: 8 Tx rows (2 mm wide) x 8 Rx columns (1 mm wide) at
+  4 mm pitch (32 mm x 32 mm), 1.5 mm Ecoflex 00-30, 0.5 mm Sylgard 184
+  cover. The Rx columns are narrower than the rows so that the rows' field
+  reaches past them into the air: a hovering hand then lowers the mutual
+  capacitance (with 2 mm columns the crossing field stays inside the stack
+  and the hover signal falls below the converter noise).
+- ``skin_patch_16x16``: 16 x 16, 2.5 mm rows and 1.25 mm columns at 5 mm pitch
   (80 mm x 80 mm), 2 mm Ecoflex 00-30, 0.5 mm Sylgard 184 cover; a coarser
   mesh (2.5 mm cells in the plane) keeps it tractable.
 
@@ -47,14 +51,14 @@ def _pad_4x4() -> TactileConfig:
 
 
 def _patch_8x8() -> TactileConfig:
-    layout = TactileLayout("skin_patch_8x8", "crossing", 8, 8, 4e-3, 2e-3, 2e-3,
+    layout = TactileLayout("skin_patch_8x8", "crossing", 8, 8, 4e-3, 2e-3, 1e-3,
                            dielectric=StackLayer(1.5e-3, 2.8, ECOFLEX), cover=StackLayer(0.5e-3, 2.72, SYLGARD))
     mesh = StackMeshSettings(h_xy=2e-3, dielectric_cells=3, first_air=1e-3, air_height=0.03, margin=0.01)
     return TactileConfig(layout, mesh, SKIN_READOUT, SKIN_READOUT)
 
 
 def _patch_16x16() -> TactileConfig:
-    layout = TactileLayout("skin_patch_16x16", "crossing", 16, 16, 5e-3, 2.5e-3, 2.5e-3,
+    layout = TactileLayout("skin_patch_16x16", "crossing", 16, 16, 5e-3, 2.5e-3, 1.25e-3,
                            dielectric=StackLayer(2e-3, 2.8, ECOFLEX), cover=StackLayer(0.5e-3, 2.72, SYLGARD))
     mesh = StackMeshSettings(h_xy=2.5e-3, dielectric_cells=2, first_air=1e-3, air_height=0.03, margin=0.01,
                              h_max=0.01)

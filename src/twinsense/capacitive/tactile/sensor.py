@@ -52,9 +52,12 @@ class TactileFrame:
     proximity : (rows, cols) float, proximity map: the fall of each taxel's mutual
         capacitance, clipped at 0 [F] (a grounded hand above a taxel takes field lines
         from it; pressing raises it instead).
-    pressure : (rows, cols) float, pressure estimated from the mutual changes [Pa].
+    pressure : (rows, cols) float, pressure estimated from the rise of the mutual
+        capacitances above their lowest reading since a hand came near [Pa]
+        (the hover compensation, see :meth:`TactileSensor.capture`).
     pressure_true : (rows, cols) float, mean contact pressure over each taxel (mechanics) [Pa].
-    force_estimate : (max_contacts,) float, estimated force per contact, largest first, NaN-padded [N].
+    force_estimate : (max_contacts,) float, estimated force per contact, largest first, NaN-padded [N]:
+        the summed mutual rise over the contact's taxels times :attr:`TactileSensor.force_gain`.
     position_estimate : (max_contacts, 2) float, estimated contact centres (x, y), NaN-padded [m].
     force_true : (max_contacts,) float, force of each touching object (mechanics), NaN-padded [N].
     max_strain : float, largest compressive principal strain in the skin.
@@ -135,8 +138,10 @@ class TactileSensor:
         self._calibration: Calibration | None = None
         self._last_heights: np.ndarray | None = None
         self._last_contact = None
-        self._last_state = None
+        self._last_result = None
         self._last_result: MaxwellResult | None = None
+        self._hover_floor: np.ndarray | None = None
+        self._force_gain: float | None = None
 
     @property
     def frame_rate(self) -> float:
@@ -214,7 +219,7 @@ class TactileSensor:
             es.set_displacement(np.zeros_like(u0))
             es.set_objects(())
             self._baseline = es.solve()
-            self._last_state = None
+            self._last_result = None
         return self._baseline
 
     @property
@@ -231,12 +236,42 @@ class TactileSensor:
             es.set_displacement(confined_compression(es.points0, lay.z_tx, lay.z_rx, lay.total_thickness, e0))
             comp = es.solve()
             es.set_displacement(np.zeros_like(es.points0))
-            self._last_state = None
+            self._last_result = None
             tx, rx = self._tx_rx()
             modulus = elastic_material(lay.dielectric.material).constrained_modulus
             self._calibration = Calibration.from_compression(mutual_image(base.matrix, tx, rx),
                                                              mutual_image(comp.matrix, tx, rx), e0, modulus)
         return self._calibration
+
+    @property
+    def force_gain(self) -> float:
+        """Force per summed mutual-capacitance rise under a contact [N/F], from a reference press.
+
+        Calibrated as on a bench with a load cell: a rigid 10 mm sphere (a
+        fingertip) pressed into the central taxel by 5 % of the dielectric
+        thickness; the mechanics give the force, the electrostatics the summed
+        rise of the mutual capacitances.
+        """
+        if self._force_gain is None:
+            from twinsense.capacitive.mechanics import Indenter
+
+            lay = self.config.layout
+            base = self.calibration.baseline
+            es = self.electrostatics
+            x0 = lay.x_centers[lay.cols // 2]
+            y0 = lay.y_centers[lay.rows // 2]
+            radius, depth = 0.01, 0.05 * lay.dielectric.thickness
+            ind = Indenter.sphere((x0, y0, lay.total_thickness + radius - depth), radius, "reference_press")
+            sol = self.elastic_body.solve([ind])
+            es.set_objects(())
+            es.set_displacement(self.stack.node_displacement(sol.displacement))
+            pressed = es.solve()
+            es.set_displacement(np.zeros_like(es.points0))
+            self._last_result = None
+            tx, rx = self._tx_rx()
+            rise = np.clip(mutual_image(pressed.matrix, tx, rx) - base, 0.0, None).sum()
+            self._force_gain = float(sol.force[0] / rise)
+        return self._force_gain
 
     def _contact(self, scene, t: float, pose):
         """(displacement (n, 3), ContactSolution or None, names) of the objects pressing on the skin."""
@@ -264,7 +299,7 @@ class TactileSensor:
     def solve_at(self, scene, t: float) -> tuple[MaxwellResult, Any, tuple]:
         """(Maxwell result, contact solution or None, touching object names) at time ``t``."""
         pose = self.mount.pose_at(scene, t)
-        self.calibration  # noqa: B018 - the unloaded solves come first, on the pristine state
+        self.baseline()  # the unloaded solve comes first, on the pristine state
         u, sol, names = self._contact(scene, t, pose)
         es = self.electrostatics
         moved = es.set_displacement(u)
@@ -303,8 +338,23 @@ class TactileSensor:
         # A grounded hand above a taxel draws field lines away from the Tx-Rx
         # pair: the mutual capacitance falls before any contact (hover).
         prox = np.clip(-mut_d, 0.0, None)
-        pressure = self.calibration.pressure(mut_d)
-        est = estimate_contacts(pressure, lay.x_centers, lay.y_centers, lay.taxel_area, cfg.pressure_threshold)
+        # Hover compensation, as a controller's baseline tracking does it: a
+        # grounded hand lowers the mutual capacitance as it approaches, down to
+        # a minimum at touch-down; pressing then raises it. The pressure is read
+        # from the rise above the lowest reading since the hand came near
+        # (reset when no taxel shows a hover signal above the converter noise).
+        floor = 3.0 * max(cfg.mutual_readout.sample_noise_rms, cfg.mutual_readout.resolution)
+        if self._hover_floor is None or np.all(np.abs(mut_d) <= floor):
+            self._hover_floor = np.zeros_like(mut_d)
+        self._hover_floor = np.minimum(self._hover_floor, np.where(mut_d < -floor, mut_d, 0.0))
+        if np.any(mut_d - self._hover_floor > floor):
+            pressure = self.calibration.pressure(mut_d - self._hover_floor)
+        else:  # nothing pressed: no need for the calibration solve
+            pressure = np.zeros_like(mut_d)
+        rise = np.clip(mut_d - self._hover_floor, 0.0, None)
+        gain = self.force_gain if sol is not None or np.any(pressure > cfg.pressure_threshold) else 0.0
+        est = estimate_contacts(pressure, lay.x_centers, lay.y_centers, cfg.pressure_threshold,
+                                rise * gain)
         p_true = np.zeros(lay.rows * lay.cols)
         force_true: np.ndarray = np.zeros(0)
         max_strain = 0.0

@@ -55,7 +55,7 @@ class StackMeshSettings:
     air_height: float = 0.03
     margin: float = 0.01
     depth: float = 0.01
-    mechanics_refine: int = 2
+    mechanics_refine: int = 1
     h_max: float = 8e-3
     growth: float = 1.5
 
