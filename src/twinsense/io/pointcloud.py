@@ -15,6 +15,7 @@ Files are written under a temporary name and renamed when complete.
 
 from __future__ import annotations
 
+import io
 import os
 from collections.abc import Mapping
 from pathlib import Path
@@ -112,14 +113,11 @@ def write_pcd(path, fields: Mapping[str, np.ndarray], *, binary: bool = True,
     if binary:
         body = _records(cloud).tobytes()
     else:
-        cols = []
-        for v in cloud.values():
-            if v.dtype.kind == "f":
-                cols.append(np.char.mod(_ASCII_FORMAT[v.dtype.itemsize], v))
-            else:
-                cols.append(v.astype(str))
-        lines = [" ".join(row) for row in zip(*cols)] if n else []
-        body = "".join(line + "\n" for line in lines).encode("ascii")
+        buf = io.BytesIO()
+        fmt = " ".join(_ASCII_FORMAT[v.dtype.itemsize] if v.dtype.kind == "f" else "%d" for v in cloud.values())
+        if n:
+            np.savetxt(buf, _records(cloud), fmt=fmt)
+        body = buf.getvalue()
     return _atomic_write(path, header.encode("ascii") + body)
 
 

@@ -278,6 +278,28 @@ def write_rrd(recording, out, scene: Scene | None = None, *, allow_incomplete: b
         return _write(rec, out, scene)
 
 
+class _FrameStreams(Mapping):
+    """Frame ``k`` of a recorded sensor as a read-only mapping that reads a stream only when it is
+    looked up (a converted frame logs a few of its streams; the rest stay on disk)."""
+
+    def __init__(self, sensor, k: int):
+        self._s, self._k, self._names = sensor, k, sensor.stream_names
+
+    def __getitem__(self, key: str) -> np.ndarray:
+        if key not in self._names:
+            raise KeyError(key)
+        return self._s[key][self._k]
+
+    def __contains__(self, key) -> bool:  # without reading the stream (Mapping's default would)
+        return key in self._names
+
+    def __iter__(self):
+        return iter(self._names)
+
+    def __len__(self) -> int:
+        return len(self._names)
+
+
 def _write(recording: Recording, out: Path, scene: Scene | None) -> Path:
     rr, rec = _new_stream(APPLICATION_ID)
     tmp = _tmp(out)
@@ -289,8 +311,7 @@ def _write(recording: Recording, out: Path, scene: Scene | None) -> Path:
         # Every sensor's frames merged in time order on the shared clock.
         events = sorted((float(t), n, k) for n, s in recording.sensors.items() for k, t in enumerate(s.timestamps))
         for t, n, k in events:
-            s = recording[n]
-            logger.log_frame(n, t, {key: s[key][k] for key in s.stream_names})
+            logger.log_frame(n, t, _FrameStreams(recording[n], k))
         rec.flush()
         rec.disconnect()
         os.replace(tmp, out)
