@@ -373,7 +373,7 @@ def test_new_kind_through_the_extension_point(run, tmp_path, monkeypatch):
     def quality(name, s, k, ns, frame_id, sensor):
         return [(f"/{name}/q", "demo_msgs/msg/Q", {"header": M._header(ns, frame_id), "q": float(s["quality"][k][0])})]
 
-    M.register_messages("inductive", quality, {"demo_msgs/msg/Q": M._with_deps(text, *M._HEADER_DEPS)})
+    M.register_messages("inductive", quality, {"demo_msgs/msg/Q": "# comment lines are fine\n" + text})
     with pytest.raises(TwinsenseError, match="kind"):
         M.register_messages("", quality)
     with pytest.raises(TwinsenseError, match="msgdefs"):

@@ -412,9 +412,11 @@ KIND_MESSAGES: dict[str, MessageBuilder] = {
 def register_messages(kind: str, builder: MessageBuilder, msgdefs: dict[str, str] | None = None) -> None:
     """Write frames of sensor ``kind`` with ``builder`` (replacing any earlier one).
 
-    ``msgdefs``: message type -> ROS 2 ``.msg`` definition (with its
-    dependencies after ``====`` separators, as in :data:`MSGDEFS`) for the
-    types the builder emits that are not already in :data:`MSGDEFS`.
+    ``msgdefs``: message type -> ROS 2 ``.msg`` definition for the types the
+    builder emits that are not already in :data:`MSGDEFS`: the field lines
+    (as in docs/msg/), to which the ``std_msgs/Header`` and
+    ``builtin_interfaces/Time`` definitions are appended, or a complete
+    definition with its dependencies after ``====`` separators.
     """
     if not isinstance(kind, str) or not kind:
         raise ConfigError("kind", kind, "a sensor kind name (non-empty str)")
@@ -423,7 +425,7 @@ def register_messages(kind: str, builder: MessageBuilder, msgdefs: dict[str, str
     for msgtype, text in (msgdefs or {}).items():
         if not isinstance(text, str) or msgtype.count("/") != 2:
             raise ConfigError(f"msgdefs[{msgtype!r}]", text, "'package/msg/Name': a .msg definition (str)")
-        MSGDEFS[msgtype] = text
+        MSGDEFS[msgtype] = text if "\nMSG: " in text else _with_deps(text, *_HEADER_DEPS)
     KIND_MESSAGES[kind] = builder
 
 
