@@ -1,0 +1,124 @@
+"""P1 linear elasticity on tetrahedra: strain-displacement matrices and the stiffness.
+
+Degrees of freedom are interleaved, ``3 * node + component`` (the numbering of
+``skfem.Basis(mesh, ElementVector(ElementTetP1()))``). The stiffness is
+``K = sum_e V_e B_e^T D_e B_e`` with the constant strain matrix ``B_e`` of a
+linear tetrahedron and the isotropic Hooke matrix ``D_e``. It is the same
+matrix as ``skfem.asm(linear_elasticity(lam, mu), basis)`` (checked to
+rounding in the tests) built in one vectorised pass, ten times faster.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+__all__ = ["element_dofs", "gradients", "hooke_matrix", "principal_min", "stiffness", "strain_matrices"]
+
+
+def gradients(points: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Gradients of the P1 shape functions and the cell volumes.
+
+    Parameters
+    ----------
+    points : (n, 3) float [m]; cells : (m, 4) int, positively oriented.
+
+    Returns
+    -------
+    grad : (m, 4, 3) float [1/m]; volume : (m,) float [m^3].
+    """
+    p = points[cells]
+    edges = p[:, 1:, :] - p[:, :1, :]
+    inv = np.linalg.inv(edges)
+    g = np.empty_like(p)
+    g[:, 1:, :] = np.transpose(inv, (0, 2, 1))
+    g[:, 0, :] = -g[:, 1:, :].sum(axis=1)
+    return g, np.abs(np.linalg.det(edges)) / 6.0
+
+
+def strain_matrices(grad: np.ndarray) -> np.ndarray:
+    """Strain-displacement matrices, Voigt rows (xx, yy, zz, 2yz, 2xz, 2xy).
+
+    Parameters
+    ----------
+    grad : (m, 4, 3) float, shape-function gradients [1/m].
+
+    Returns
+    -------
+    (m, 6, 12) float [1/m], columns in element dof order (node a, component i) -> 3 a + i.
+    """
+    m = len(grad)
+    b = np.zeros((m, 6, 4, 3))
+    gx, gy, gz = grad[:, :, 0], grad[:, :, 1], grad[:, :, 2]
+    b[:, 0, :, 0] = gx
+    b[:, 1, :, 1] = gy
+    b[:, 2, :, 2] = gz
+    b[:, 3, :, 1], b[:, 3, :, 2] = gz, gy
+    b[:, 4, :, 0], b[:, 4, :, 2] = gz, gx
+    b[:, 5, :, 0], b[:, 5, :, 1] = gy, gx
+    return b.reshape(m, 6, 12)
+
+
+def hooke_matrix(lam, mu) -> np.ndarray:
+    """Isotropic Hooke matrices in Voigt form (engineering shear strains).
+
+    Parameters
+    ----------
+    lam, mu : (k,) float, Lame's parameters [Pa].
+
+    Returns
+    -------
+    (k, 6, 6) float [Pa].
+    """
+    lam, mu = np.atleast_1d(np.asarray(lam, float)), np.atleast_1d(np.asarray(mu, float))
+    d = np.zeros((len(lam), 6, 6))
+    d[:, :3, :3] = lam[:, None, None]
+    i = np.arange(3)
+    d[:, i, i] += 2 * mu[:, None]
+    d[:, i + 3, i + 3] = mu[:, None]
+    return d
+
+
+def element_dofs(cells: np.ndarray) -> np.ndarray:
+    """(m, 12) int64 global dofs of each cell, in element dof order."""
+    return (3 * np.asarray(cells, np.int64)[:, :, None] + np.arange(3)).reshape(len(cells), 12)
+
+
+def stiffness(points: np.ndarray, cells: np.ndarray, lam: np.ndarray, mu: np.ndarray) -> sp.csr_matrix:
+    """The global stiffness (3 n, 3 n) CSR [N/m].
+
+    Parameters
+    ----------
+    points : (n, 3) float [m]; cells : (m, 4) int, positively oriented;
+    lam, mu : (m,) float, Lame's parameters of each cell [Pa].
+    """
+    grad, vol = gradients(points, cells)
+    b = strain_matrices(grad)
+    d = hooke_matrix(lam, mu)
+    ke = vol[:, None, None] * (np.transpose(b, (0, 2, 1)) @ (d @ b))
+    dofs = element_dofs(cells)
+    rows = np.repeat(dofs, 12, axis=1).ravel()
+    cols = np.tile(dofs, (1, 12)).ravel()
+    n = 3 * len(points)
+    k = sp.csr_matrix((ke.ravel(), (rows, cols)), shape=(n, n))
+    k.sum_duplicates()
+    return k
+
+
+def principal_min(voigt: np.ndarray) -> np.ndarray:
+    """Smallest principal value of symmetric 3x3 strain tensors given in Voigt form.
+
+    Parameters
+    ----------
+    voigt : (m, 6) float, (xx, yy, zz, 2yz, 2xz, 2xy) [1].
+
+    Returns
+    -------
+    (m,) float, the most compressive (smallest) principal strain [1].
+    """
+    t = np.empty((len(voigt), 3, 3))
+    t[:, 0, 0], t[:, 1, 1], t[:, 2, 2] = voigt[:, 0], voigt[:, 1], voigt[:, 2]
+    t[:, 1, 2] = t[:, 2, 1] = 0.5 * voigt[:, 3]
+    t[:, 0, 2] = t[:, 2, 0] = 0.5 * voigt[:, 4]
+    t[:, 0, 1] = t[:, 1, 0] = 0.5 * voigt[:, 5]
+    return np.linalg.eigvalsh(t)[:, 0] if len(t) else np.zeros(0)
