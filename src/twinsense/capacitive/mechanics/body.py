@@ -312,7 +312,8 @@ class ElasticBody:
 def _mask(field: str, value, shape: tuple) -> np.ndarray:
     arr = np.asarray(value)
     if arr.dtype != bool or arr.shape != shape:
-        raise ConfigError(field, f"array of dtype {arr.dtype} and shape {arr.shape}", f"a boolean mask of shape {shape}")
+        raise ConfigError(field, f"array of dtype {arr.dtype} and shape {arr.shape}",
+                          f"a boolean mask of shape {shape}")
     return arr
 
 

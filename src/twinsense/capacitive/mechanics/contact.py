@@ -28,7 +28,7 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.optimize import nnls
 
-__all__ = ["ContactSolution", "LcpResult", "ContactLcp"]
+__all__ = ["ContactLcp", "ContactSolution", "LcpResult"]
 
 MAX_ITERATIONS = 50
 """Active-set updates before the Lawson-Hanson fallback (a frame usually needs 1-4)."""

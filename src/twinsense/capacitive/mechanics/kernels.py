@@ -38,7 +38,7 @@ def _upper_solve_1(indptr, indices, data, b):  # pragma: no cover - compiled
 
 @_jit
 def _upper_solve_k(indptr, indices, data, b):  # pragma: no cover - compiled
-    n, k = b.shape
+    n = b.shape[0]
     x = b.copy()
     for i in range(n - 1, -1, -1):
         start, stop = indptr[i], indptr[i + 1]
