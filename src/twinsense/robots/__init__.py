@@ -7,10 +7,11 @@ robots. A missing package raises ConfigError naming the extra when used.
 
 from twinsense.robots.materials import LINK_MATERIAL_RULES, default_material, link_materials
 from twinsense.robots.mjcf import load_mjcf, mjcf_tree
+from twinsense.robots.mujoco_cosim import MujocoBodyMotion, MujocoCosim
 from twinsense.robots.registry import ROBOTS, load_robot, robot_names, robot_path
 from twinsense.robots.urdf import load_urdf, urdf_tree
 
 __all__ = [
-    "LINK_MATERIAL_RULES", "ROBOTS", "default_material", "link_materials", "load_mjcf", "load_robot", "load_urdf",
-    "mjcf_tree", "robot_names", "robot_path", "urdf_tree",
+    "LINK_MATERIAL_RULES", "ROBOTS", "MujocoBodyMotion", "MujocoCosim", "default_material", "link_materials",
+    "load_mjcf", "load_robot", "load_urdf", "mjcf_tree", "robot_names", "robot_path", "urdf_tree",
 ]

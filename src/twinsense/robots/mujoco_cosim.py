@@ -1,0 +1,245 @@
+"""MuJoCo co-simulation: MuJoCo's physics moves the scene the sensors see.
+
+:class:`MujocoCosim` builds one scene object per MuJoCo body that has geoms
+(the body's geoms merged, in the body frame), a mount frame per body without
+geoms and per named site, and gives each a motion that reads MuJoCo's body
+pose (``xpos``, ``xmat``) and velocity (``mj_objectVelocity``, world-aligned,
+at the body origin) at the physics state of the requested time.
+
+One clock
+---------
+The physics is advanced on demand: asking any object for its state at time t
+steps MuJoCo (its own integrator, controllers, contacts) up to the last step
+at or before t (``step_to``), so ``simulate(cosim.scene, sensors, ...)`` runs
+both on the sensors' clock without a separate loop. Every step's state
+(qpos, qvel, mocap poses) is kept for ``history`` seconds, so sensors that
+look slightly back in time (a ToF camera's raw sub-frames, a radar's chirps,
+the next sensor's earlier frame) get the state of their own time.
+
+Between two steps
+-----------------
+A time that falls between steps k and k+1 (t_k <= t < t_k + dt) gets step k's
+state moved on by step k's velocities over tau = t - t_k: p = p_k + v_k tau,
+R = exp([w_k tau]x) R_k, velocities held. For a body under acceleration a the
+position error is |a| tau^2 / 2 <= |a| dt^2 / 2 (4.4e-5 m for gravity at a
+3 ms step) and the velocity error |a| tau <= |a| dt.
+"""
+
+from __future__ import annotations
+
+import bisect
+import threading
+from collections import OrderedDict
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from twinsense import validation as V
+from twinsense.errors import ConfigError, UnknownNameError
+from twinsense.robots.deps import require
+from twinsense.robots.materials import link_materials
+from twinsense.robots.mjcf import GEOM_SETS, body_geometry, body_name, load_model
+from twinsense.scene.motion import Motion, MotionState, Static, check_time
+from twinsense.scene.pose import Pose
+from twinsense.scene.scene import Frame, Scene, SceneObject
+
+#: Evaluated step states kept (each holds every body's pose and velocity).
+STATE_CACHE_SIZE = 32
+
+
+def _pose(pos, quat_wxyz) -> Pose:
+    w, x, y, z = (float(c) for c in quat_wxyz)
+    return Pose.from_quat(np.asarray(pos, dtype=float), (x, y, z, w))
+
+
+@dataclass(frozen=True, eq=False)
+class MujocoBodyMotion(Motion):
+    """A MuJoCo body's motion (``offset``: a frame fixed to the body, e.g. a site; body frame if None)."""
+
+    cosim: MujocoCosim
+    body: int
+    offset: Pose | None = None
+
+    def state(self, t):
+        st = self.cosim.body_state(self.body, t)
+        if self.offset is None:
+            return st
+        pose = st.pose @ self.offset
+        return MotionState(pose, st.point_velocity(pose.position[None])[0], st.angular_velocity)
+
+    def to_dict(self):
+        return {"type": "mujoco_body", "body": body_name(self.cosim.model, self.body),
+                **({} if self.offset is None else {"offset": self.offset.to_dict()})}
+
+
+class MujocoCosim:
+    """A MuJoCo model whose bodies are scene objects moved by MuJoCo's physics.
+
+    Parameters
+    ----------
+    model_or_path : mujoco.MjModel or path to an MJCF file
+    data : mujoco.MjData, optional
+        The physics state to advance (default: a fresh one at the model's
+        initial state). It is stepped in place.
+    control : callable, optional
+        ``control(model, data)`` before every physics step (set ``data.ctrl``).
+    geoms : "visual", "collision" or "all"
+        Which geoms give each body its shape (see :func:`~twinsense.robots.mjcf.body_geoms`).
+    materials : dict {body name: material}, optional
+        Overrides of the default materials (from the body names).
+    history : float
+        Seconds of past physics states kept for sensors that look back [s].
+
+    Attributes
+    ----------
+    scene : Scene
+        Objects named after the bodies ("world" for the world body's geoms),
+        frames for bodies without geoms and for named sites.
+    """
+
+    def __init__(self, model_or_path, data=None, *, control: Callable | None = None, geoms: str = "visual",
+                 materials=None, history: float = 1.0):
+        mujoco = require("mujoco", "MuJoCo co-simulation")
+        self._mj = mujoco
+        self.model = model = load_model(model_or_path)
+        if data is None:
+            data = mujoco.MjData(model)
+        if not isinstance(data, mujoco.MjData) or data.qpos.shape != (model.nq,) or data.qvel.shape != (model.nv,):
+            raise ConfigError("cosim.data", data, "a mujoco.MjData made for this model (mujoco.MjData(model))")
+        if control is not None and not callable(control):
+            raise ConfigError("cosim.control", control, "a callable control(model, data), or None")
+        if geoms not in GEOM_SETS:
+            raise ConfigError("cosim.geoms", geoms, "one of: " + ", ".join(GEOM_SETS))
+        self.history = V.positive("cosim.history", history, "s")
+        self.data = data
+        self.control = control
+        self.timestep = float(model.opt.timestep)
+        self._scratch = mujoco.MjData(model)
+        self._lock = threading.RLock()
+        self._times: list[float] = []
+        self._snaps: list[tuple] = []
+        self._cache: OrderedDict = OrderedDict()
+        mujoco.mj_forward(model, data)
+        self._record()
+        self.names = [body_name(model, b) for b in range(model.nbody)]
+        self.scene = self._build_scene(geoms, materials)
+
+    # ------------------------------------------------------------ physics
+    @property
+    def time(self) -> float:
+        """MuJoCo's current time [s]."""
+        return float(self.data.time)
+
+    def _record(self) -> None:
+        d = self.data
+        self._times.append(float(d.time))
+        self._snaps.append((d.qpos.copy(), d.qvel.copy(), d.mocap_pos.copy(), d.mocap_quat.copy()))
+        # Drop states older than the history, keeping at least the two newest.
+        cut = bisect.bisect_left(self._times, self._times[-1] - self.history) - 1
+        if cut > 0 and len(self._times) - cut >= 2:
+            del self._times[:cut], self._snaps[:cut]
+            self._cache.clear()
+
+    def step_to(self, t: float) -> None:
+        """Advance MuJoCo to the last step at or before ``t`` [s] (nothing if it is there already)."""
+        t = check_time(t)
+        with self._lock:
+            # A step ends at time + dt; take it when that is not after t (1e-9 of a step absorbs the
+            # rounding of MuJoCo's accumulated time).
+            while self.data.time + self.timestep * (1 - 1e-9) <= t:
+                if self.control is not None:
+                    self.control(self.model, self.data)
+                self._mj.mj_step(self.model, self.data)
+                self._record()
+
+    def _evaluate(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Body positions (nbody, 3), rotations (nbody, 3, 3), linear and angular velocities of stored step k."""
+        key = self._times[k]
+        hit = self._cache.get(key)
+        if hit is not None:
+            return hit
+        mj, m, d = self._mj, self.model, self._scratch
+        qpos, qvel, mpos, mquat = self._snaps[k]
+        d.qpos[:], d.qvel[:] = qpos, qvel
+        if m.nmocap:
+            d.mocap_pos[:], d.mocap_quat[:] = mpos, mquat
+        mj.mj_kinematics(m, d)
+        mj.mj_comPos(m, d)
+        mj.mj_comVel(m, d)
+        res = np.zeros(6)
+        lin, ang = np.zeros((m.nbody, 3)), np.zeros((m.nbody, 3))
+        for b in range(m.nbody):
+            # flg_local = 0: (angular, linear) in world axes; mjOBJ_XBODY: at the body frame origin.
+            mj.mj_objectVelocity(m, d, mj.mjtObj.mjOBJ_XBODY, b, res, 0)
+            ang[b], lin[b] = res[:3], res[3:]
+        out = (d.xpos.copy(), d.xmat.reshape(-1, 3, 3).copy(), lin, ang)
+        self._cache[key] = out
+        while len(self._cache) > STATE_CACHE_SIZE:
+            self._cache.popitem(last=False)
+        return out
+
+    def body_state(self, body: int | str, t: float) -> MotionState:
+        """Pose (body -> world) and velocities of a body at time ``t`` [s], stepping the physics if needed."""
+        b = self.body_id(body)
+        t = check_time(t)
+        with self._lock:
+            self.step_to(t)
+            k = bisect.bisect_right(self._times, t) - 1
+            if k < 0:
+                raise ConfigError("t", t, f"a time within the co-simulation's kept history "
+                                  f"[{self._times[0]:.9g}, ...] s (history = {self.history:g} s)")
+            pos, rot, lin, ang = self._evaluate(k)
+            tau = t - self._times[k]
+        p = pos[b] + lin[b] * tau
+        r = rot[b] if tau == 0 or not np.any(ang[b]) else Rotation.from_rotvec(ang[b] * tau).as_matrix() @ rot[b]
+        return MotionState(Pose(p, r), lin[b].copy(), ang[b].copy())
+
+    def body_id(self, body: int | str) -> int:
+        if isinstance(body, str):
+            if body not in self.names:
+                raise UnknownNameError("cosim.body", body, self.names)
+            return self.names.index(body)
+        if isinstance(body, (int, np.integer)) and not isinstance(body, bool) and 0 <= body < self.model.nbody:
+            return int(body)
+        raise ConfigError("cosim.body", body, f"a body name or an index in 0..{self.model.nbody - 1}")
+
+    # ------------------------------------------------------------ scene
+    def _is_static(self, b: int) -> bool:
+        # Welded to the world and not a mocap body: MuJoCo never moves it.
+        return b == 0 or (int(self.model.body_weldid[b]) == 0 and int(self.model.body_mocapid[b]) < 0)
+
+    def _build_scene(self, geoms: str, materials) -> Scene:
+        m = self.model
+        mats = link_materials(self.names, materials, "cosim.materials")
+        path = getattr(m, "names", b"").split(b"\0", 1)[0].decode() or "mujoco"
+        scene = Scene(name=path)
+        pos0, rot0, _, _ = self._evaluate(0)
+        for b in range(m.nbody):
+            name = self.names[b]
+            geom = body_geometry(m, b, geoms, f"cosim.bodies[{name}]") if m.body_geomnum[b] else None
+            motion = Static(Pose(pos0[b], rot0[b])) if self._is_static(b) else MujocoBodyMotion(self, b)
+            if geom is not None:
+                scene.add(SceneObject(name, geom, mats[name], motion))
+            elif b != 0:
+                scene.add_frame(Frame(name, motion))
+        taken = set(self.names)
+        for s in range(m.nsite):
+            sname = m.site(s).name
+            if not sname:
+                continue
+            if sname in taken:
+                raise ConfigError("cosim.sites", sname, "site names that differ from the body names")
+            b = int(m.site_bodyid[s])
+            offset = _pose(m.site_pos[s], m.site_quat[s])
+            if self._is_static(b):
+                motion = Static(Pose(pos0[b], rot0[b]) @ offset)
+            else:
+                motion = MujocoBodyMotion(self, b, offset)
+            scene.add_frame(Frame(sname, motion))
+        return scene
+
+    def __repr__(self) -> str:
+        return f"MujocoCosim({self.scene.name!r}, {self.model.nbody} bodies, t = {self.time:.6g} s)"
+
