@@ -54,6 +54,7 @@ import numpy as np
 
 from twinsense import validation as V
 from twinsense.errors import ConfigError
+from twinsense.linalg import rotate_rows
 from twinsense.render.hits import Hits
 from twinsense.render.rays import PinholeCamera, Rays
 from twinsense.scene.pose import Pose
@@ -62,6 +63,9 @@ DEPTH_KINDS = ("z", "range")
 SAMPLING = ("bilinear", "nearest")
 _ITERATIONS = 8  # fixed-point polish steps after the bracketed crossing (planes: one)
 _MAX_STEPS = 2048  # marching steps per ray (each at most one render pixel)
+# Halvings of a marching bracket (at most one render pixel wide): 1/4096 px, from where the
+# fixed-point polish converges (on a plane with the factor ~ b tan(incidence) / depth per step).
+_BISECTIONS = 12
 
 
 def _image(field: str, value, shape: tuple[int, ...] | None, *, allow_inf: bool = False,
@@ -364,19 +368,20 @@ def images_to_hits(images: ExternalImages, rays: Rays, sampling: str = "bilinear
     miss_tolerance_px = V.number("miss_tolerance_px", miss_tolerance_px, lo=0.0, lo_open=True, hi=1000.0)
     cam = images.camera
     rot, c = images.pose.rotation, images.pose.position
-    o = (rays.origins - c) @ rot  # world -> render camera frame (R^T x, as rows)
-    d = rays.directions @ rot
+    # World -> render camera frame (R^T x; rows, without BLAS: see linalg.rotate_rows).
+    o = rotate_rows(np.broadcast_to(rays.origins - c, rays.directions.shape), rot)
+    d = rotate_rows(rays.directions, rot)
     n = len(d)
     h, w = images.shape
     iz_img = images.inverse_z
 
     def surface(p):
         """Render surface point Q (n, 3) along the pixel ray through p, its pixel, and validity."""
-        with np.errstate(divide="ignore", invalid="ignore"):
-            front = p[:, 2] > 0
-            xn = np.where(front, p[:, 0] / p[:, 2], 0.0)
-            yn = np.where(front, p[:, 1] / p[:, 2], 0.0)
-        xd, yd = cam.distort(xn, yn)
+        front = p[:, 2] > 0
+        inv = np.divide(1.0, p[:, 2], out=np.zeros(len(p)), where=front)
+        xn = p[:, 0] * inv
+        yn = p[:, 1] * inv
+        xd, yd = cam.distort(xn, yn) if cam.is_distorted else (xn, yn)
         u = cam.fx * xd + cam.cx
         v = cam.fy * yd + cam.cy
         # Inside the render: within its outer pixel edges.
@@ -420,7 +425,7 @@ def images_to_hits(images: ExternalImages, rays: Rays, sampling: str = "bilinear
     n_cam = np.take(images.normals_camera.reshape(-1, 3), flat, axis=0)
     cos = np.einsum("ij,ij->i", n_cam, d)
     n_cam = np.where((cos > 0)[:, None], -n_cam, n_cam)  # facing the ray
-    normal = np.where(hit[:, None], n_cam @ rot.T, 0.0)
+    normal = np.where(hit[:, None], rotate_rows(n_cam, rot.T), 0.0)
     cos_i = np.where(hit, np.clip(np.abs(cos), 0.0, 1.0), 0.0)
     velocity = np.zeros((n, 3))
     if images.velocity is not None:
@@ -467,9 +472,9 @@ def _first_crossing(surface, o: np.ndarray, d: np.ndarray, across: np.ndarray, i
     inv_near, inv_far = 1.0 / s_near, 1.0 / s_far
 
     def behind(rows, s_vals):
-        q, _, _, ok = surface(o[rows] + s_vals[:, None] * d[rows])
-        p_z = (o[rows] + s_vals[:, None] * d[rows])[:, 2]
-        return ok & (p_z > q[:, 2] * (1 + 1e-12))
+        p = o[rows] + s_vals[:, None] * d[rows]
+        q, _, _, ok = surface(p)
+        return ok & (p[:, 2] > q[:, 2] * (1 + 1e-12))
 
     active = np.arange(m)
     lo = s_near.copy()
@@ -484,7 +489,7 @@ def _first_crossing(surface, o: np.ndarray, d: np.ndarray, across: np.ndarray, i
         active = active[~b]
     found = np.flatnonzero(np.isfinite(hi))
     a, c = lo[found], hi[found]
-    for _ in range(60):  # the bracket halves each time: 60 steps reach float64 resolution
+    for _ in range(_BISECTIONS):
         mid = 0.5 * (a + c)
         b = behind(found, mid)
         c = np.where(b, mid, c)
@@ -502,28 +507,33 @@ def _sample(img: np.ndarray, u: np.ndarray, v: np.ndarray, ok: np.ndarray, sampl
     ``edge_tolerance`` (relative): then the nearest pixel.
     """
     h, w = img.shape
-    guard = img if guard is None else guard
-    out = np.zeros(len(u))
+    flat_img = img.ravel()
     uu = np.clip(np.where(ok, u, 0.0), 0.0, w - 1.0)
     vv = np.clip(np.where(ok, v, 0.0), 0.0, h - 1.0)
-    un = np.rint(uu).astype(np.int64)
-    vn = np.rint(vv).astype(np.int64)
-    nearest = np.take(img.ravel(), vn * w + un)
+    nearest = np.take(flat_img, np.rint(vv).astype(np.int64) * w + np.rint(uu).astype(np.int64))
     if sampling == "nearest":
         return np.where(ok, nearest, 0.0)
-    u0 = np.minimum(np.floor(uu).astype(np.int64), max(w - 2, 0))
-    v0 = np.minimum(np.floor(vv).astype(np.int64), max(h - 2, 0))
-    u1 = np.minimum(u0 + 1, w - 1)
-    v1 = np.minimum(v0 + 1, h - 1)
+    u0 = np.minimum(uu.astype(np.int64), max(w - 2, 0))  # uu >= 0: the cast floors
+    v0 = np.minimum(vv.astype(np.int64), max(h - 2, 0))
+    du = 1 if w > 1 else 0
+    dv = w if h > 1 else 0
     fu = uu - u0
     fv = vv - v0
-    idx = (v0 * w + u0, v0 * w + u1, v1 * w + u0, v1 * w + u1)
-    g = np.stack([np.take(guard.ravel(), i) for i in idx])
-    vals = np.stack([np.take(img.ravel(), i) for i in idx])
-    wts = np.stack([(1 - fu) * (1 - fv), fu * (1 - fv), (1 - fu) * fv, fu * fv])
-    gmax, gmin = g.max(axis=0), g.min(axis=0)
+    i00 = v0 * w + u0
+    a, b, c, d = (np.take(flat_img, i00), np.take(flat_img, i00 + du), np.take(flat_img, i00 + dv),
+                  np.take(flat_img, i00 + dv + du))
+    if guard is None:
+        ga, gb, gc, gd = a, b, c, d
+    else:
+        fg = guard.ravel()
+        ga, gb, gc, gd = (np.take(fg, i00), np.take(fg, i00 + du), np.take(fg, i00 + dv),
+                          np.take(fg, i00 + dv + du))
+    gmax = np.maximum(np.maximum(ga, gb), np.maximum(gc, gd))
+    gmin = np.minimum(np.minimum(ga, gb), np.minimum(gc, gd))
     smooth = (gmin > 0) & (gmax - gmin <= edge_tolerance * gmin)
-    out = np.where(smooth, np.sum(wts * vals, axis=0), nearest)
+    top = a + fu * (b - a)
+    bottom = c + fu * (d - c)
+    out = np.where(smooth, top + fv * (bottom - top), nearest)
     return np.where(ok, out, 0.0)
 
 
