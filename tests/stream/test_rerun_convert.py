@@ -43,6 +43,8 @@ def scenario() -> dict:
         {"name": "prox", "kind": "inductive", "preset": "m18_flush", "frame_rate": 10,
          "mount": {"pose": {"position": [2.0, 0.0, 0.8]}}},
         {"name": "us", "kind": "ultrasonic", "preset": "open_40khz", "frame_rate": 10, "mount": {"pose": LOOK}},
+        {"name": "rider", "kind": "magnetic", "preset": "tle493d", "frame_rate": 10,
+         "mount": {"parent": "ball", "pose": {"position": [0.0, 0.0, 0.25]}}},
     ]
     return d
 
@@ -247,3 +249,32 @@ def test_missing_rerun_names_the_extra(run, tmp_path, monkeypatch):
     with pytest.raises(ConfigError, match=r"pip install 'twinsense\[rerun\]'"):
         R.RerunSink(tmp_path / "x.rrd")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_sensor_on_a_moving_object_follows_it(run):
+    # rider sits 0.25 m above the ball's centre; the ball translates only, so the sensor is at
+    # (3, 0.8, 1.25 + 0.1 sin(2 pi t)) with the identity rotation.
+    rows = [(t, r) for t, r in run["ents"]["/world/sensors/rider"]]
+    assert all(t is not None for t, _ in rows)  # no static pose for a sensor that moves
+    with open_recording(run["h5"]) as rec:
+        assert [t for t, _ in rows] == [ns(t) for t in rec["rider"].timestamps]
+    for t, r in rows:
+        want = [3.0, 0.8, 1.25 + 0.1 * math.sin(2 * math.pi * t * 1e-9)]
+        np.testing.assert_allclose(r["Transform3D:translation"][0], want, rtol=0, atol=2.5e-7)  # float32
+        np.testing.assert_allclose(r["Transform3D:quaternion"][0], [0, 0, 0, 1], rtol=0, atol=1e-7)
+
+
+def test_fixed_sensor_pose_is_static_and_the_recorded_pose(run):
+    from twinsense.scene.pose import Pose
+
+    rows = run["ents"]["/world/sensors/tof"]
+    assert [t for t, _ in rows] == [None]  # once, static: a fixed mount
+    with open_recording(run["h5"]) as rec:
+        poses = rec["tof"]["pose"][()]
+    for m in poses:  # every frame's recorded sensor -> world pose
+        want = Pose.from_matrix(m)
+        np.testing.assert_allclose(rows[0][1]["Transform3D:translation"][0], want.position, rtol=0,
+                                   atol=2.5e-7)  # float32 storage
+        q = np.array(rows[0][1]["Transform3D:quaternion"][0])
+        # q and -q are the same rotation; float32 storage: 1e-7 per component.
+        assert min(np.abs(q - want.quat_xyzw).max(), np.abs(q + want.quat_xyzw).max()) < 1e-6

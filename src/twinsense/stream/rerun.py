@@ -189,10 +189,13 @@ class RerunLogger:
         s = self.sensors[name]
         self._set_time(t)
         base = entity("world", "sensors", name)
-        if "pose" in streams:  # the sensor -> world pose the frame was captured at (ToF)
-            rec.log(base, _transform(rr, Pose.from_matrix(np.asarray(streams["pose"], dtype=np.float64))))
-        elif s.mount.parent is not None:
-            pose = s.mount.pose_at(self.scene, t) if self.scene is not None else s.mount.pose
+        # A fixed mount's pose is logged once, static (Rerun lets static data shadow timed data of the
+        # same component, so a fixed sensor gets no per-frame pose at all).
+        if s.mount.parent is not None:
+            if "pose" in streams:  # the sensor -> world pose the frame was captured at (ToF)
+                pose = Pose.from_matrix(np.asarray(streams["pose"], dtype=np.float64))
+            else:
+                pose = s.mount.pose_at(self.scene, t) if self.scene is not None else s.mount.pose
             rec.log(base, _transform(rr, pose))
         kind = s.kind
         if kind in ("camera", "tof"):
