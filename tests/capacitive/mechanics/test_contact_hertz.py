@@ -65,7 +65,7 @@ def quarter_body(thickness: float, cells_per_a: float) -> ElasticBody:
         rollers[p[:, 0] == 0.0, 0] = True
         rollers[p[:, 1] == 0.0, 1] = True
         _BODIES[key] = ElasticBody(lm.mesh, np.zeros(lm.mesh.t.shape[1], np.int64), (MAT,), lm.fixed, top,
-                                   rollers=rollers)
+                                   rollers=rollers, store_response=False)
     return _BODIES[key]
 
 

@@ -25,9 +25,10 @@ from twinsense import validation as v
 from twinsense.capacitive.mechanics.contact import ContactLcp, ContactSolution
 from twinsense.capacitive.mechanics.elasticity import (
     element_dofs,
+    element_stiffness,
     gradients,
     principal_min,
-    stiffness,
+    scatter,
     strain_matrices,
 )
 from twinsense.capacitive.mechanics.indenter import Indenter
@@ -121,7 +122,6 @@ class ElasticBody:
         self._strain_op = sp.csr_matrix(
             (bmat.ravel(), (np.repeat(np.arange(6 * m), 12), np.repeat(edofs[:, None, :], 6, axis=1).ravel())),
             shape=(6 * m, 3 * n))
-        k = stiffness(points, cells, lam, mu)
 
         # Free dofs node by node in nested-dissection order, the top nodes'
         # normal dofs last: the trailing block of the factor is then the
@@ -133,7 +133,10 @@ class ElasticBody:
         top_z = top[dofs // 3] & (dofs % 3 == 2)
         self._free = np.concatenate([dofs[~top_z], 3 * self.top_nodes + 2])
         nt, ni = len(self.top_nodes), len(self._free) - len(self.top_nodes)
-        kf = k[self._free][:, self._free].tocsc()
+        position = np.full(3 * n, -1, np.int64)
+        position[self._free] = np.arange(len(self._free))
+        # Assembled straight into the elimination order, constrained dofs dropped.
+        kf = scatter(element_stiffness(bmat, self.volumes, lam, mu), position[edofs], len(self._free))
         try:
             lu = spla.splu(kf, permc_spec="NATURAL", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
         except RuntimeError:
@@ -142,29 +145,32 @@ class ElasticBody:
                               and np.array_equal(lu.perm_c, np.arange(len(self._free)))):
             raise ConfigError("ElasticBody.fixed", f"{int(fixed.sum())} fixed nodes",
                               "constraints that hold the body (no rigid motion left)")
-        low, up = lu.L.tocsr(), lu.U.tocsr()
+        # SuperLU hands out CSC factors. Columns past ni of the lower factor
+        # hold rows past ni only, columns before ni of the upper factor rows
+        # before ni only: the blocks are plain column ranges.
+        low, up = lu.L, lu.U
         pivots = up.diagonal()
         # A body left free to move (or turn) has a singular stiffness; its
         # pivots come out as rounding noise, 1e-16 of the largest or less.
         if not np.all(pivots > 1e-12 * pivots.max()):
             raise ConfigError("ElasticBody.fixed", f"{int(fixed.sum())} fixed nodes",
                               "constraints that hold the body (no rigid motion left)")
-        schur = low[ni:, ni:].toarray() @ up[ni:, ni:].toarray()
+        schur = low[:, ni:].toarray()[ni:] @ up[:, ni:].toarray()[ni:]
         # C[i, j] = upward move of top node i per unit upward force at j
         # (= downward per downward), SPD.
         comp = sla.cho_solve(sla.cho_factor(0.5 * (schur + schur.T), lower=True), np.eye(nt))
         self.compliance = 0.5 * (comp + comp.T)
         # Interior dofs from the top ones: u_i = -U_ii^-1 U_it u_t (back substitution only).
-        self._u_ii = up[:ni, :ni].tocsr()
-        self._u_ii.sort_indices()
-        self._u_it = up[:ni, ni:].tocsr()
+        end = up.indptr[ni]
+        self._u_ii = sp.csc_matrix((up.data[:end], up.indices[:end], up.indptr[:ni + 1]), shape=(ni, ni))
+        self._u_t = up[:, ni:]
         if store_response is None:
             store_response = 8.0 * len(self._free) * nt <= RESPONSE_BYTES_MAX
         self.store_response = bool(store_response)
         self._response = None
         if self.store_response:
             # Row j: the free-dof displacement under a unit upward force at top node j.
-            xi = -upper_solve(self._u_ii, self._u_it @ self.compliance)
+            xi = -upper_solve(self._u_ii, (self._u_t @ self.compliance)[:ni])
             self._response = np.ascontiguousarray(np.concatenate([xi, self.compliance]).T)
         self._lcp = ContactLcp(self.compliance)
         self.top_area = self._top_areas(top)
@@ -282,7 +288,7 @@ class ElasticBody:
             uf = -(f[on] @ self._response[on])
         else:
             ut = -(self.compliance[:, on] @ f[on])
-            uf = np.concatenate([-upper_solve(self._u_ii, self._u_it @ ut), ut])
+            uf = np.concatenate([-upper_solve(self._u_ii, (self._u_t @ ut)[:len(self._free) - len(ut)]), ut])
         u = np.zeros(3 * self.n_nodes)
         u[self._free] = uf
         return u.reshape(-1, 3)

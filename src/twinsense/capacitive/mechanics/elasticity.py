@@ -13,7 +13,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["element_dofs", "gradients", "hooke_matrix", "principal_min", "stiffness", "strain_matrices"]
+__all__ = ["element_dofs", "element_stiffness", "gradients", "hooke_matrix", "principal_min", "scatter", "stiffness",
+           "strain_matrices"]
 
 
 def gradients(points: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -84,8 +85,23 @@ def element_dofs(cells: np.ndarray) -> np.ndarray:
     return (3 * np.asarray(cells, np.int64)[:, :, None] + np.arange(3)).reshape(len(cells), 12)
 
 
-def stiffness(points: np.ndarray, cells: np.ndarray, lam: np.ndarray, mu: np.ndarray) -> sp.csr_matrix:
-    """The global stiffness (3 n, 3 n) CSR [N/m].
+def element_stiffness(b: np.ndarray, vol: np.ndarray, lam: np.ndarray, mu: np.ndarray) -> np.ndarray:
+    """(m, 12, 12) element stiffness ``V B^T D B`` [N/m] from strain matrices (m, 6, 12), volumes, Lame's parameters."""
+    return vol[:, None, None] * (np.transpose(b, (0, 2, 1)) @ (hooke_matrix(lam, mu) @ b))
+
+
+def scatter(ke: np.ndarray, dofs: np.ndarray, n: int) -> sp.csc_matrix:
+    """Sum element matrices (m, k, k) into an (n, n) CSC matrix; dofs (m, k) < 0 are dropped."""
+    rows = np.repeat(dofs, dofs.shape[1], axis=1).ravel()
+    cols = np.tile(dofs, (1, dofs.shape[1])).ravel()
+    keep = (rows >= 0) & (cols >= 0)
+    k = sp.csc_matrix((ke.ravel()[keep], (rows[keep], cols[keep])), shape=(n, n))
+    k.sum_duplicates()
+    return k
+
+
+def stiffness(points: np.ndarray, cells: np.ndarray, lam: np.ndarray, mu: np.ndarray) -> sp.csc_matrix:
+    """The global stiffness (3 n, 3 n) CSC [N/m].
 
     Parameters
     ----------
@@ -93,16 +109,7 @@ def stiffness(points: np.ndarray, cells: np.ndarray, lam: np.ndarray, mu: np.nda
     lam, mu : (m,) float, Lame's parameters of each cell [Pa].
     """
     grad, vol = gradients(points, cells)
-    b = strain_matrices(grad)
-    d = hooke_matrix(lam, mu)
-    ke = vol[:, None, None] * (np.transpose(b, (0, 2, 1)) @ (d @ b))
-    dofs = element_dofs(cells)
-    rows = np.repeat(dofs, 12, axis=1).ravel()
-    cols = np.tile(dofs, (1, 12)).ravel()
-    n = 3 * len(points)
-    k = sp.csr_matrix((ke.ravel(), (rows, cols)), shape=(n, n))
-    k.sum_duplicates()
-    return k
+    return scatter(element_stiffness(strain_matrices(grad), vol, lam, mu), element_dofs(cells), 3 * len(points))
 
 
 def principal_min(voigt: np.ndarray) -> np.ndarray:

@@ -2,8 +2,9 @@
 
 SciPy's ``spsolve_triangular`` loops in Python-level chunks and SuperLU's
 ``solve`` always runs the forward sweep too; a frame only needs the backward
-sweep with the interior block of ``U`` (see :mod:`.body`), done here row by
-row on CSR storage with all right-hand sides of a row at once.
+sweep with the interior block of ``U`` (see :mod:`.body`), done here column by
+column on the CSC storage SuperLU hands out (no conversion), all
+right-hand sides of a row at once.
 """
 
 from __future__ import annotations
@@ -24,38 +25,46 @@ def _jit(fn):
 
 @_jit
 def _upper_solve_1(indptr, indices, data, b):  # pragma: no cover - compiled
-    n = len(b)
-    x = np.empty(n)
-    for i in range(n - 1, -1, -1):
-        start, stop = indptr[i], indptr[i + 1]
-        # Sorted CSR of an upper-triangular matrix: the diagonal comes first.
-        s = b[i]
-        for p in range(start + 1, stop):
-            s -= data[p] * x[indices[p]]
-        x[i] = s / data[start]
+    x = b.copy()
+    for j in range(len(b) - 1, -1, -1):
+        start, stop = indptr[j], indptr[j + 1]
+        diag = 0.0
+        for p in range(start, stop):
+            if indices[p] == j:
+                diag = data[p]
+        xj = x[j] / diag
+        x[j] = xj
+        for p in range(start, stop):
+            i = indices[p]
+            if i != j:
+                x[i] -= data[p] * xj
     return x
 
 
 @_jit
 def _upper_solve_k(indptr, indices, data, b):  # pragma: no cover - compiled
-    n = b.shape[0]
     x = b.copy()
-    for i in range(n - 1, -1, -1):
-        start, stop = indptr[i], indptr[i + 1]
-        row = x[i]
-        for p in range(start + 1, stop):
-            row -= data[p] * x[indices[p]]
-        row /= data[start]
+    for j in range(b.shape[0] - 1, -1, -1):
+        start, stop = indptr[j], indptr[j + 1]
+        diag = 0.0
+        for p in range(start, stop):
+            if indices[p] == j:
+                diag = data[p]
+        x[j] /= diag
+        xj = x[j]
+        for p in range(start, stop):
+            i = indices[p]
+            if i != j:
+                x[i] -= data[p] * xj
     return x
 
 
 def upper_solve(upper, b: np.ndarray) -> np.ndarray:
-    """Solve ``upper @ x = b``.
+    """Solve ``upper @ x = b`` (column-oriented back substitution).
 
     Parameters
     ----------
-    upper : (n, n) scipy CSR, upper triangular with sorted indices and a
-        stored non-zero diagonal.
+    upper : (n, n) scipy CSC, upper triangular with a stored non-zero diagonal.
     b : (n,) or (n, k) float
 
     Returns
