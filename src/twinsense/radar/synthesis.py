@@ -25,7 +25,8 @@ Two implementations:
   reference, O(n_scatterers x cube size).
 - :func:`synthesize` (kernels in :mod:`twinsense.radar.nufft`) is fast and agrees with the reference to about its
   ``eps`` (7.5e-7 to 8.4e-7 measured at the default eps = 1e-6 on 342k-scatterer
-  office frames). Static scatterers (v = 0) have a constant tau per (tx, rx)
+  office frames). Static scatterers (v = 0, or too slow to change any sample
+  by eps / 4: :func:`still_speed`) have a constant tau per (tx, rx)
   pair: their phase is exactly linear in the sample index, so each (tx, rx)
   row is one type-1 non-uniform FFT (finufft) over the scatterers, shared by
   every chirp of that transmitter. A moving scatterer's path length is
@@ -87,6 +88,39 @@ def _check_inputs(points, velocities, weights, points_rx=None, velocities_rx=Non
 def _nonzero_rows(a: np.ndarray) -> np.ndarray:
     """(n,) bool: rows of a (n, 3) with any non-zero component."""
     return (a[:, 0] != 0.0) | (a[:, 1] != 0.0) | (a[:, 2] != 0.0)
+
+
+def still_speed(config: RadarConfig, eps: float) -> float:
+    """Speed [m/s] below which a scatterer's motion changes no IF sample by more than eps / 4.
+
+    Over the frame the path delay changes by at most (|v_tx| + |v_rx|) T / c
+    (T: the end of the last ramp), and the IF phase by at most 2 pi f_max
+    times that (d phi / d tau = 2 pi (f0 + S t - S tau) <= 2 pi f_max); a
+    sample of weight w then moves by at most |w| times the phase change. At
+    (|v_tx| + |v_rx|) <= eps c / (8 pi f_max T) that is eps / 4 of |w|, the
+    form and a quarter of the size of the NUFFT's own error bound. Such a
+    scatterer is synthesised as static: a sensor that sees parts of its own
+    carrier gets relative speeds of ~1e-17 m/s from rounding, which would
+    otherwise cost the per-chirp moving path.
+    """
+    c = config.chirp
+    f_max = c.start_frequency + max(c.slope, 0.0) * c.ramp_end_time
+    t_end = float(c.chirp_times()[-1]) + c.ramp_end_time
+    return eps * SPEED_OF_LIGHT / (8.0 * math.pi * f_max * t_end)
+
+
+def _moving_rows(v: np.ndarray, vr: np.ndarray, config: RadarConfig, eps: float) -> np.ndarray:
+    """(n,) bool: scatterers whose legs move faster together than :func:`still_speed`."""
+    moving = _nonzero_rows(v)
+    if vr is not v:
+        moving |= _nonzero_rows(vr)
+    if not moving.any():
+        return moving
+    rows = np.flatnonzero(moving)
+    speed = np.linalg.norm(np.take(v, rows, axis=0), axis=1)
+    speed += np.linalg.norm(np.take(vr, rows, axis=0), axis=1)  # monostatic: the same leg twice
+    moving[rows[speed <= still_speed(config, eps)]] = False
+    return moving
 
 
 def _output(cube: np.ndarray, config: RadarConfig) -> np.ndarray:
@@ -162,9 +196,7 @@ def synthesize(points: np.ndarray, velocities: np.ndarray | None, weights: np.nd
     geo = Geometry(config, n_chirps)
     cube = np.zeros((n_rx, n_chirps, n_samp), dtype=complex)
 
-    moving = _nonzero_rows(v)
-    if vr is not v:
-        moving |= _nonzero_rows(vr)
+    moving = _moving_rows(v, vr, config, eps)
     mv = np.flatnonzero(moving)
     n = len(p)
     # One list of tasks: chunks of static scatterers (one NUFFT per (tx, rx)
