@@ -47,23 +47,29 @@ class DeformedElectrostatics:
     stack : StackMesh
     solver : SolverConfig, optional
     porous : PorousPermittivity, optional
-        Pressure-dependent permittivity of the dielectric (None: constant).
+        Pressure-dependent permittivity of the dielectric (None: constant); it
+        replaces the dielectric's own permittivity, also at rest.
+    outer_boundary : {"open", "grounded", "neumann"}
+        Far field of the meshed box (open space by default).
     """
 
     def __init__(self, stack: StackMesh, solver: SolverConfig | None = None,
-                 porous: PorousPermittivity | None = None) -> None:
+                 porous: PorousPermittivity | None = None, outer_boundary: str = "open") -> None:
         self.stack = stack
         mesh = stack.mesh
-        z_top = stack.z_top
-        center = np.array([0.0, 0.0, z_top])
+        center = np.array([0.0, 0.0, stack.z_top])
+        eps = np.array(stack.permittivity, float)
+        if porous is not None:
+            eps[stack.region == DIELECTRIC] = float(porous.permittivity(0.0))
+        self._rest_eps = eps
         self.system = ElectrostaticSystem(mesh, stack.terminals, grounded=stack.ground,
-                                          permittivity=stack.permittivity, outer_boundary="open", center=center)
+                                          permittivity=eps, outer_boundary=outer_boundary, center=center)
         self.solver = MaxwellSolver(self.system, solver)
         self.porous = porous
         self.points0 = np.array(mesh.points)
         self.displacement = np.zeros_like(self.points0)
-        self._base_eps = np.array(stack.permittivity)  # the stack's own permittivity, strain-corrected
-        self._object_eps = np.array(stack.permittivity)
+        self._base_eps = eps.copy()  # the stack's own permittivity, strain-corrected
+        self._object_eps = eps.copy()
         self._air = stack.air_cells
         self.reassembled = 0  # cells re-computed by the last set_displacement
 
@@ -120,7 +126,7 @@ class DeformedElectrostatics:
         return cells
 
     def _stack_eps(self, cells: np.ndarray) -> np.ndarray:
-        eps = np.array(self.stack.permittivity[cells])
+        eps = np.array(self._rest_eps[cells])
         if self.porous is not None:
             d = self.stack.region[cells] == DIELECTRIC
             if np.any(d):
@@ -140,7 +146,7 @@ class DeformedElectrostatics:
         sub = SimplexMesh.__new__(SimplexMesh)
         object.__setattr__(sub, "points", self.points)
         object.__setattr__(sub, "cells", self.stack.mesh.cells[air])
-        mm = map_inclusions(sub, self.stack.permittivity[air], inclusions, mesh_to_world=skin_to_world)
+        mm = map_inclusions(sub, self._rest_eps[air], inclusions, mesh_to_world=skin_to_world)
         obj_eps = self._base_eps.copy()
         obj_eps[air] = mm.permittivity
         self._object_eps = obj_eps
