@@ -440,7 +440,6 @@ class PersonMotion:
         self.stop_time = math.inf
         self.start_xy = start_xy = pos[:2].copy()
         if walk is not None:
-            self.cycle = WalkCycle(GaitTiming(walk.speed, self.leg.leg_length), self.leg)
             if walk.path is not None:
                 # The walk starts where the person stands and then passes the waypoints.
                 pts = V.array("walk.path", walk.path, (None, None), "m")
@@ -449,6 +448,7 @@ class PersonMotion:
                 self.path = HeadingPath(np.vstack([start_xy, pts[:, :2]]), None, walk.turn_length)
             else:
                 self.path = HeadingPath(start_xy[None], math.radians(walk.heading_deg), walk.turn_length)
+            self.cycle = WalkCycle(GaitTiming(walk.speed, self.leg.leg_length), self.leg)
             if math.isfinite(self.path.length):
                 # Walking covers the path at the mean speed; the last START_BLEND
                 # seconds blend into standing at the path's end.

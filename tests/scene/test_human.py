@@ -1,0 +1,223 @@
+"""The articulated human: proportions, walking on the real kinematic tree, standing, turning, reaching."""
+
+import math
+
+import numpy as np
+import pytest
+
+from twinsense.errors import ConfigError
+from twinsense.scene import Scene
+from twinsense.scene.human import (
+    HAND,
+    Reach,
+    Turn,
+    Walk,
+    Walker,
+    add_person,
+    foot_sole_points,
+    human_tree,
+    person_body,
+)
+
+H = 1.75
+
+
+def _hand_centre(state, side="right", height=H):
+    return state.pose(f"{side}_hand").apply(np.array([0.0, 0.0, -0.5 * HAND * height]))
+
+
+@pytest.fixture(scope="module")
+def walker():
+    return Walker("w", H, 1.4, (0.0, 0.0), 0.0)
+
+
+def test_tree_proportions_follow_winter():
+    # Winter (2009) fig. 4.1: hip joint 0.530 H, shoulder 0.818 H, top of head 1.0 H, knee 0.285 H.
+    # The pelvis origin is the hip-joint midpoint; at q = 0 it stands 0.530 H above the soles.
+    tree = human_tree(H)
+    st = tree.forward(np.zeros(tree.n_joints), base=None)
+    z0 = -0.530 * H  # the floor in the pelvis frame
+    sole = st.pose("right_foot").apply(foot_sole_points(H))
+    np.testing.assert_allclose(sole[:, 2], z0, rtol=0, atol=1e-12)
+    assert st.pose("right_shank").position[2] - z0 == pytest.approx(0.285 * H, rel=1e-12, abs=1e-12)
+    head = tree.link("head")
+    top = st.pose("head").apply(head.origin.apply([0, 0, 0.5 * head.geometry.height + head.geometry.radius]))
+    # The head capsule is sized to reach the crown within 1 % of H (its radius is ours, not Winter's).
+    assert top[2] - z0 == pytest.approx(H, rel=0.01, abs=0)
+    assert {lk.material.name for lk in tree.links if lk.geometry is not None} == {"human_skin"}
+
+
+def test_tree_scales_with_height():
+    # Every length is a ratio of H: the same posture at another height is the same figure scaled.
+    a, b = human_tree(1.5), human_tree(1.9)
+    q = np.clip(np.linspace(-0.2, 0.3, a.n_joints), *a.limits.T)
+    pa = a.forward(q).positions
+    pb = b.forward(q).positions
+    np.testing.assert_allclose(pb, pa * 1.9 / 1.5, rtol=0, atol=1e-12)
+
+
+def test_clothing_layer_is_seen_by_optical_sensors_only():
+    tree = human_tree(H, clothing="fabric")
+    cloth = tree.link("thorax_clothing")
+    assert cloth.material.name == "fabric"
+    assert cloth.layers == frozenset({"tof", "camera", "lidar", "ultrasonic"})
+    assert cloth.geometry.radius == pytest.approx(tree.link("thorax").geometry.radius + 0.004, rel=0, abs=1e-12)
+
+
+def test_walker_mean_speed_and_planted_stance_foot(walker):
+    person = walker.joint_motion.person
+    cyc = person.cycle
+    dc = cyc.timing.cycle_duration
+    t0 = 2.0
+    # One full cycle later the pelvis is one stride further: mean speed v (rounding only, 1e-9).
+    p0 = walker.state(t0).pose("pelvis").position
+    p1 = walker.state(t0 + dc).pose("pelvis").position
+    assert (p1 - p0)[0] / dc == pytest.approx(1.4, rel=1e-9, abs=0)
+    assert abs((p1 - p0)[1]) < 1e-9
+    # Single support on the full 3-D tree: the standing foot's lowest sole point stays on the
+    # floor (within 5 mm) and slides < 0.03 m/s (2 % of v). The sagittal fit is exact; what
+    # remains comes from the pelvis list and the hip abduction that keeps the legs in lane,
+    # which the sagittal model leaves out (measured 0.016 m/s forward, 0.009 m/s sideways).
+    sole = foot_sole_points(H)
+    worst_slip, worst_height = 0.0, 0.0
+    for u in np.linspace(cyc.double_support + 0.01, 0.49, 15):
+        for side, off in (("right", 0.0), ("left", 0.5)):
+            st = walker.state(t0 - math.fmod(t0, dc) + dc + (u + off) * dc)
+            pts = st.pose(f"{side}_foot").apply(sole)
+            low = int(np.argmin(pts[:, 2]))
+            vel = st.point_velocity(f"{side}_foot", pts[low][None])[0]
+            worst_slip = max(worst_slip, float(np.hypot(vel[0], vel[1])))
+            worst_height = max(worst_height, abs(float(pts[low, 2])))
+    assert worst_slip < 0.03
+    assert worst_height < 0.005
+
+
+def test_segment_velocities_are_exact_derivatives(walker):
+    # Central differences of the FK positions over h = 1e-6 s: truncation h^2 |a'| / 6 < 1e-9 m/s
+    # (|a'| < 1e3 m/s^3), rounding 1e-16 / 1e-6 ~ 1e-10 m/s. Away from the instants where the contact
+    # rolls from heel to toe (where the pelvis acceleration jumps) they agree to 1e-6 m/s.
+    h = 1e-6
+    for t in (1.7, 2.05, 2.33, 3.1):
+        s0, s1, s = walker.state(t - h), walker.state(t + h), walker.state(t)
+        np.testing.assert_allclose((s1.positions - s0.positions) / (2 * h), s.linear_velocities, rtol=0, atol=1e-6)
+        # Angular velocity from the rotation difference: R' R^T = [w]x.
+        dr = np.einsum("nij,nkj->nik", (s1.rotations - s0.rotations) / (2 * h), s.rotations)
+        w_fd = np.stack([dr[:, 2, 1], dr[:, 0, 2], dr[:, 1, 0]], axis=1)
+        np.testing.assert_allclose(w_fd, s.angular_velocities, rtol=0, atol=1e-5)
+
+
+def test_foot_peak_speed_is_a_few_times_the_walking_speed(walker):
+    # The swinging toe peaks at about 3-4 times the walking speed (Winter, "Foot trajectory in
+    # human gait", Phys. Ther. 72(1) 1992: ~4.5 m/s at ~1.4 m/s; Chen's micro-Doppler book, ch. 5:
+    # feet reach 3-4 v). Accept 2.5-4.2 v.
+    dc = walker.joint_motion.person.cycle.timing.cycle_duration
+    toe = foot_sole_points(H)[1]
+    peak = 0.0
+    for t in np.linspace(2.0, 2.0 + dc, 80):
+        st = walker.state(t)
+        p = st.pose("right_foot").apply(toe)
+        peak = max(peak, float(np.linalg.norm(st.point_velocity("right_foot", p[None])[0])))
+    assert 2.5 * 1.4 < peak < 4.2 * 1.4
+
+
+def test_walk_along_a_path_turns_smoothly_and_stops_at_its_end():
+    body = person_body("p", H, (0.0, 0.0), 0.0, walk=Walk(1.2, ((3.0, 0.0), (3.0, 3.0)), start_time=0.5))
+    person = body.joint_motion.person
+    t_end = person.stop_time
+    assert t_end == pytest.approx(0.5 + person.path.length / 1.2, rel=1e-12, abs=0)
+    yaw = []
+    for t in np.arange(0.0, t_end + 1.0, 0.02):
+        st = body.state(t).state("pelvis")
+        yaw.append(math.atan2(st.pose.rotation[1, 0], st.pose.rotation[0, 0]))
+    # The heading turns through 90 deg without a jump: between 20 ms samples the pelvis yaw moves
+    # by at most (peak path turn rate 1.5 (pi/2) / 1 m x peak pelvis speed 2.5 m/s + torsion
+    # rate 4 RV deg x 2 pi / D_c) x 20 ms < 0.14 rad.
+    assert np.max(np.abs(np.diff(np.unwrap(yaw)))) < 0.14
+    assert np.unwrap(yaw)[-1] - np.unwrap(yaw)[0] == pytest.approx(math.pi / 2, rel=0, abs=1e-9)
+    end = body.state(t_end + 0.5)
+    # Standing at the path's end, facing +y; the rounded corner ends the path within 0.15 m of the
+    # last waypoint (it cuts the corner by ell (1 - 2/pi) / 2 < 0.15 m on each leg for ell = 1 m).
+    pelvis = end.pose("pelvis")
+    assert np.linalg.norm(pelvis.position[:2] - (3.0, 3.0)) < 0.3
+    np.testing.assert_allclose(end.linear_velocities, 0.0, rtol=0, atol=1e-12)
+    assert pelvis.rotation[:, 0] @ np.array([0.0, 1.0, 0.0]) == pytest.approx(1.0, rel=0, abs=1e-9)
+
+
+def test_standing_and_turning_on_the_spot():
+    body = person_body("s", H, (1.0, 2.0, 0.1), 90.0, turn=Turn(180.0, start_time=1.0, duration=2.0))
+    before, after = body.state(0.5), body.state(3.5)
+    # Soles on the floor (z = 0.1 here), at rest.
+    soles = before.pose("left_foot").apply(foot_sole_points(H))
+    np.testing.assert_allclose(soles[:, 2], 0.1, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(before.linear_velocities, 0.0, rtol=0, atol=1e-12)
+    assert after.pose("pelvis").rotation[:, 0] @ np.array([-1.0, 0.0, 0.0]) == pytest.approx(1.0, rel=0, abs=1e-12)
+    # Mid-turn the yaw rate is the ramp's peak 1.5 * (pi / 2) / 2 s.
+    assert body.state(2.0).state("pelvis").angular_velocity[2] == pytest.approx(1.5 * math.pi / 4, rel=1e-9, abs=0)
+
+
+@pytest.mark.parametrize("target_local", [(0.45, -0.25, 1.2), (0.5, -0.4, 1.5), (0.1, -0.3, 1.9)])
+def test_reach_puts_the_hand_on_a_reachable_point(target_local):
+    # Analytic two-link IK: the hand centre lands on the target to rounding (1e-9 m).
+    c, s = math.cos(math.radians(30)), math.sin(math.radians(30))
+    x, y, z = target_local
+    target = (1.0 + c * x - s * y, 2.0 + s * x + c * y, z)
+    body = person_body("r", H, (1.0, 2.0), 30.0, reach=Reach(target, start_time=0.5, duration=1.0, hold=2.0))
+    np.testing.assert_allclose(_hand_centre(body.state(2.0)), target, rtol=0, atol=1e-9)
+    # Before and after the reach the arm hangs at rest.
+    rest = _hand_centre(person_body("n", H, (1.0, 2.0), 30.0).state(0.0))
+    np.testing.assert_allclose(_hand_centre(body.state(0.2)), rest, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(_hand_centre(body.state(5.0)), rest, rtol=0, atol=1e-12)
+
+
+def test_reach_beyond_the_arm_points_it_at_the_target():
+    target = np.array([2.0, -0.3, 1.4])
+    body = person_body("r", H, (0.0, 0.0), 0.0, reach=Reach(tuple(target), 0.0, 0.5, math.inf))
+    st = body.state(1.0)
+    shoulder = st.pose("right_upper_arm").position
+    hand = _hand_centre(st)
+    # Clamped to the arm's length minus 1 mm, along the shoulder -> target line.
+    arm = (0.186 + 0.146 + 0.054) * H
+    assert np.linalg.norm(hand - shoulder) == pytest.approx(arm - 1e-3, rel=0, abs=1e-9)
+    direction = (target - shoulder) / np.linalg.norm(target - shoulder)
+    np.testing.assert_allclose((hand - shoulder) / np.linalg.norm(hand - shoulder), direction, rtol=0, atol=1e-9)
+    q = body.joint_state(1.0)[0]
+    lo, hi = body.tree.limits.T
+    assert np.all((q >= lo) & (q <= hi))
+
+
+def test_add_person_puts_links_in_the_scene():
+    scene = Scene()
+    add_person(scene, "alice", 1.6, (0.0, 1.0), walk=Walk(1.1, heading_deg=90.0))
+    names = {o.name for o in scene.objects}
+    assert {"alice/head", "alice/thorax", "alice/left_foot", "alice/right_hand"} <= names
+    assert scene.object("alice/head").material.name == "human_skin"
+
+
+@pytest.mark.parametrize(("kwargs", "field"), [
+    ({"height": float("nan")}, "person.height"),
+    ({"height": 3.5}, "person.height"),
+    ({"position": (1.0,)}, "person.position"),
+    ({"heading_deg": "north"}, "person.heading_deg"),
+    ({"sway": -0.1}, "person.sway"),
+    ({"walk": "fast"}, "person.walk"),
+    ({"clothing": 3}, "person.clothing"),
+    ({"clothing": "velvet"}, "material"),
+])
+def test_bad_person_inputs(kwargs, field):
+    with pytest.raises(ConfigError, match=field.replace(".", r"\.")):
+        person_body("p", **{"height": H, **kwargs})
+
+
+@pytest.mark.parametrize(("build", "field"), [
+    (lambda: Walk(speed=0.0, heading_deg=0.0), "walk.speed"),
+    (lambda: Walk(speed=1.0), "walk.path"),
+    (lambda: Reach(target=(1.0, 2.0)), "reach.target"),
+    (lambda: Reach(side="middle"), "reach.side"),
+    (lambda: Reach(hold=-1.0), "reach.hold"),
+    (lambda: Turn(duration=0.0), "turn.duration"),
+    (lambda: Walker(path=[[0.0, 0.0], [0.0, 0.0]]), "walk.path"),
+    (lambda: Walker(path=[[1.0, 0.0], [0.0, 0.0]]), "walk.path"),
+])
+def test_bad_activity_inputs(build, field):
+    with pytest.raises(ConfigError, match=field.replace(".", r"\.")):
+        build()
