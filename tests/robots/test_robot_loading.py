@@ -140,3 +140,21 @@ def test_urdf_primitives_with_scale_and_origin(tmp_path):
     b = tree.link("arm").geometry.bounds
     np.testing.assert_allclose([b[0, 0], b[1, 0]], [0.0, 0.6], atol=1e-9)
     assert tree.limits.tolist() == [[-np.inf, np.inf]]
+
+
+def test_open_link_mesh_inside_test_uses_its_convex_hull():
+    import trimesh
+
+    from twinsense.robots.meshes import LinkMesh
+
+    box = trimesh.creation.box(extents=(0.2, 0.4, 0.6))
+    closed = LinkMesh(box.vertices, box.faces, name="closed")
+    opened = LinkMesh(box.vertices, box.faces[2:], name="open")  # one side's two triangles removed
+    assert closed.mesh.is_watertight and not opened.mesh.is_watertight
+    rng = np.random.default_rng(5)
+    pts = rng.uniform(-0.4, 0.4, (2000, 3))
+    # A box is its own convex hull: both answer |x| <= 0.1, |y| <= 0.2, |z| <= 0.3 (points on the faces have
+    # probability zero here).
+    truth = np.all(np.abs(pts) <= [0.1, 0.2, 0.3], axis=1)
+    np.testing.assert_array_equal(closed.contains(pts), truth)
+    np.testing.assert_array_equal(opened.contains(pts), truth)

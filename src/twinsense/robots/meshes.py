@@ -10,10 +10,12 @@ from __future__ import annotations
 
 import functools
 import re
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import trimesh
+from scipy.spatial import ConvexHull
 
 from twinsense.errors import ConfigError
 from twinsense.scene.geometry import Geometry, TriangleMesh
@@ -56,8 +58,34 @@ def read_mesh(path: Path, field_name: str, link: str) -> tuple[np.ndarray, np.nd
     return v, f
 
 
+@dataclass(frozen=True, eq=False)
+class LinkMesh(TriangleMesh):
+    """A robot link's display mesh, with an inside test that also works when the mesh is open.
+
+    Vendor display meshes are often not closed (seams, open caps, parts that
+    only touch), and an inside test of an open mesh is undefined. A closed
+    mesh is tested exactly; an open one by its convex hull, which for arm
+    links (tubes between joint housings) adds the concave gaps between
+    housings and is the volume a capacitive or inductive sensor sees first.
+    """
+
+    def contains(self, points):
+        m = self.mesh
+        if m.is_watertight:
+            return super().contains(points)
+        eq = self.hull_equations
+        p = np.asarray(points, dtype=float).reshape(-1, 3)
+        # Inside the hull: on the inner side of every facet plane (n . p + d <= 0), to rounding.
+        return np.all(p @ eq[:, :3].T + eq[:, 3] <= 1e-12, axis=1)
+
+    @functools.cached_property
+    def hull_equations(self) -> np.ndarray:
+        """(n_facets, 4) outward unit normals and offsets of the convex hull's facets (n . p + d = 0)."""
+        return np.asarray(ConvexHull(np.asarray(self.mesh.vertices)).equations, dtype=float)
+
+
 def merge(parts: list[tuple[np.ndarray, np.ndarray, Pose]], name: str) -> Geometry | None:
-    """One TriangleMesh from parts (vertices (n, 3), faces (m, 3), part -> link pose); None if no parts."""
+    """One LinkMesh from parts (vertices (n, 3), faces (m, 3), part -> link pose); None if no parts."""
     if not parts:
         return None
     verts, faces, off = [], [], 0
@@ -65,7 +93,7 @@ def merge(parts: list[tuple[np.ndarray, np.ndarray, Pose]], name: str) -> Geomet
         verts.append(pose.apply(v))
         faces.append(np.asarray(f) + off)
         off += len(v)
-    return TriangleMesh(np.vstack(verts), np.vstack(faces), name=name)
+    return LinkMesh(np.vstack(verts), np.vstack(faces), name=name)
 
 
 def primitive_mesh(geometry: Geometry) -> tuple[np.ndarray, np.ndarray]:
