@@ -247,10 +247,11 @@ class TactileSensor:
     def force_gain(self) -> float:
         """Force per summed mutual-capacitance rise under a contact [N/F], from a reference press.
 
-        Calibrated as on a bench with a load cell: a rigid 10 mm sphere (a
-        fingertip) pressed into the central taxel by 5 % of the dielectric
-        thickness; the mechanics give the force, the electrostatics the summed
-        rise of the mutual capacitances.
+        Calibrated as on a bench with a load cell: a rigid, electrically
+        neutral 10 mm sphere (a fingertip) pressed into the central taxel by
+        1/15 of the dielectric thickness (a strain of a few percent); the
+        mechanics give the force, the electrostatics the summed rise of the
+        mutual capacitances.
         """
         if self._force_gain is None:
             from twinsense.capacitive.mechanics import Indenter
@@ -260,7 +261,7 @@ class TactileSensor:
             es = self.electrostatics
             x0 = lay.x_centers[lay.cols // 2]
             y0 = lay.y_centers[lay.rows // 2]
-            radius, depth = 0.01, 0.05 * lay.dielectric.thickness
+            radius, depth = 0.01, lay.dielectric.thickness / 15.0
             ind = Indenter.sphere((x0, y0, lay.total_thickness + radius - depth), radius, "reference_press")
             sol = self.elastic_body.solve([ind])
             es.set_objects(())
