@@ -7,8 +7,8 @@ order (:mod:`.ordering`) with the contact nodes' normal dofs last, and
 condenses it onto them: the trailing block of the factor is the Schur
 complement ``S`` and the compliance is ``C = S^-1`` (n_top, n_top) [m/N]. A
 frame solves the contact problem on ``C`` (:mod:`.contact`) and recovers the
-displacement of every node from the stored unit responses (when they fit in
-:data:`RESPONSE_BYTES_MAX`) or by one back substitution with the factor.
+displacement of every node by one back substitution with the factor (or,
+for long runs, from stored unit responses).
 """
 
 from __future__ import annotations
@@ -37,10 +37,7 @@ from twinsense.capacitive.mechanics.materials import LINEAR_STRAIN_LIMIT, Elasti
 from twinsense.capacitive.mechanics.ordering import nested_dissection, node_graph
 from twinsense.errors import ConfigError
 
-__all__ = ["RESPONSE_BYTES_MAX", "ElasticBody"]
-
-RESPONSE_BYTES_MAX = 128e6
-"""Largest store of unit responses (n_free_dofs x n_top float64) kept for the displacement [bytes]."""
+__all__ = ["ElasticBody"]
 
 STRAIN_LIMIT_MAX = 0.3
 """Largest ``strain_limit`` accepted: beyond it the linear model is off by more than a third."""
@@ -65,17 +62,18 @@ class ElasticBody:
     strain_limit : float
         Largest compressive principal strain accepted [1] (default
         :data:`~twinsense.capacitive.mechanics.materials.LINEAR_STRAIN_LIMIT`).
-    store_response : bool, optional
-        Keep the unit responses of every top node for the displacement
-        (fast frames, ``8 n_free n_top`` bytes); default: when they fit in
-        :data:`RESPONSE_BYTES_MAX`.
+    store_response : bool
+        Keep the unit response of every top node (``8 n_free n_top`` bytes,
+        n_top back substitutions up front): a frame's displacement is then a
+        sum over its contact nodes instead of one back substitution. Pays
+        off over runs of more than n_top frames; off by default.
 
     Discretisation: P1 (linear) tetrahedra, consistent nodal forces,
     node-to-plane contact on the top nodes.
     """
 
     def __init__(self, mesh: skfem.MeshTet, element_material, materials: Sequence, fixed, top, *,
-                 rollers=None, strain_limit: float = LINEAR_STRAIN_LIMIT, store_response: bool | None = None):
+                 rollers=None, strain_limit: float = LINEAR_STRAIN_LIMIT, store_response: bool = False):
         if not isinstance(mesh, skfem.MeshTet) or type(mesh).__name__ != "MeshTet1":
             raise ConfigError("ElasticBody.mesh", type(mesh).__name__, "a skfem.MeshTet (linear tetrahedra)")
         points = np.ascontiguousarray(mesh.p.T, float)
@@ -155,7 +153,9 @@ class ElasticBody:
         if not np.all(pivots > 1e-12 * pivots.max()):
             raise ConfigError("ElasticBody.fixed", f"{int(fixed.sum())} fixed nodes",
                               "constraints that hold the body (no rigid motion left)")
-        schur = low[:, ni:].toarray()[ni:] @ up[:, ni:].toarray()[ni:]
+        l_tt = sp.csc_matrix((low.data[low.indptr[ni]:], low.indices[low.indptr[ni]:] - ni,
+                              low.indptr[ni:] - low.indptr[ni]), shape=(nt, nt))
+        schur = l_tt.toarray() @ up[:, ni:][ni:].toarray()
         # C[i, j] = upward move of top node i per unit upward force at j
         # (= downward per downward), SPD.
         comp = sla.cho_solve(sla.cho_factor(0.5 * (schur + schur.T), lower=True), np.eye(nt))
@@ -164,8 +164,6 @@ class ElasticBody:
         end = up.indptr[ni]
         self._u_ii = sp.csc_matrix((up.data[:end], up.indices[:end], up.indptr[:ni + 1]), shape=(ni, ni))
         self._u_t = up[:, ni:]
-        if store_response is None:
-            store_response = 8.0 * len(self._free) * nt <= RESPONSE_BYTES_MAX
         self.store_response = bool(store_response)
         self._response = None
         if self.store_response:

@@ -89,8 +89,13 @@ class ContactLcp:
             return LcpResult(np.zeros(n), g0.copy(), np.zeros(n, bool), 0, False)
         tol = GAP_TOL * float(-g0[reach].min())
         gfin = np.where(reach, g0, 0.0)
-        # Warm start: last frame's contact nodes that can still touch, plus the newly penetrated ones.
-        active = (self._last_active & reach) | (g0 < -tol)
+        # Warm start from last frame's contact nodes that can still touch; the
+        # first iteration adds the newly penetrated ones. Cold start from the
+        # penetrated nodes (a superset: a Hertz patch a^2 = R d is half the
+        # area of the geometric overlap 2 R d).
+        active = self._last_active & reach
+        if not active.any():
+            active = g0 < -tol
         seen = set()
         for it in range(1, MAX_ITERATIONS + 1):
             f = np.zeros(n)
