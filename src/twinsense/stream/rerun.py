@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import json
 import os
+import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -427,6 +428,17 @@ class RerunSink(QueuedSink):
         self._rec = rec
         self._logger = RerunLogger(rec, self.scene, [SensorInfo.from_sensor(s) for s in self.sensors])
         self._logger.log_static()
+
+    def close(self) -> None:
+        """Log what is queued, flush, and finish the file (renamed into place); safe to call twice.
+
+        With a file output every queued frame is logged first, however long that takes (the
+        base class gives a stuck network transport a bounded time instead).
+        """
+        while (self.path is not None and not self._closed and self.error is None and self._thread is not None
+               and self._thread.is_alive() and self._queue.qsize()):
+            time.sleep(0.01)
+        super().close()
 
     def _publish(self, sensor, t: float, frame) -> None:
         self._logger.log_frame(sensor.name, t, frame.streams(), getattr(frame, "detections", None))
