@@ -219,3 +219,9 @@ def test_setpoints_follow_pushed_values():
                                atol=1e-12)
     with pytest.raises(ConfigError, match="setpoints.t"):
         sp.set(-1.0, [0.0, 0.0])
+    short = JointSetpoints([0.0], history=2)
+    for t in (0.0, 1.0, 2.0):
+        short.set(t, [t])
+    assert short.q(1.5)[0] == 1.0  # the setpoint at 1 s, held (no velocity given)
+    with pytest.raises(ConfigError, match="oldest kept setpoint"):
+        short.q(0.5)  # the 0 s setpoint is gone: refused rather than answered from q0

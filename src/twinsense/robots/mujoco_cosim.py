@@ -41,12 +41,40 @@ from twinsense.errors import ConfigError, UnknownNameError
 from twinsense.robots.deps import require
 from twinsense.robots.materials import link_materials
 from twinsense.robots.mjcf import GEOM_SETS, body_geometry, body_name, load_model
+from twinsense.scene.articulated import JointSetpoints
 from twinsense.scene.motion import Motion, MotionState, Static, check_time
 from twinsense.scene.pose import Pose
 from twinsense.scene.scene import Frame, Scene, SceneObject
 
 #: Evaluated step states kept (each holds every body's pose and velocity).
 STATE_CACHE_SIZE = 32
+#: MuJoCo joint types with one coordinate (slide, hinge).
+_ONE_DOF = (2, 3)
+
+
+class MujocoJointSetpoints(JointSetpoints):
+    """Joint values pushed from MuJoCo after every physics step (see :meth:`MujocoCosim.joint_setpoints`).
+
+    Asking for q(t) first steps the co-simulation to t, so an articulated body
+    driven by it follows MuJoCo's joints on the same clock.
+    """
+
+    def __init__(self, cosim: MujocoCosim, qadr: np.ndarray, dadr: np.ndarray, joint_names, history: int):
+        self._cosim, self._qadr, self._dadr = cosim, qadr, dadr
+        super().__init__(cosim.data.qpos[qadr].copy(), joint_names, history)
+        self.push()
+
+    def push(self) -> None:
+        d = self._cosim.data
+        self.set(float(d.time), d.qpos[self._qadr], d.qvel[self._dadr])
+
+    def q(self, t):
+        self._cosim.step_to(t)
+        return super().q(t)
+
+    def qd(self, t):
+        self._cosim.step_to(t)
+        return super().qd(t)
 
 
 def _pose(pos, quat_wxyz) -> Pose:
@@ -121,6 +149,7 @@ class MujocoCosim:
         self._times: list[float] = []
         self._snaps: list[tuple] = []
         self._cache: OrderedDict = OrderedDict()
+        self._followers: list[MujocoJointSetpoints] = []
         mujoco.mj_forward(model, data)
         self._record()
         self.names = [body_name(model, b) for b in range(model.nbody)]
@@ -136,6 +165,8 @@ class MujocoCosim:
         d = self.data
         self._times.append(float(d.time))
         self._snaps.append((d.qpos.copy(), d.qvel.copy(), d.mocap_pos.copy(), d.mocap_quat.copy()))
+        for f in getattr(self, "_followers", ()):
+            f.push()
         # Drop states older than the history, keeping at least the two newest.
         cut = bisect.bisect_left(self._times, self._times[-1] - self.history) - 1
         if cut > 0 and len(self._times) - cut >= 2:
@@ -195,6 +226,32 @@ class MujocoCosim:
         p = pos[b] + lin[b] * tau
         r = rot[b] if tau == 0 or not np.any(ang[b]) else Rotation.from_rotvec(ang[b] * tau).as_matrix() @ rot[b]
         return MotionState(Pose(p, r), lin[b].copy(), ang[b].copy())
+
+    def joint_setpoints(self, joints: dict[str, str]) -> MujocoJointSetpoints:
+        """A joint motion that follows MuJoCo's hinge and slide joints: ``{tree joint: MuJoCo joint}``.
+
+        Drive an :class:`~twinsense.scene.articulated.ArticulatedBody` with it
+        (e.g. a URDF robot with its own meshes) and its joints take MuJoCo's
+        qpos and qvel after every step, on the co-simulation's clock.
+        """
+        if not isinstance(joints, dict) or not joints:
+            raise ConfigError("cosim.joints", joints, "a non-empty mapping {tree joint name: MuJoCo joint name}")
+        m = self.model
+        names = [m.joint(j).name for j in range(m.njnt)]
+        qadr, dadr = [], []
+        for tree_joint, mj_joint in joints.items():
+            if mj_joint not in names:
+                raise UnknownNameError("cosim.joints.mujoco_joint", mj_joint, [n for n in names if n])
+            j = names.index(mj_joint)
+            if int(m.jnt_type[j]) not in _ONE_DOF:
+                raise ConfigError(f"cosim.joints[{tree_joint}]", mj_joint, "a hinge or slide joint (one coordinate)")
+            qadr.append(int(m.jnt_qposadr[j]))
+            dadr.append(int(m.jnt_dofadr[j]))
+        steps = max(2, int(np.ceil(self.history / self.timestep)) + 2)
+        with self._lock:
+            sp = MujocoJointSetpoints(self, np.array(qadr), np.array(dadr), list(joints), steps)
+            self._followers.append(sp)
+        return sp
 
     def body_id(self, body: int | str) -> int:
         if isinstance(body, str):

@@ -772,7 +772,8 @@ class JointSetpoints(JointMotion):
 
     ``set(t, q, qd)`` records the state at time t; ``q(t')`` is the latest
     setpoint at or before t' moved on by its velocity (q_k + qd_k (t' - t_k)),
-    the first setpoint before any. The last ``history`` setpoints are kept.
+    ``q0`` before any. The last ``history`` setpoints are kept; a time before
+    the oldest kept one raises ConfigError.
     """
 
     def __init__(self, q0, joint_names=None, history: int = 256):
@@ -815,13 +816,16 @@ class JointSetpoints(JointMotion):
                 self._t.append(t)
                 self._q.append(q)
                 self._qd.append(qd)
-                if len(self._t) > self._history + 1:
-                    del self._t[1], self._q[1], self._qd[1]
+                if len(self._t) > self._history:
+                    del self._t[0], self._q[0], self._qd[0]
             self._version += 1
 
     def _at(self, t: float) -> int:
         i = int(np.searchsorted(self._t, t, side="right")) - 1
-        return max(i, 0)
+        if i < 0:
+            raise ConfigError("setpoints.t", t, f"a time at or after the oldest kept setpoint ({self._t[0]:.9g} s; "
+                              f"the last {self._history} setpoints are kept)")
+        return i
 
     def q(self, t):
         t = check_time(t)
