@@ -369,12 +369,29 @@ class LegGeometry:
 _SIDES = ((0.0, -1.0), (0.5, 1.0))  # (phase offset, lateral sign): right (reference), left
 _GRID = 1024  # phase samples per stance to find where the contact rolls from heel to toe
 HIP_SCALE_RANGE = (0.05, 3.0)
+BODY_MODES = ("smooth", "planted")
+SMOOTH_SAMPLES = 512  # phase samples per cycle for the smooth body's height series
+SMOOTH_HARMONICS = 8  # cycle harmonics kept in the smooth body's height
 MIN_TRANSFER = 0.02  # [cycle] shortest weight transfer between the feet
 SWING_CLEARANCE = 0.01  # [m] lowest sole point of a swinging foot above the floor
 
 
 class WalkCycle:
-    """The Boulic joint curves plus a body translation that keeps the stance foot planted.
+    """The Boulic joint curves plus a body translation that fits them to the floor.
+
+    ``body="smooth"`` (default): the pelvis moves forward as the model
+    prescribes, v t plus its forward sway a_a H_t sin 2 pi (2u + 2 phi_a)
+    (so the torso's speed stays within +-0.2 m/s of v, as in measured gait),
+    its height is the Fourier series (harmonics <= 8 of the cycle) of the
+    height that puts the standing foot's lowest sole point on the floor, and
+    the hip-flexion curve is scaled by ``hip_scale`` (root finding) until the
+    standing foot's mean velocity over single support is zero. The foot then
+    rocks slightly about its place (0.2-0.45 m/s rms at 0.6-2.2 m/s) but
+    does not travel.
+
+    ``body="planted"``: the mode described below, in which the touching
+    point does not slide at all in single support, at the price of a pelvis
+    speed that swings between about 0.5 v and 1.75 v within a step.
 
     The model's own forward and vertical body translations (Boulic appendix
     A) leave the stance foot of a leg built from anthropometric segment
@@ -400,17 +417,22 @@ class WalkCycle:
     The model's lateral sway, pelvis list and torsion are kept as published.
     """
 
-    def __init__(self, timing: GaitTiming, leg: LegGeometry):
+    def __init__(self, timing: GaitTiming, leg: LegGeometry, body: str = "smooth"):
         if not isinstance(timing, GaitTiming):
             raise ConfigError("gait.timing", timing, "a GaitTiming")
         if not isinstance(leg, LegGeometry):
             raise ConfigError("gait.leg", leg, "a LegGeometry")
+        self.body = V.choice("walk.body", body, BODY_MODES)
         from scipy.optimize import brentq
 
         self.gait = BoulicGait(timing)
         self.timing = timing
         self.leg = leg
         self.double_support = timing.relative_support - 0.5  # D_ds / D_c
+        self._height = None
+        if self.body == "smooth":
+            self._init_smooth()
+            return
         lo, hi = HIP_SCALE_RANGE
         f = self._mismatch
         self.touchdown = 0.0
@@ -432,6 +454,53 @@ class WalkCycle:
         self._shift = 0.0
         self.swing_lift = self._fit_swing_lift()
         self._shift = -float(self.body_translation(0.0)[0][0, 0])
+
+    def _init_smooth(self) -> None:
+        """Published forward sway, height fitted to the floor, hip scaled for zero mean slip."""
+        from scipy.optimize import brentq
+
+        Dc = self.timing.cycle_duration
+        u = np.arange(SMOOTH_SAMPLES) / SMOOTH_SAMPLES
+        single = u[(u > self.double_support) & (u < 0.5)]
+        lo, hi = HIP_SCALE_RANGE
+
+        def mean_slip(k):
+            # Pelvis advance over single support + the standing foot's lowest point's
+            # advance relative to it: its mean world velocity times the duration.
+            a, b = single[0] * Dc, single[-1] * Dc
+            fa, fb = self.gait.curve("forward", a)[0], self.gait.curve("forward", b)[0]
+            px = self.timing.speed * (b - a) + float(fb - fa)
+            self._pieces = self._contact_pieces(k)
+            x, z, xd, zd = self.sole_points(np.array([a, b]), k)
+            c = self._contact(x, z, xd, zd, (0, 1), np.array([single[0], single[-1]]), self._pieces)[0]
+            return px + float(c[1] - c[0])
+
+        if not mean_slip(lo) * mean_slip(hi) < 0:
+            raise ConfigError("walk.speed", self.timing.speed,
+                              f"a speed whose step the leg reaches with a hip-flexion scale in [{lo:g}, {hi:g}]")
+        self.hip_scale = float(brentq(mean_slip, lo, hi, xtol=1e-12))
+        self._pieces = self._contact_pieces(self.hip_scale)
+        self.touchdown = 0.0
+        self.swing_lift = 0.0
+        self._shift = 0.0
+        self._fit_height()
+        self.swing_lift = self._fit_swing_lift()
+        self._fit_height()
+
+    def _fit_height(self) -> None:
+        """Fourier series (cycle harmonics <= SMOOTH_HARMONICS) of the height that puts the
+        lowest sole point of the standing foot (either foot in double support) on the floor."""
+        Dc = self.timing.cycle_duration
+        n = SMOOTH_SAMPLES
+        u = np.arange(n) / n
+        _, z, _, _ = self.sole_points(u * Dc)
+        rs = self.timing.relative_support
+        right, left = u < rs, np.mod(u - 0.5, 1.0) < rs
+        zr, zl = z[:2].min(axis=0), z[2:].min(axis=0)
+        low = np.where(right & ~left, zr, np.where(left & ~right, zl, np.minimum(zr, zl)))
+        coef = np.fft.rfft(-low)[: SMOOTH_HARMONICS + 1] / n
+        coef[1:] *= 2
+        self._height = coef
 
     # --------------------------------------------------------------- sagittal sole points
     def swing_knee(self, t, side_phase: float = 0.0, lift: float | None = None):
@@ -604,6 +673,18 @@ class WalkCycle:
         t = np.atleast_1d(np.asarray(t, float))
         T = self.timing
         Dc = T.cycle_duration
+        ly, lyd = self.gait.curve("lateral", t)
+        if self.body == "smooth":
+            fw, fwd = self.gait.curve("forward", t)
+            px, pxd = T.speed * t + fw + self._shift, T.speed + fwd
+            if self._height is None:
+                pz, pzd = np.full(t.shape, self.leg.leg_length), np.zeros(t.shape)
+            else:
+                k = np.arange(len(self._height))
+                e = np.exp(2j * np.pi * np.outer(t / Dc, k))
+                pz = np.real(e @ self._height)
+                pzd = np.real(e @ (self._height * 2j * np.pi * k / Dc))
+            return np.stack([px, -ly, pz], axis=1), np.stack([pxd, -lyd, pzd], axis=1)
         n = np.floor(t / Dc)
         f = t / Dc - n
         x, z, xd, zd = self.sole_points(t)
@@ -621,5 +702,4 @@ class WalkCycle:
         pz = -(w * rz + (1 - w) * lz)
         pzd = -(wd * (rz - lz) + w * rzd + (1 - w) * lzd)
         # The model's lateral sway is positive towards the reference (right) leg: -y.
-        ly, lyd = self.gait.curve("lateral", t)
         return np.stack([px, -ly, pz], axis=1), np.stack([pxd, -lyd, pzd], axis=1)

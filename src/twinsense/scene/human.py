@@ -293,16 +293,19 @@ class HeadingPath:
 class Walk:
     """Walk at ``speed`` [m/s] from ``start_time`` [s] along ``path`` (waypoints (n, 2|3) [m],
     starting at the first) or, without a path, endlessly along ``heading_deg`` [deg, from +x
-    towards +y]. ``turn_length`` [m]: path length over which a corner's heading change ramps."""
+    towards +y]. ``turn_length`` [m]: path length over which a corner's heading change ramps.
+    ``body``: "smooth" or "planted" pelvis translation (see :class:`~twinsense.scene.gait.WalkCycle`)."""
 
     speed: float = 1.3
     path: tuple | None = None
     heading_deg: float | None = None
     start_time: float = 0.0
     turn_length: float = 1.0
+    body: str = "smooth"
 
     def __post_init__(self):
         V.positive("walk.speed", self.speed, "m/s")
+        V.choice("walk.body", self.body, ("smooth", "planted"))
         V.time("walk.start_time", self.start_time)
         if self.path is None and self.heading_deg is None:
             raise ConfigError("walk.path", None, "a path (waypoints) or a heading_deg")
@@ -448,7 +451,7 @@ class PersonMotion:
                 self.path = HeadingPath(np.vstack([start_xy, pts[:, :2]]), None, walk.turn_length)
             else:
                 self.path = HeadingPath(start_xy[None], math.radians(walk.heading_deg), walk.turn_length)
-            self.cycle = WalkCycle(GaitTiming(walk.speed, self.leg.leg_length), self.leg)
+            self.cycle = WalkCycle(GaitTiming(walk.speed, self.leg.leg_length), self.leg, walk.body)
             if math.isfinite(self.path.length):
                 # Walking covers the path at the mean speed; the last START_BLEND
                 # seconds blend into standing at the path's end.
