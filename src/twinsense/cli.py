@@ -382,7 +382,8 @@ def info() -> None:
     typer.echo(f"ray casting: {backend}")
     for mod, what in (("finufft", "fast radar IF synthesis"), ("pyamg", "AMG preconditioner"),
                       ("skfem", "FEM assembly"), ("gmsh", "gmsh mesher (optional, GPL)"),
-                      ("ray", "Ray cluster sweeps (optional)")):
+                      ("ray", "Ray cluster sweeps (optional)"), ("zmq", "ZeroMQ live streams (optional)"),
+                      ("foxglove", "Foxglove live server (optional)")):
         found = importlib.util.find_spec(mod) is not None
         typer.echo(f"  {mod:10s} {'found' if found else 'missing':8s} {what}")
 

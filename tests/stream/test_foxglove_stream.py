@@ -122,7 +122,7 @@ def test_a_websocket_client_subscribes_and_decodes():
                                   arrays["xyz"][np.isfinite(arrays["range"])])
 
     _, ch, stats = got["/twinsense/stats"]
-    assert ch["encoding"] == "json" and set(stats) == {"sent", "dropped", "queued"}
+    assert ch["encoding"] == "json" and set(stats) == {"sent", "dropped", "queued", "subscriptions"}
     assert stats["dropped"] == {"depth": 0, "lidar": 0}
 
 

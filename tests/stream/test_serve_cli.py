@@ -72,3 +72,9 @@ def test_serve_cli_runs_and_refuses_bad_input(tmp_path):
     assert res.exit_code == 2 and "ZmqSink.address" in res.output
     res = runner.invoke(app, ["serve", str(tmp_path / "missing.yaml")])
     assert res.exit_code == 2 and "missing.yaml" in res.output
+
+
+def test_serve_without_the_extra_names_it(tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "foxglove", None)
+    res = CliRunner().invoke(app, ["serve", str(_scenario_file(tmp_path, 0.2)), "--foxglove-port", "0"])
+    assert res.exit_code == 2 and "pip install 'twinsense[stream]'" in res.output

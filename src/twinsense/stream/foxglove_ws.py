@@ -32,6 +32,7 @@ counted when it is full.
 from __future__ import annotations
 
 import json
+import threading
 import time
 from typing import Any
 
@@ -56,6 +57,9 @@ BACKLOG = 256
 MAX_JSON_VALUES = 16384
 #: [s] Wall time between ``/twinsense/stats`` messages.
 STATS_INTERVAL = 1.0
+#: [s] How long closing waits, when a client is subscribed, for the server to hand over the last messages
+#: (stopping the server discards what its client queues still hold).
+LINGER = 0.25
 # dB maps: 10 log10 of zero would be -inf.
 _DB_FLOOR = 1e-30
 
@@ -81,6 +85,22 @@ def _plain(obj: Any) -> Any:
         return repr(o)
 
     return json.loads(json.dumps(obj, default=default))
+
+
+class _Subscriptions:
+    """A foxglove ServerListener counting the clients' channel subscriptions (server threads call it)."""
+
+    def __init__(self):
+        self.count = 0
+        self._lock = threading.Lock()
+
+    def on_subscribe(self, client, channel) -> None:
+        with self._lock:
+            self.count += 1
+
+    def on_unsubscribe(self, client, channel) -> None:
+        with self._lock:
+            self.count -= 1
 
 
 class FoxgloveSink(QueuedSink):
@@ -112,6 +132,8 @@ class FoxgloveSink(QueuedSink):
         self.server = None
         self._channels: dict[str, Any] = {}
         self._channel_names: dict[str, list] = {}
+        self._subs = _Subscriptions()
+        self._camera_info: dict[str, dict | None] = {}
         self._last_t: float | None = None
 
     # --- transport ---------------------------------------------------------------
@@ -121,7 +143,7 @@ class FoxgloveSink(QueuedSink):
         self._ctx = fg.Context()  # its own channels, never the process-wide default context
         try:
             self.server = fg.start_server(name="twinsense", host=self.host, port=self.port, context=self._ctx,
-                                          message_backlog_size=self.backlog)
+                                          message_backlog_size=self.backlog, server_listener=self._subs)
         except Exception as err:
             raise ConfigError("foxglove_port", self.port, f"a free TCP port on {self.host} ({err})") from None
         self.port = int(self.server.port)
@@ -140,12 +162,15 @@ class FoxgloveSink(QueuedSink):
     def _stop(self) -> None:
         if self.server is not None:
             self._log_stats()
+            if self._subs.count > 0:
+                time.sleep(LINGER)
             self.server.stop()
             self.server = None
 
     def stats(self) -> dict:
         """Frames sent and dropped per sensor, and the frames queued now."""
-        return {"sent": dict(self.sent), "dropped": dict(self.dropped), "queued": self.queued}
+        return {"sent": dict(self.sent), "dropped": dict(self.dropped), "queued": self.queued,
+                "subscriptions": self._subs.count}
 
     # --- messages ----------------------------------------------------------------
     def _channel(self, topic: str, cls_name: str | None):
@@ -213,7 +238,9 @@ class FoxgloveSink(QueuedSink):
             self._log("/tf", "FrameTransforms", self._transforms(t, ns), ns)
             self._last_t = t
         if kind in ("camera", "tof"):
-            info = camera_info(kind, _plain(sensor.config_dict()))
+            if name not in self._camera_info:
+                self._camera_info[name] = camera_info(kind, _plain(sensor.config_dict()))
+            info = self._camera_info[name]
             if info is not None:
                 self._log(f"/{name}/camera_info", "CameraCalibration",
                           self._m.CameraCalibration(timestamp=self._stamp(ns), frame_id=fid, width=info["width"],
