@@ -413,7 +413,9 @@ class KinematicTree:
         self.limits = lim
         self._lower, self._upper = lim[:, 0].copy(), lim[:, 1].copy()
         self._zeros = np.zeros(len(movable))
-        self._zeros.setflags(write=False)
+        self._shape = (len(movable),)
+        self._base0 = np.zeros(18)  # the root at the origin, at rest: position, rotation (identity), velocities
+        self._base0[3:12] = np.eye(3).ravel()
         self._compile(order)
 
     # ---------------------------------------------------------------- precomputation
@@ -487,9 +489,9 @@ class KinematicTree:
                               f"{j.name!r}{when}")
 
     def _vector(self, field_name: str, value) -> np.ndarray:
-        if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (self.n_joints,):
-            if np.isfinite(value).all():  # the fast path of forward kinematics in a loop
-                return np.ascontiguousarray(value)
+        if (type(value) is np.ndarray and value.dtype == np.float64 and value.shape == self._shape
+                and value.flags.c_contiguous and np.isfinite(value).all()):
+            return value  # the fast path of forward kinematics in a loop
         try:
             v = np.asarray(value, dtype=float)
         except (TypeError, ValueError):
@@ -515,10 +517,11 @@ class KinematicTree:
         """
         q = self._vector(f"{self.name}.q", q)
         qd = self._zeros if qd is None else self._vector(f"{self.name}.qd", qd)
-        self.check_limits(q)
+        if not ((q >= self._lower) & (q <= self._upper)).all():  # NaN fails too
+            self.check_limits(q)
         if base is None:
-            bp, br, bv, bw = _ORIGIN, _EYE, _ORIGIN, _ORIGIN
-        elif isinstance(base, Pose):
+            return self._run(q, qd, self._base0)
+        if isinstance(base, Pose):
             bp, br, bv, bw = base.position, base.rotation, _ORIGIN, _ORIGIN
         elif isinstance(base, MotionState):
             bp, br = base.pose.position, base.pose.rotation
@@ -529,9 +532,12 @@ class KinematicTree:
         return self._forward(q, qd, bp, br, bv, bw)
 
     def _forward(self, q, qd, bp, br, bv, bw) -> TreeState:
-        n = len(self.link_names)
         base = np.empty(18)
         base[:3], base[3:12], base[12:15], base[15:] = bp, np.ravel(br), bv, bw
+        return self._run(q, qd, base)
+
+    def _run(self, q, qd, base) -> TreeState:
+        n = len(self.link_names)
         out = np.empty((n, 18))
         _fk_kernel(q, qd, self._jint, self._jdat, self._root_index, base, out)
         out.setflags(write=False)  # the views below are read-only too
