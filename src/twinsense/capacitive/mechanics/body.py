@@ -32,7 +32,7 @@ from twinsense.capacitive.mechanics.elasticity import (
     strain_matrices,
 )
 from twinsense.capacitive.mechanics.indenter import Indenter
-from twinsense.capacitive.mechanics.kernels import upper_solve
+from twinsense.capacitive.mechanics.kernels import split_diagonal, upper_solve
 from twinsense.capacitive.mechanics.materials import LINEAR_STRAIN_LIMIT, ElasticMaterial, elastic_material
 from twinsense.capacitive.mechanics.ordering import nested_dissection, node_graph
 from twinsense.errors import ConfigError
@@ -162,13 +162,14 @@ class ElasticBody:
         self.compliance = 0.5 * (comp + comp.T)
         # Interior dofs from the top ones: u_i = -U_ii^-1 U_it u_t (back substitution only).
         end = up.indptr[ni]
-        self._u_ii = sp.csc_matrix((up.data[:end], up.indices[:end], up.indptr[:ni + 1]), shape=(ni, ni))
+        self._u_ii = split_diagonal(sp.csc_matrix((up.data[:end], up.indices[:end], up.indptr[:ni + 1]),
+                                                  shape=(ni, ni)))
         self._u_t = up[:, ni:]
         self.store_response = bool(store_response)
         self._response = None
         if self.store_response:
             # Row j: the free-dof displacement under a unit upward force at top node j.
-            xi = -upper_solve(self._u_ii, (self._u_t @ self.compliance)[:ni])
+            xi = -upper_solve(*self._u_ii, (self._u_t @ self.compliance)[:ni])
             self._response = np.ascontiguousarray(np.concatenate([xi, self.compliance]).T)
         self._lcp = ContactLcp(self.compliance)
         self.top_area = self._top_areas(top)
@@ -286,7 +287,7 @@ class ElasticBody:
             uf = -(f[on] @ self._response[on])
         else:
             ut = -(self.compliance[:, on] @ f[on])
-            uf = np.concatenate([-upper_solve(self._u_ii, (self._u_t @ ut)[:len(self._free) - len(ut)]), ut])
+            uf = np.concatenate([-upper_solve(*self._u_ii, (self._u_t @ ut)[:len(self._free) - len(ut)]), ut])
         u = np.zeros(3 * self.n_nodes)
         u[self._free] = uf
         return u.reshape(-1, 3)

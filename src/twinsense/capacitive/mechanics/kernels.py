@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import numba
 import numpy as np
+import scipy.sparse as sp
 
-__all__ = ["upper_solve"]
+__all__ = ["split_diagonal", "upper_solve"]
 
 
 def _jit(fn):
@@ -24,47 +25,46 @@ def _jit(fn):
 
 
 @_jit
-def _upper_solve_1(indptr, indices, data, b):  # pragma: no cover - compiled
+def _upper_solve_1(indptr, indices, data, diag, b):  # pragma: no cover - compiled
     x = b.copy()
     for j in range(len(b) - 1, -1, -1):
-        start, stop = indptr[j], indptr[j + 1]
-        diag = 0.0
-        for p in range(start, stop):
-            if indices[p] == j:
-                diag = data[p]
-        xj = x[j] / diag
+        xj = x[j] / diag[j]
         x[j] = xj
-        for p in range(start, stop):
-            i = indices[p]
-            if i != j:
-                x[i] -= data[p] * xj
+        for p in range(indptr[j], indptr[j + 1]):
+            x[indices[p]] -= data[p] * xj
     return x
 
 
 @_jit
-def _upper_solve_k(indptr, indices, data, b):  # pragma: no cover - compiled
+def _upper_solve_k(indptr, indices, data, diag, b):  # pragma: no cover - compiled
     x = b.copy()
     for j in range(b.shape[0] - 1, -1, -1):
-        start, stop = indptr[j], indptr[j + 1]
-        diag = 0.0
-        for p in range(start, stop):
-            if indices[p] == j:
-                diag = data[p]
-        x[j] /= diag
+        x[j] /= diag[j]
         xj = x[j]
-        for p in range(start, stop):
-            i = indices[p]
-            if i != j:
-                x[i] -= data[p] * xj
+        for p in range(indptr[j], indptr[j + 1]):
+            x[indices[p]] -= data[p] * xj
     return x
 
 
-def upper_solve(upper, b: np.ndarray) -> np.ndarray:
-    """Solve ``upper @ x = b`` (column-oriented back substitution).
+def split_diagonal(upper) -> tuple:
+    """(strictly upper part as CSC, diagonal (n,)) of an upper-triangular CSC matrix."""
+    n = upper.shape[0]
+    cols = np.repeat(np.arange(n), np.diff(upper.indptr))
+    off = upper.indices != cols
+    diag = np.zeros(n)
+    diag[cols[~off]] = upper.data[~off]
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(cols[off], minlength=n))])
+    strict = sp.csc_matrix((upper.data[off], upper.indices[off], indptr), shape=upper.shape)
+    return strict, diag
+
+
+def upper_solve(strict, diag: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Solve ``(diag(diag) + strict) @ x = b`` by column-oriented back substitution.
 
     Parameters
     ----------
-    upper : (n, n) scipy CSC, upper triangular with a stored non-zero diagonal.
+    strict : (n, n) scipy CSC, strictly upper triangular (see :func:`split_diagonal`).
+    diag : (n,) float, the non-zero diagonal.
     b : (n,) or (n, k) float
 
     Returns
@@ -73,5 +73,5 @@ def upper_solve(upper, b: np.ndarray) -> np.ndarray:
     """
     b = np.ascontiguousarray(b, float)
     if b.ndim == 1:
-        return _upper_solve_1(upper.indptr, upper.indices, upper.data, b)
-    return _upper_solve_k(upper.indptr, upper.indices, upper.data, b)
+        return _upper_solve_1(strict.indptr, strict.indices, strict.data, diag, b)
+    return _upper_solve_k(strict.indptr, strict.indices, strict.data, diag, b)
