@@ -158,6 +158,26 @@ def test_a_stuck_transport_never_blocks_send():
     assert sink.published == [0.0, 0.1, 0.2, pytest.approx(0.3, rel=0, abs=1e-15)] and sink.sent == {"s": 4}
 
 
+class Broken(QueuedSink):
+    """A transport that fails on its third frame (a server that went away)."""
+
+    name = "broken"
+
+    def _publish(self, sensor, t, frame):
+        if sum(self.sent.values()) == 2:
+            raise ConnectionResetError("peer gone")
+
+
+def test_a_failing_transport_stops_its_sink_not_the_run():
+    sc = scenario(0.5)
+    keep = Keep()
+    res = serve(sc.scene, sc.sensors, sc.duration, [Broken(), keep], rate=0, seed=sc.seed)
+    # The run and the other sink get all five frames; the broken sink delivered two, counts the rest.
+    assert res.result.frame_counts == {"depth": 5} and len(keep.frames) == 5
+    assert res.sent["broken"] == {"depth": 2} and res.dropped["broken"] == {"depth": 3}
+    assert res.errors == {"broken": "ConnectionResetError: peer gone"} and "peer gone" in res.summary()
+
+
 def test_foxglove_bad_inputs_and_missing_extra(monkeypatch):
     with pytest.raises(ConfigError, match="FoxgloveSink.port"):
         FoxgloveSink(port=70000)

@@ -224,6 +224,25 @@ def image_mono8(a: np.ndarray, ns: int, frame_id: str) -> dict:
             "is_bigendian": 0, "step": w, "data": a.tobytes()}
 
 
+def pack_columns(columns: list[tuple[str, np.ndarray]]) -> tuple[np.ndarray, list[tuple[str, int, str]]]:
+    """Named (m,) columns packed as little-endian records: (structured array, [(name, offset, "f4"...)]).
+
+    The type codes are numpy kind + size (``"f4"``, ``"u1"``, ...), one of
+    :data:`POINT_FIELD_TYPES`; the record size is ``array.dtype.itemsize``.
+    """
+    dtype = np.dtype([(n, np.asarray(a).dtype.newbyteorder("<")) for n, a in columns])
+    pts = np.empty(len(columns[0][1]) if columns else 0, dtype=dtype)
+    layout = []
+    for n, a in columns:
+        pts[n] = a
+        dt, off = dtype.fields[n]
+        code = f"{dt.kind}{dt.itemsize}"
+        if code not in POINT_FIELD_TYPES:
+            raise ConfigError(f"point_cloud.{n}", str(dt), "int8..int32, uint8..uint32, float32 or float64")
+        layout.append((n, off, code))
+    return pts, layout
+
+
 def point_cloud(columns: list[tuple[str, np.ndarray]], ns: int, frame_id: str,
                 shape: tuple[int, int] | None = None) -> dict:
     """A PointCloud2 of named per-point columns, packed in the given order.
@@ -233,24 +252,13 @@ def point_cloud(columns: list[tuple[str, np.ndarray]], ns: int, frame_id: str,
     of an organised cloud (default one row of m points). ``is_dense`` is false
     when an x, y or z value is not finite.
     """
-    dtype = np.dtype([(n, np.asarray(a).dtype.newbyteorder("<")) for n, a in columns])
-    m = len(columns[0][1]) if columns else 0
-    pts = np.empty(m, dtype=dtype)
-    for n, a in columns:
-        pts[n] = a
-    h, w = shape if shape is not None else (1, m)
-    fields = []
-    for n, _ in columns:
-        dt, off = dtype.fields[n]
-        key = f"{dt.kind}{dt.itemsize}"
-        if key not in POINT_FIELD_TYPES:
-            raise ConfigError(f"point_cloud.{n}", str(dt), "int8..int32, uint8..uint32, float32 or float64")
-        fields.append({"name": n, "offset": off, "datatype": POINT_FIELD_TYPES[key], "count": 1})
-    xyz = [pts[n] for n in "xyz" if n in dtype.names]
-    dense = all(bool(np.isfinite(c).all()) for c in xyz)
+    pts, layout = pack_columns(columns)
+    h, w = shape if shape is not None else (1, len(pts))
+    fields = [{"name": n, "offset": off, "datatype": POINT_FIELD_TYPES[code], "count": 1} for n, off, code in layout]
+    dense = all(bool(np.isfinite(pts[n]).all()) for n in "xyz" if n in pts.dtype.names)
+    step = pts.dtype.itemsize
     return {"header": _header(ns, frame_id), "height": h, "width": w, "fields": fields, "is_bigendian": False,
-            "point_step": dtype.itemsize, "row_step": dtype.itemsize * w, "data": pts.tobytes(),
-            "is_dense": dense}
+            "point_step": step, "row_step": step * w, "data": pts.tobytes(), "is_dense": dense}
 
 
 def point_cloud_xyzi(xyz: np.ndarray, intensity: np.ndarray, ns: int, frame_id: str) -> dict:

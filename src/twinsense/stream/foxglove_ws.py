@@ -44,6 +44,7 @@ from twinsense.io.mcap import (
     WORLD_FRAME,
     camera_info,
     lidar_columns,
+    pack_columns,
     radar_detection_columns,
     sensor_frame,
     stamp_ns,
@@ -202,20 +203,14 @@ class FoxgloveSink(QueuedSink):
 
     def _cloud(self, columns: list[tuple[str, np.ndarray]], ns: int, frame_id: str):
         m = self._m
-        types = {"u1": m.PackedElementFieldNumericType.Uint8, "i1": m.PackedElementFieldNumericType.Int8,
-                 "u2": m.PackedElementFieldNumericType.Uint16, "i2": m.PackedElementFieldNumericType.Int16,
-                 "u4": m.PackedElementFieldNumericType.Uint32, "i4": m.PackedElementFieldNumericType.Int32,
-                 "f4": m.PackedElementFieldNumericType.Float32, "f8": m.PackedElementFieldNumericType.Float64}
-        dtype = np.dtype([(n, np.asarray(a).dtype.newbyteorder("<")) for n, a in columns])
-        pts = np.empty(len(columns[0][1]), dtype=dtype)
-        for n, a in columns:
-            pts[n] = a
-        fields = [m.PackedElementField(name=n, offset=dtype.fields[n][1],
-                                       type=types[f"{dtype.fields[n][0].kind}{dtype.fields[n][0].itemsize}"])
-                  for n, _ in columns]
+        nt = m.PackedElementFieldNumericType
+        types = {"u1": nt.Uint8, "i1": nt.Int8, "u2": nt.Uint16, "i2": nt.Int16, "u4": nt.Uint32, "i4": nt.Int32,
+                 "f4": nt.Float32, "f8": nt.Float64}
+        pts, layout = pack_columns(columns)
+        fields = [m.PackedElementField(name=n, offset=off, type=types[code]) for n, off, code in layout]
         pose = m.Pose(position=m.Vector3(x=0.0, y=0.0, z=0.0), orientation=m.Quaternion(x=0.0, y=0.0, z=0.0, w=1.0))
-        return m.PointCloud(timestamp=self._stamp(ns), frame_id=frame_id, pose=pose, point_stride=dtype.itemsize,
-                            fields=fields, data=pts.tobytes())
+        return m.PointCloud(timestamp=self._stamp(ns), frame_id=frame_id, pose=pose,
+                            point_stride=pts.dtype.itemsize, fields=fields, data=pts.tobytes())
 
     def _transforms(self, t: float, ns: int):
         m = self._m
