@@ -24,6 +24,7 @@ import numpy as np
 
 from twinsense import validation as V
 from twinsense.errors import ConfigError
+from twinsense.linalg import rotate_rows
 from twinsense.radar.radiometry import backscatter_rcs
 from twinsense.radar.scatterers import Scatterers, ScatterRenderer
 from twinsense.radar.sensor import FMCWRadar, RadarFrame
@@ -51,11 +52,11 @@ def scatterers_from_images(radar: FMCWRadar, images: ExternalImages, pose: Pose,
     v_sensor = V.vector("sensor_velocity", sensor_velocity, 3, "m/s")
     view = _view(radar)
     dirs = view._dirs
-    rays = Rays(pose.position, dirs @ pose.rotation.T)
+    rays = Rays(pose.position, rotate_rows(dirs, pose.rotation.T))  # no BLAS for (n, 3) rows
     hits = images_to_hits(images, rays, sampling=sampling, edge_tolerance=edge_tolerance).hits
     idx = np.flatnonzero(hits.hit)
-    dist = hits.distance[idx]
-    points = dirs[idx] * dist[:, None]
+    dist = np.take(hits.distance, idx)
+    points = np.take(dirs, idx, axis=0) * dist[:, None]
     refl = np.full(len(idx), reflectivity)
     spec = np.full(len(idx), specular)
     if materials is not None and images.material_id is not None:
@@ -67,10 +68,10 @@ def scatterers_from_images(radar: FMCWRadar, images: ExternalImages, pose: Pose,
         has = mid >= 0
         refl[has] = np.take([m.radar_reflectivity for m in mats], mid[has])
         spec[has] = np.take([m.radar_specular for m in mats], mid[has])
-    rcs = backscatter_rcs(dist, hits.cos_incidence[idx], view._solid_angle[idx], refl, spec,
+    rcs = backscatter_rcs(dist, np.take(hits.cos_incidence, idx), np.take(view._solid_angle, idx), refl, spec,
                           math.radians(cfg.specular_lobe_deg))
-    velocities = (hits.velocity[idx] - v_sensor) @ pose.rotation  # world -> sensor frame
-    return Scatterers(points, velocities, rcs, hits.object_id[idx])
+    velocities = rotate_rows(np.take(hits.velocity, idx, axis=0) - v_sensor, pose.rotation)  # -> sensor frame
+    return Scatterers(points, velocities, rcs, np.take(hits.object_id, idx))
 
 
 def capture_from_images(radar: FMCWRadar, images: ExternalImages, t: float | None = None,

@@ -47,6 +47,7 @@ reads a ``.npz`` written by :meth:`ExternalImages.save`, and
 from __future__ import annotations
 
 import functools
+import itertools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -56,6 +57,7 @@ from twinsense import validation as V
 from twinsense.errors import ConfigError
 from twinsense.linalg import rotate_rows
 from twinsense.render.hits import Hits
+from twinsense.render.parallel import default_workers, map_ordered
 from twinsense.render.rays import PinholeCamera, Rays
 from twinsense.scene.pose import Pose
 
@@ -342,7 +344,8 @@ class ImageHits:
 
 
 def images_to_hits(images: ExternalImages, rays: Rays, sampling: str = "bilinear",
-                   edge_tolerance: float = 0.05, miss_tolerance_px: float = 1.0) -> ImageHits:
+                   edge_tolerance: float = 0.05, miss_tolerance_px: float = 1.0,
+                   compiled: bool = True) -> ImageHits:
     """Hits of ``rays`` (world frame) on the surface the images show.
 
     Parameters
@@ -358,6 +361,9 @@ def images_to_hits(images: ExternalImages, rays: Rays, sampling: str = "bilinear
         A re-projected surface point farther than this many render-pixel
         footprints from the ray is a miss (the surface it would need is
         hidden in the render).
+    compiled : bool
+        Run the per-ray loops compiled (:mod:`twinsense.render.external_kernels`);
+        False runs the NumPy reference of the same steps.
     """
     if not isinstance(images, ExternalImages):
         raise ConfigError("images", images, "an ExternalImages")
@@ -393,26 +399,32 @@ def images_to_hits(images: ExternalImages, rays: Rays, sampling: str = "bilinear
         q = np.stack([xn * z, yn * z, z], axis=-1)
         return q, u, v, ok
 
-    # A ray from the render centre (no offset across the ray): the render's
-    # pixel in its direction holds its hit, exactly.
-    s = np.full(n, np.nan)
-    across = np.linalg.norm(o - np.einsum("ij,ij->i", o, d)[:, None] * d, axis=1)
-    centred = across <= 1e-12 * (1.0 + np.linalg.norm(o, axis=1))
-    if centred.any():
-        q0, _, _, ok0 = surface(d[centred])
-        s[centred] = np.where(ok0, np.einsum("ij,ij->i", q0 - o[centred], d[centred]), np.nan)
-    off = np.flatnonzero(~centred)
-    if len(off):
-        s[off] = _first_crossing(surface, o[off], d[off], across[off], images, cam)
-    # Polish: the fixed point s <- (Q(s) - o) . d lands on the surface (one step on a plane).
-    for _ in range(_ITERATIONS):
-        q, u, v, ok = surface(o + np.nan_to_num(s)[:, None] * d)
-        ok &= np.isfinite(s)
-        s_new = np.einsum("ij,ij->i", q - o, d)
-        step = np.abs(s_new - s)
-        s = np.where(ok, s_new, s)
-        if not np.any(ok & (step > 1e-12 * np.abs(s))):
-            break
+    if compiled:
+        s, q, u, v, ok = _reproject_compiled(o, d, images, cam, sampling == "nearest", edge_tolerance)
+    else:  # the NumPy reference of the same steps
+        # A ray from the render centre (no offset across the ray): the render's
+        # pixel in its direction holds its hit, exactly.
+        s = np.full(n, np.nan)
+        across = np.linalg.norm(o - np.einsum("ij,ij->i", o, d)[:, None] * d, axis=1)
+        centred = across <= 1e-12 * (1.0 + np.linalg.norm(o, axis=1))
+        if centred.any():
+            q0, _, _, ok0 = surface(d[centred])
+            s[centred] = np.where(ok0, np.einsum("ij,ij->i", q0 - o[centred], d[centred]), np.nan)
+        off = np.flatnonzero(~centred)
+        if len(off):
+            s[off] = _first_crossing(surface, o[off], d[off], across[off], images, cam)
+        # Polish: the fixed point s <- (Q(s) - o) . d lands on the surface (one step on a plane).
+        for _ in range(_ITERATIONS):
+            q, u, v, ok = surface(o + np.nan_to_num(s)[:, None] * d)
+            ok &= np.isfinite(s)
+            s_new = np.einsum("ij,ij->i", q - o, d)
+            step = np.abs(s_new - s)
+            s = np.where(ok, s_new, s)
+            if not np.any(ok & (step > 1e-12 * np.abs(s))):
+                break
+    if compiled:
+        return _finish_compiled(s, q, u, v, ok, o, d, rays, images, sampling == "nearest", edge_tolerance,
+                                miss_tolerance_px)
     off_ray = np.linalg.norm(q - (o + s[:, None] * d), axis=1)
     footprint = q[:, 2] / min(cam.fx, cam.fy)  # one pixel at the surface's depth [m]
     hit = ok & (s > 0) & (off_ray <= miss_tolerance_px * footprint)
@@ -442,6 +454,66 @@ def images_to_hits(images: ExternalImages, rays: Rays, sampling: str = "bilinear
     return ImageHits(hits, albedo, pixel)
 
 
+def _finish_compiled(s, q, u, v, ok, o, d, rays: Rays, images: ExternalImages, nearest: bool,
+                     edge_tolerance: float, miss_tolerance_px: float) -> ImageHits:
+    """The hit fields of the re-projected rays by the compiled kernel (the NumPy steps of
+    :func:`images_to_hits`, one loop)."""
+    from twinsense.render.external_kernels import finish
+
+    n = len(s)
+    cam = images.camera
+    out = (np.empty(n), np.empty((n, 3)), np.empty((n, 3)), np.empty(n), np.empty(n, np.int32),
+           np.empty(n, np.int32), np.empty((n, 3)), np.empty(n))
+    vel = images.velocity if images.velocity is not None else np.zeros((0, 0, 3))
+    mat = images.material_id if images.material_id is not None else np.zeros((0, 0), np.int32)
+    finish(s, q, u, v, ok, o, d, np.ascontiguousarray(rays.origins), rays.directions, images.pose.rotation,
+           images.normals_camera, vel, mat, images.intensity, images.inverse_z, nearest, float(edge_tolerance),
+           float(miss_tolerance_px), float(min(cam.fx, cam.fy)), *out)
+    dist, point, normal, cos_i, obj, material, velocity, albedo = out
+    hit = obj >= 0
+    pixel = np.where(hit[:, None], np.column_stack([u, v]), np.nan)
+    return ImageHits(Hits(dist, point, normal, cos_i, obj, material, np.full(n, -1, np.int32), velocity),
+                     albedo, pixel)
+
+
+def _march_span(images: ExternalImages, o: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """(s_near, s_far) (m,) [m]: the ray parameters between which the render's surfaces can lie
+    (None for a render without any surface)."""
+    finite = images.depth[np.isfinite(images.depth)]
+    if not len(finite):
+        return None
+    scale = 1.0 if images.depth_kind == "range" else float(np.sqrt(1 + np.max(np.sum(
+        np.stack(images.camera.pixel_normalised()) ** 2, axis=0))))
+    reach = np.linalg.norm(o, axis=1)
+    return np.maximum(float(finite.min()) - reach, 1e-3), float(finite.max()) * scale + reach
+
+
+def _reproject_compiled(o, d, images: ExternalImages, cam: PinholeCamera, nearest: bool, edge_tolerance: float):
+    """(s, Q, u, v, ok) of every ray by the compiled kernel (see :func:`images_to_hits`)."""
+    from twinsense.render.external_kernels import reproject  # numba compiles on first use
+
+    n = len(o)
+    span = _march_span(images, o)
+    s, q = np.full(n, np.nan), np.full((n, 3), np.nan)
+    u, v, ok = np.full(n, np.nan), np.full(n, np.nan), np.zeros(n, bool)
+    if span is None:
+        return s, q, u, v, ok
+    intr = np.array([cam.fx, cam.fy, cam.cx, cam.cy, *cam.distortion], dtype=np.float64)
+    o, d = np.ascontiguousarray(o), np.ascontiguousarray(d)
+    s_near, s_far = span[0], np.broadcast_to(span[1], (n,)).copy()
+
+    def run(bounds):
+        a, b = bounds  # the kernel runs without the GIL: blocks of rays on the shared threads
+        reproject(o[a:b], d[a:b], images.inverse_z, intr, cam.is_distorted, nearest, float(edge_tolerance),
+                  s_near[a:b], s_far[a:b], float(max(cam.fx, cam.fy)), _MAX_STEPS, _BISECTIONS, _ITERATIONS,
+                  s[a:b], q[a:b], u[a:b], v[a:b], ok[a:b])
+
+    workers = default_workers()
+    edges = np.linspace(0, n, workers + 1).astype(int) if n >= 4096 else np.array([0, n])
+    map_ordered(run, list(itertools.pairwise(edges)), workers)
+    return s, q, u, v, ok & np.isfinite(s)
+
+
 def _first_crossing(surface, o: np.ndarray, d: np.ndarray, across: np.ndarray, images: ExternalImages,
                     cam: PinholeCamera) -> np.ndarray:
     """Ray parameter (m,) [m] where each offset ray first passes behind the render's surface
@@ -457,16 +529,12 @@ def _first_crossing(surface, o: np.ndarray, d: np.ndarray, across: np.ndarray, i
     behind a silhouette, into what the render does not show) the crossing is
     the edge itself and the residual test of the caller turns it into a miss.
     """
-    finite = images.depth[np.isfinite(images.depth)]
     m = len(o)
     out = np.full(m, np.nan)
-    if not len(finite):
+    span = _march_span(images, o)
+    if span is None:
         return out
-    scale = 1.0 if images.depth_kind == "range" else float(np.sqrt(1 + np.max(np.sum(
-        np.stack(images.camera.pixel_normalised()) ** 2, axis=0))))
-    reach = np.linalg.norm(o, axis=1)
-    s_near = np.maximum(float(finite.min()) - reach, 1e-3)
-    s_far = float(finite.max()) * scale + reach
+    s_near, s_far = span
     f = max(cam.fx, cam.fy)
     steps = int(min(np.ceil(np.max(f * across * (1.0 / s_near - 1.0 / s_far))) + 2, _MAX_STEPS))
     inv_near, inv_far = 1.0 / s_near, 1.0 / s_far
