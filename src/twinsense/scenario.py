@@ -21,6 +21,12 @@ Example::
         material: aluminium
         motion: {type: waypoints, points: [[1, -1, 0], [1, 1, 0]], speed: 0.5, mode: back_and_forth}
         layers: [tof, radar]
+    people:                # articulated humans (twinsense.scene.human), links "alice/head", ...
+      - name: alice
+        height: 1.7
+        position: [0, -2]
+        walk: {speed: 1.3, path: [[0, 2], [3, 2]], start_time: 0.5}
+        reach: {target: [3.4, 2.2, 1.1], start_time: 6.0}
     sensors:
       - name: tof
         kind: tof
@@ -255,6 +261,45 @@ class RobotSpec(_Model):
     materials: dict[str, str] = {}
 
 
+class PersonWalkSpec(_Model):
+    """Walk at ``speed`` [m/s] from ``start_time`` [s] through ``path`` waypoints [m] or along ``heading_deg``."""
+
+    speed: Pos = 1.3
+    path: list[list[Finite]] | None = None
+    heading_deg: Finite | None = None
+    start_time: Finite = 0.0
+    turn_length: Pos = 1.0
+    body: Literal["smooth", "planted"] = "smooth"
+
+
+class PersonReachSpec(_Model):
+    target: Vec3
+    start_time: Finite = 0.0
+    duration: Pos = 1.0
+    hold: Annotated[Num, Field(ge=0)] = 1.0  # inf: keep the hand there
+    side: Literal["right", "left"] = "right"
+
+
+class PersonTurnSpec(_Model):
+    heading_deg: Finite
+    start_time: Finite = 0.0
+    duration: Pos = 1.0
+
+
+class PersonSpec(_Model):
+    """A person (twinsense.scene.human): one object per body link, "name/link"."""
+
+    name: str = Field(min_length=1, pattern=r"^[^/]+$")
+    height: Pos = 1.75
+    position: list[Finite] = [0.0, 0.0]
+    heading_deg: Finite = 0.0
+    walk: PersonWalkSpec | None = None
+    turn: PersonTurnSpec | None = None
+    reach: PersonReachSpec | None = None
+    sway: Annotated[Num, Field(ge=0, allow_inf_nan=False)] = 0.0
+    clothing: str | None = None
+
+
 class MountSpec(_Model):
     pose: PoseSpec = PoseSpec()
     parent: str | None = None
@@ -306,10 +351,11 @@ class ScenarioSpec(_Model):
     materials: list[MaterialSpec] = []
     objects: list[ObjectSpec] = []
     robots: list[RobotSpec] = []
+    people: list[PersonSpec] = []
     sensors: list[SensorSpec] = []
     outputs: OutputsSpec = OutputsSpec()
 
-    @field_validator("objects", "robots", "sensors", "materials")
+    @field_validator("objects", "robots", "people", "sensors", "materials")
     @classmethod
     def _unique_names(cls, v, info):
         names = [o.name for o in v]
@@ -508,6 +554,7 @@ def scenario_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None 
         if len(parts) == 2:
             scene.add(SceneObject(os_.name, parts[0], mat, parts[1], frozenset(os_.layers), magnet))
     problems += _add_robots(spec, scene, base_dir)
+    problems += _add_people(spec, scene)
     parents = [o.name for o in spec.objects] + [n for n in (*[o.name for o in scene.objects], *scene.frame_names)
                                                 if "/" in n]
     failed_robots = {r.name for r in spec.robots} - {n.split("/")[0] for n in parents}  # reported once, above
@@ -562,6 +609,30 @@ def _add_robots(spec: ScenarioSpec, scene: Scene, base_dir: Path) -> list:
         except ConfigError as e:
             tail = e.field.removeprefix(f"{rs.name}.")
             problems.append((e.field if e.field.startswith("robots[") else f"robots[{i}].{tail}", e.value, e.allowed))
+    return problems
+
+
+def _add_people(spec: ScenarioSpec, scene: Scene) -> list:
+    """Add the ``people:`` entries to ``scene`` (one object per body link, "name/link"); their problems."""
+    from twinsense.scene import human as Hu
+
+    problems = []
+    for i, ps in enumerate(spec.people):
+        try:
+            walk = turn = reach = None
+            if ps.walk is not None:
+                w = ps.walk
+                walk = Hu.Walk(w.speed, None if w.path is None else tuple(map(tuple, w.path)), w.heading_deg,
+                               w.start_time, w.turn_length, w.body)
+            if ps.turn is not None:
+                turn = Hu.Turn(ps.turn.heading_deg, ps.turn.start_time, ps.turn.duration)
+            if ps.reach is not None:
+                r = ps.reach
+                reach = Hu.Reach(tuple(r.target), r.start_time, r.duration, r.hold, r.side)
+            Hu.add_person(scene, ps.name, ps.height, tuple(ps.position), ps.heading_deg, walk=walk, turn=turn,
+                          reach=reach, sway=ps.sway, clothing=ps.clothing)
+        except ConfigError as e:
+            problems.append((f"people[{i}].{e.field}", e.value, e.allowed))
     return problems
 
 

@@ -1,0 +1,38 @@
+"""People in scenario files: the YAML entry builds the same person as the Python API."""
+
+import numpy as np
+import pytest
+
+from twinsense.scenario import ScenarioError, scenario_from_dict
+from twinsense.scene import Scene
+from twinsense.scene.human import Reach, Walk, add_person
+
+PERSON = {"name": "alice", "height": 1.7, "position": [0.0, -2.0],
+          "walk": {"speed": 1.3, "path": [[0.0, 2.0], [3.0, 2.0]], "start_time": 0.5},
+          "reach": {"target": [3.4, 2.2, 1.1], "start_time": 6.0}}
+
+
+def test_people_entry_builds_the_python_api_person():
+    sc = scenario_from_dict({"duration": 1.0, "people": [PERSON]})
+    ref = Scene()
+    add_person(ref, "alice", 1.7, (0.0, -2.0), walk=Walk(1.3, ((0.0, 2.0), (3.0, 2.0)), start_time=0.5),
+               reach=Reach((3.4, 2.2, 1.1), start_time=6.0))
+    assert [o.name for o in sc.scene.objects] == [o.name for o in ref.objects]
+    for t in (0.0, 1.3, 4.2, 7.0):
+        for name in ("alice/head", "alice/left_foot", "alice/right_hand"):
+            a, b = sc.scene.object(name).state_at(t), ref.object(name).state_at(t)
+            np.testing.assert_array_equal(a.pose.position, b.pose.position)
+            np.testing.assert_array_equal(a.linear_velocity, b.linear_velocity)
+
+
+@pytest.mark.parametrize(("entry", "field"), [
+    ({"height": -1.0}, "people[0].height"),
+    ({"walk": {"speed": 1.0}}, "people[0].walk.path"),
+    ({"walk": {"speed": 1.0, "heading_deg": 0.0, "body": "float"}}, "people[0].walk.body"),
+    ({"reach": {"target": [1, 2]}}, "people[0].reach.target"),
+    ({"clothing": "velvet"}, "people[0].material"),
+    ({"name": "a/b"}, "people[0].name"),
+])
+def test_bad_people_entries_name_the_field(entry, field):
+    with pytest.raises(ScenarioError, match=field.replace(".", r"\.").replace("[", r"\[").replace("]", r"\]")):
+        scenario_from_dict({"people": [{**PERSON, "walk": None, "reach": None, **entry}]})
