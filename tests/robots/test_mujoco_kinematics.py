@@ -50,3 +50,44 @@ def test_mjcf_meshes_match_the_compiled_model(compiled):
     ours = sum(len(lk.geometry.faces) for lk in tree.links if lk.geometry is not None)
     # TriangleMesh drops no face here (merge keeps all; degenerate ones are dropped only when ray-cast).
     assert ours == faces
+
+
+OFFSET_JOINTS = """<mujoco model="offsets">
+  <worldbody>
+    <body name="a" pos="0.1 0.2 0.3" quat="0.9 0.1 0.3 0.2">
+      <joint name="hinge_off" type="hinge" pos="0.05 -0.1 0.2" axis="1 1 0" range="-120 120" limited="true"/>
+      <geom type="capsule" size="0.03 0.1"/>
+      <body name="b" pos="0.3 0 0" euler="30 -20 60">
+        <joint name="slide_b" type="slide" pos="0.1 0 0" axis="0 0 1"/>
+        <joint name="hinge_b" type="hinge" pos="0 0.1 -0.05" axis="0 1 0.5"/>
+        <geom type="box" size="0.05 0.02 0.04" pos="0.1 0 0"/>
+        <body name="c" pos="0 0.2 0"><joint name="ball" type="ball"/><geom type="sphere" size="0.02"/></body>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>"""
+
+
+def test_offset_and_stacked_joints_match_mujoco():
+    # A hinge away from its body's origin, a slide and a hinge stacked in one body, a ball joint (fixed here).
+    model = mujoco.MjModel.from_xml_string(OFFSET_JOINTS)
+    tree = mjcf_tree(model)
+    assert tree.joint_names == ("hinge_off", "slide_b", "hinge_b")
+    assert "b:slide_b" in tree.link_names and "a:hinge_off" in tree.link_names
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(2)
+    res = np.zeros(6)
+    for _ in range(10):
+        q = rng.uniform(-1.5, 1.5, 3)
+        qd = rng.uniform(-2.0, 2.0, 3)
+        data.qpos[:3] = q  # the ball joint's quaternion stays the identity
+        data.qvel[:3] = qd
+        mujoco.mj_forward(model, data)
+        st = tree.forward(q, qd)
+        for b in range(1, model.nbody):
+            name = model.body(b).name
+            np.testing.assert_allclose(st.pose(name).matrix[:3], np.c_[data.xmat[b].reshape(3, 3), data.xpos[b]],
+                                       atol=TOL)
+            mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_XBODY, b, res, 0)
+            np.testing.assert_allclose(st.angular_velocities[st.index(name)], res[:3], atol=TOL)
+            np.testing.assert_allclose(st.linear_velocities[st.index(name)], res[3:], atol=TOL)

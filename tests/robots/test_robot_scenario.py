@@ -89,3 +89,17 @@ def test_missing_mesh_file_and_unknown_link(tmp_path):
                                   "mount": {"parent": "arm/nope"}}])
     assert _fields(exc) == ["sensors[0].mount.parent"]
     assert "arm/tool" in str(exc.value)
+
+
+@pytest.mark.parametrize(("joints", "lift"), [
+    ({"fixed": [0.25]}, 0.25),
+    ({"fixed": {"lift": 0.4}}, 0.4),
+    ({"setpoints": [0.1]}, 0.1),  # the value until something pushes others
+    (None, 0.0),  # home: 0 clipped into [0, 0.5]
+])
+def test_robot_joint_entries(tmp_path, joints, lift):
+    sc = _scenario(tmp_path, {} if joints is None else {"joints": joints},
+                   [{"name": "cam", "kind": "camera", "preset": "generic", "mount": {"parent": "arm/tool"}}])
+    # tool = 0.2 (joint origin) + lift + 0.1 (flange) along z.
+    np.testing.assert_allclose(sc.sensors[0].mount.state_at(sc.scene, 0.3).pose.position, [0, 0, 0.3 + lift],
+                               atol=1e-12)
