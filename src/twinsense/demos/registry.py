@@ -35,6 +35,9 @@ DEMOS: dict[str, tuple[str, str, str]] = {
     "magnetic": ("twinsense.demos.magnetic", "run_magnetic_demo",
                  "angle encoder (error vs angle for an eccentric sensor, against theory) and a Hall end stop "
                  "with hysteresis on a moving axis, recording"),
+    "tactile": ("twinsense.demos.tactile", "run_tactile_demo",
+                "a hand approaches and presses an 8x8 skin patch on a robot link with one then two fingers: "
+                "proximity and pressure maps, capacitance changes, estimated vs true force, ISO/TS 15066 check"),
     "replay": ("twinsense.demos.replay", "run_replay_demo",
                "hybrid twin: the real BGT60TR13C recording replayed beside its simulated scene on one clock, "
                "range profiles, range-Doppler maps, noise floors, recording"),

@@ -141,6 +141,7 @@ class TactileSensor:
         self._last_result = None
         self._last_result: MaxwellResult | None = None
         self._hover_floor: np.ndarray | None = None
+        self._hover_self: np.ndarray | None = None
         self._force_gain: float | None = None
 
     @property
@@ -342,12 +343,22 @@ class TactileSensor:
         # Hover compensation, as a controller's baseline tracking does it: a
         # grounded hand lowers the mutual capacitance as it approaches, down to
         # a minimum at touch-down; pressing then raises it. The pressure is read
-        # from the rise above the lowest reading since the hand came near
-        # (reset when no taxel shows a hover signal above the converter noise).
+        # from the rise above the lowest reading since the hand came near. As
+        # the hand leaves, its hover drop shrinks with the self capacitance of
+        # the taxel's Rx electrode (the hand's coupling to it), so the lowest
+        # reading is scaled by that self rise now against when it was taken.
+        # Everything resets when no taxel shows a signal above the converter noise.
         floor = 3.0 * max(cfg.mutual_readout.sample_noise_rms, cfg.mutual_readout.resolution)
+        rx_self = np.clip(self_d[rx], 0.0, None)
         if self._hover_floor is None or np.all(np.abs(mut_d) <= floor):
             self._hover_floor = np.zeros_like(mut_d)
-        self._hover_floor = np.minimum(self._hover_floor, np.where(mut_d < -floor, mut_d, 0.0))
+            self._hover_self = np.zeros_like(mut_d)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            scale = np.where(self._hover_self > 0, np.clip(rx_self / self._hover_self, 0.0, 1.0), 1.0)
+        comp = self._hover_floor * scale
+        lower = (mut_d < comp) & (mut_d < -floor)
+        self._hover_floor = np.where(lower, mut_d, comp)
+        self._hover_self = np.where(lower, rx_self, np.minimum(self._hover_self, rx_self))
         if np.any(mut_d - self._hover_floor > floor):
             pressure = self.calibration.pressure(mut_d - self._hover_floor)
         else:  # nothing pressed: no need for the calibration solve
