@@ -31,6 +31,7 @@ def rec_path(tmp_path_factory):
         {"name": "tof", "kind": "tof", "preset": "generic", "frame_rate": 10, "overrides": {"width": 32, "height": 24},
          "mount": {"pose": look}},
         {"name": "radar", "kind": "radar", "preset": "paper_bgt60tr13c", "frame_rate": 10,
+         "overrides": {"render_width": 250, "render_height": 86},  # a coarser scatterer render: faster
          "mount": {"pose": {"look_at": {"eye": [0.0, 0.0, 1.0], "target": [4.0, 0.0, 1.0]}}}},
         {"name": "lidar", "kind": "lidar", "preset": "livox_mid40", "frame_rate": 10,
          "mount": {"pose": {"look_at": {"eye": [0.0, 0.0, 1.0], "target": [4.0, 0.0, 1.0]}}}},

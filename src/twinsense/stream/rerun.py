@@ -5,7 +5,8 @@ seconds of simulation time; Rerun stores integer nanoseconds):
 
 ``world``                              view coordinates right-handed, z up (static)
 ``world/objects/<object>``             the object's mesh (static) and pose
-                                       (static, or per frame time when it moves)
+                                       (static, or per frame time when it moves);
+                                       robot links ``<robot>/<link>`` nest under ``<robot>``
 ``world/sensors/<sensor>``             sensor -> world transform (static when fixed)
 ``world/sensors/<sensor>/image``       pinhole of a camera or ToF sensor (static)
 ``world/sensors/<sensor>/image/depth`` depth image [m] (``DepthImage``, meter = 1)
@@ -111,6 +112,12 @@ def entity(*parts: str) -> str:
     return "/".join(rr.escape_entity_path_part(p) for p in parts)
 
 
+def object_path(name: str) -> str:
+    """Entity of a scene object: ``world/objects/<name>``; a robot link ``robot/link`` nests as
+    ``world/objects/robot/link`` (the group entity has no transform, so the link's pose is its world pose)."""
+    return entity("world", "objects", *name.split("/"))
+
+
 def _transform(rr, pose: Pose):
     return rr.Transform3D(translation=np.asarray(pose.position, dtype=np.float64),
                           quaternion=rr.Quaternion(xyzw=np.asarray(pose.quat_xyzw, dtype=np.float64)))
@@ -151,7 +158,7 @@ class RerunLogger:
         if self.scene is not None:
             for i, obj in enumerate(self.scene):
                 mesh = obj.geometry.mesh
-                path = entity("world", "objects", obj.name)
+                path = object_path(obj.name)
                 rec.log(path, rr.Mesh3D(vertex_positions=np.asarray(mesh.vertices, dtype=np.float32),
                                         triangle_indices=np.asarray(mesh.faces, dtype=np.uint32),
                                         vertex_normals=np.asarray(mesh.vertex_normals, dtype=np.float32),
@@ -178,7 +185,7 @@ class RerunLogger:
         if t != self._last_t:
             # Moving objects once per distinct frame time, on the same timeline as the frames.
             for obj in self._moving:
-                self.rec.log(entity("world", "objects", obj.name), _transform(self.rr, obj.pose_at(float(t))))
+                self.rec.log(object_path(obj.name), _transform(self.rr, obj.pose_at(float(t))))
             self._last_t = t
 
     def log_frame(self, name: str, t: float, streams: Mapping[str, np.ndarray], detections=None) -> None:
