@@ -70,13 +70,14 @@ def moving_phases(p, v, pr, vr, tx_per_chirp, rx, centres, fc, slope, fs, half, 
     inv_fs = 1.0 / fs
     h2 = half ** 2
     h3 = half ** 3
-    for i in range(p.shape[0]):
-        v0, v1, v2 = v[i, 0], v[i, 1], v[i, 2]
-        sp = v0 * v0 + v1 * v1 + v2 * v2
-        w0, w1, w2 = vr[i, 0], vr[i, 1], vr[i, 2]
-        spr = w0 * w0 + w1 * w1 + w2 * w2
-        for m in range(centres.shape[0]):
-            tc = centres[m]
+    # Chirps outside, scatterers inside: every output row is written in order.
+    for m in range(centres.shape[0]):
+        tc = centres[m]
+        for i in range(p.shape[0]):
+            v0, v1, v2 = v[i, 0], v[i, 1], v[i, 2]
+            sp = v0 * v0 + v1 * v1 + v2 * v2
+            w0, w1, w2 = vr[i, 0], vr[i, 1], vr[i, 2]
+            spr = w0 * w0 + w1 * w1 + w2 * w2
             p0, p1, p2 = p[i, 0] + v0 * tc, p[i, 1] + v1 * tc, p[i, 2] + v2 * tc
             e0, e1, e2, e3 = _leg(p0, p1, p2, v0, v1, v2, sp, tx_per_chirp[m, 0], tx_per_chirp[m, 1],
                                   tx_per_chirp[m, 2])
