@@ -1,0 +1,162 @@
+"""Sensors that move: a ToF camera and a radar rendered from scratch every frame.
+
+A sensor on a robot moves every frame, so nothing it saw before can be kept:
+every ray is traced again and every scatterer synthesised again. Cases:
+
+- office (84k triangles, a walking person): ``pmd_pico_flexx`` (224 x 171 px,
+  2 x 2 supersampling, dual frequency, every effect but multipath) turning a
+  little every frame; ``paper_bgt60tr13c`` (1000 x 342 render, 16 chirps x
+  2 Rx x 512 samples, processing included) with nothing kept
+  (``reuse_static=False``), frames at t = 1 s + k / 30 s (the person walking);
+- robot cell (``examples/ur5_cell.yaml``: a UR5 moving over a table, plus a
+  person walking through the cell): the scenario's wrist ToF camera
+  (``pmd_pico_flexx`` in MODE_9_25FPS_450) and a ``paper_bgt60tr13c`` radar
+  beside it on the flange, both moving with the arm (so every scatterer the
+  radar sees moves relative to it).
+
+Each line gives the best and median wall time over the frames after one
+warm-up frame, the frames per second of the median, and the same-run anchor:
+a bare single-thread embreex cast (closest-hit ids only) of the sensor's
+rays against the whole scene posed at one time, in one world-space BVH.
+The numba kernels' first-call compile (or cache load) is timed separately.
+
+Run:  .venv/bin/python benchmarks/bench_moving.py [--frames N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+from _timing import embree_anchor, print_anchor, print_load_at_end, print_machine
+
+from twinsense.demos.office import SENSOR_EYE, SENSOR_TARGET, build_office_scene, sensor_pose
+from twinsense.radar import FMCWRadar
+from twinsense.render import PinholeCamera
+from twinsense.scene import Mount, Pose
+from twinsense.tof import ToFCamera
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def timed(fn, frames: int) -> tuple[float, float, float]:
+    """(best, median) wall seconds and the median process CPU seconds (every thread)
+    of fn(k) for k = 1..frames after fn(0) as a warm-up."""
+    fn(0)
+    times, cpus = [], []
+    for k in range(1, frames + 1):
+        c0, t0 = time.process_time(), time.perf_counter()
+        fn(k)
+        times.append(time.perf_counter() - t0)
+        cpus.append(time.process_time() - c0)
+    return min(times), float(np.median(times)), float(np.median(cpus))
+
+
+def report(label: str, best: float, median: float, cpu: float, anchor: float) -> None:
+    # CPU time holds better than wall time when other jobs share the cores.
+    print(f"  {label:<58s} {best * 1e3:7.1f} ms best {median * 1e3:7.1f} ms median "
+          f"-> {1 / median:5.1f} frames/s; CPU {cpu * 1e3:7.1f} ms/frame (median)")
+    print_anchor("bare embreex cast, same rays", anchor, median)
+
+
+def radar_rays(radar: FMCWRadar, pose: Pose):
+    cfg = radar.config
+    return PinholeCamera.from_fov(cfg.render_width, cfg.render_height, cfg.hfov_deg, cfg.vfov_deg).rays(pose)
+
+
+def office(frames: int) -> None:
+    scene = build_office_scene(detail=6, person=True)
+    print(f"\n== office, {sum(len(o.geometry.mesh.faces) for o in scene.objects)} triangles, walking person")
+    rng = np.random.default_rng(0)
+    cam = ToFCamera.preset("pmd_pico_flexx", mount=sensor_pose())
+    pose0 = sensor_pose()
+    rays = cam._renderer.rays(pose0.rotation, pose0.position)
+    _, anchor = embree_anchor(scene, "tof", 1.5, rays.origins, rays.directions, repeats=15)
+
+    def tof_frame(k):
+        cam.mount = Mount(Pose.look_at(SENSOR_EYE, np.add(SENSOR_TARGET, (0.0, 1e-3 * k, 0.0))))
+        cam.capture(scene, 1.0 + k / 45.0, rng)
+
+    report("ToF pmd_pico_flexx, camera moving every frame", *timed(tof_frame, frames), anchor)
+
+    radar = FMCWRadar.preset("paper_bgt60tr13c", mount=Mount(sensor_pose()), reuse_static=False)
+    r = radar_rays(radar, sensor_pose())
+    _, anchor = embree_anchor(scene, "radar", 1.5, r.origins, r.directions, repeats=15)
+    report("radar paper_bgt60tr13c, from scratch (nothing kept)",
+           *timed(lambda k: radar.capture(scene, 1.0 + k / 30.0, np.random.default_rng(k)), frames), anchor)
+
+
+def robot_cell(frames: int) -> None:
+    from twinsense.scenario import load_scenario
+    from twinsense.scene.human import Walk, add_person
+
+    sc = load_scenario(ROOT / "examples" / "ur5_cell.yaml")
+    scene = sc.scene
+    add_person(scene, "person", 1.75, position=(1.6, -1.5), walk=Walk(speed=1.0, heading_deg=90.0))
+    n_tri = sum(len(o.geometry.mesh.faces) for o in scene.objects)
+    moving = sum(not o.is_static for o in scene.objects)
+    print(f"\n== robot cell (examples/ur5_cell.yaml), {n_tri} triangles, {moving} moving objects "
+          f"(UR5 links, person)")
+    rng = np.random.default_rng(0)
+    tof = next(s for s in sc.sensors if s.name == "wrist_tof")
+    t_of = [0.3 + k / tof.frame_rate for k in range(frames + 1)]
+    pose = tof.mount.pose_at(scene, t_of[1])
+    rays = tof._renderer.rays(pose.rotation, pose.position)
+    _, anchor = embree_anchor(scene, "tof", t_of[1], rays.origins, rays.directions, repeats=15)
+    report(f"wrist ToF ({tof.config.width} x {tof.config.height}, {tof.config.supersample} x "
+           f"{tof.config.supersample} sub-pixels), on the moving arm",
+           *timed(lambda k: tof.capture(scene, t_of[k], rng), frames), anchor)
+
+    # Beside the ToF camera on the flange, looking the same way (down at the table).
+    radar = FMCWRadar.preset("paper_bgt60tr13c", name="wrist_radar",
+                             mount=Mount(Pose((0.06, 0.0, 0.02)), parent="ur5/tool0"))
+    pose = radar.mount.pose_at(scene, t_of[1])
+    r = radar_rays(radar, pose)
+    _, anchor = embree_anchor(scene, "radar", t_of[1], r.origins, r.directions, repeats=15)
+    n = max(2, frames // 4)  # every scatterer moves with the arm: seconds per frame
+    report(f"radar paper_bgt60tr13c on the moving wrist ({n} frames)",
+           *timed(lambda k: radar.capture(scene, t_of[k], np.random.default_rng(k)), n), anchor)
+
+
+def compile_times() -> None:
+    """The compiled kernels' first call in this process (from the on-disk cache if present)."""
+    import subprocess
+    import sys
+
+    code = ("import time, numpy as np;"
+            "from twinsense.scene import Box, ConstantVelocity, Pose, Scene;"
+            "from twinsense.tof import ToFCamera; from twinsense.radar import FMCWRadar;"
+            "from twinsense.scene import Mount;"
+            "s = Scene(); s.add_object('w', Box((0.02, 4, 4)), 'drywall', pose=Pose((3, 0, 0)));"
+            "s.add_object('c', Box((0.3, 0.3, 0.3)), 'metal',"
+            "             motion=ConstantVelocity(Pose((1.5, 0.3, 0)), (0, -0.5, 0)));"
+            "cam = ToFCamera.preset('pmd_pico_flexx', mount=Pose.look_at((0, 0, 0), (1, 0, 0)));"
+            "r = FMCWRadar.preset('paper_bgt60tr13c', mount=Mount(Pose.look_at((0, 0, 0), (1, 0, 0))),"
+            "                     reuse_static=False);"
+            "t0 = time.perf_counter(); cam.capture(s, 0.0, np.random.default_rng(0)); t1 = time.perf_counter();"
+            "r.capture(s, 0.0, np.random.default_rng(0)); t2 = time.perf_counter();"
+            "cam.mount = Mount(Pose.look_at((0, 0.01, 0), (1, 0, 0))); cam.capture(s, 0.1, np.random.default_rng(0));"
+            "t3 = time.perf_counter(); r.capture(s, 0.1, np.random.default_rng(0)); t4 = time.perf_counter();"
+            "print(f'{t1 - t0:.2f} {t2 - t1:.2f} {t3 - t2:.3f} {t4 - t3:.3f}')")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    print(f"\nfirst ToF frame {out[0]} s and first radar frame {out[1]} s in a new process "
+          f"(kernels loaded from the cache); second frames {float(out[2]) * 1e3:.0f} / {float(out[3]) * 1e3:.0f} ms")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--frames", type=int, default=20)
+    ap.add_argument("--skip-robot", action="store_true")
+    args = ap.parse_args()
+    print_machine()
+    office(args.frames)
+    if not args.skip_robot:
+        robot_cell(args.frames)
+    compile_times()
+    print_load_at_end()
+
+
+if __name__ == "__main__":
+    main()
