@@ -14,7 +14,7 @@ incompressible neo-Hookean solid (the first-order model of silicone rubber)
 in uniaxial compression to stretch ``l = 1 - e`` the nominal stress is
 ``mu (l - l**-2)`` against ``3 mu e`` for the linear law: the true stress
 exceeds the linear one by ``(l**-2 - l) / (3 e) - 1``, which is about ``e``
-itself: 5.3 % at e = 0.05, 11.5 % at e = 0.10, 18.7 % at e = 0.15. The
+itself: 5.4 % at e = 0.05, 11.5 % at e = 0.10, 18.7 % at e = 0.15. The
 neo-Hookean law follows rubber in compression closely (Treloar, "The Physics
 of Rubber Elasticity", 3rd ed., 1975, ch. 5), so this is the error of the
 linear model itself, and 10-20 % compression is where it reaches 10-20 %.
