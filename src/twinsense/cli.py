@@ -383,7 +383,8 @@ def info() -> None:
     for mod, what in (("finufft", "fast radar IF synthesis"), ("pyamg", "AMG preconditioner"),
                       ("skfem", "FEM assembly"), ("gmsh", "gmsh mesher (optional, GPL)"),
                       ("ray", "Ray cluster sweeps (optional)"), ("zmq", "ZeroMQ live streams (optional)"),
-                      ("foxglove", "Foxglove live server (optional)")):
+                      ("foxglove", "Foxglove live server (optional)"),
+                      ("rerun", "Rerun files and viewers (optional)"), ("xarray", "labelled arrays (optional)")):
         found = importlib.util.find_spec(mod) is not None
         typer.echo(f"  {mod:10s} {'found' if found else 'missing':8s} {what}")
 
