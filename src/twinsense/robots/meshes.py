@@ -44,10 +44,14 @@ def _read(path: str, mtime: float) -> tuple[np.ndarray, np.ndarray]:
     return v, f
 
 
-def read_mesh(path: Path, field_name: str, link: str) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices (n, 3) [m, before any URDF scale] and faces (m, 3) of a mesh file; ConfigError naming the link."""
+def read_mesh(path: Path, field_name: str, link: str, written: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (n, 3) [m, before any URDF scale] and faces (m, 3) of a mesh file; ConfigError naming the link.
+
+    ``written``: the reference as the description writes it (shown in full: a long path may be shortened).
+    """
     if not path.is_file():
-        raise ConfigError(field_name, str(path), f"an existing mesh file for link {link!r}")
+        ref = f" ({written!r} in the description, resolved to {str(path)!r})" if written else f" ({str(path)!r})"
+        raise ConfigError(field_name, str(path), f"an existing mesh file for link {link!r}{ref}")
     try:
         v, f = _read(str(path), path.stat().st_mtime)
     except Exception as exc:  # trimesh raises many types for damaged or unsupported files

@@ -43,7 +43,7 @@ def _shape_parts(link, source: str, base_dir: Path, field: str) -> list:
         where = f"{field}.links[{link.name}].{source}[{k}]"
         if g.mesh is not None:
             path = resolve_uri(g.mesh.filename, base_dir)
-            v, f = read_mesh(path, f"{where}.mesh", link.name)
+            v, f = read_mesh(path, f"{where}.mesh", link.name, g.mesh.filename)
             scale = np.ones(3) if g.mesh.scale is None else np.broadcast_to(np.asarray(g.mesh.scale, float), (3,))
             parts.append((v * scale, f, origin))
         elif g.box is not None:
