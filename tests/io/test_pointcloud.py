@@ -206,3 +206,18 @@ def test_export_bad_frame_and_coords(rec_path, tmp_path):
         with pytest.raises(ConfigError, match=".pcd or .ply"):
             export(rec["tof"], 0, tmp_path / "x.xyz")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_read_pcd_refuses_damaged_files(tmp_path):
+    raw = write_pcd(tmp_path / "c.pcd", cloud()).read_bytes()
+    cases = {"short.pcd": raw[:-5],                                                # a truncated record
+             "noend.pcd": b"VERSION 0.7\nFIELDS x y z\n",                          # header without DATA
+             "packed.pcd": raw.replace(b"DATA binary", b"DATA binary_compressed"),  # LZF-packed: not read
+             "count.pcd": raw.replace(b"COUNT 1 1 1", b"COUNT 3 1 1")}              # multi-value field
+    for name, data in cases.items():
+        (tmp_path / name).write_bytes(data)
+        with pytest.raises(ConfigError) as err:
+            read_pcd(tmp_path / name)
+        assert err.value.field in ("path", "PCD DATA"), name
+    with pytest.raises(ConfigError, match="existing .pcd"):
+        read_pcd(tmp_path / "missing.pcd")
