@@ -254,8 +254,12 @@ class ExternalImages:
             if getattr(self, name) is not None:
                 arrays[name] = getattr(self, name)
         tmp = path.with_name(path.name + ".part.npz")
-        np.savez(tmp, **arrays)
-        tmp.replace(path)  # never a half-written file under the real name
+        try:
+            np.savez(tmp, **arrays)
+            tmp.replace(path)  # never a half-written file under the real name
+        except OSError as exc:
+            tmp.unlink(missing_ok=True)
+            raise ConfigError("path", str(path), f"a writable location ({exc})") from None
         return path
 
     @classmethod
