@@ -309,3 +309,13 @@ def test_robot_links_nest_and_follow_the_joint(tmp_path):
         np.testing.assert_allclose(r["Transform3D:translation"][0], [0, 0, 1], rtol=0, atol=2.5e-7)  # float32
         np.testing.assert_allclose(r["Transform3D:quaternion"][0], [0, 0, math.sin(s / 2), math.cos(s / 2)],
                                    rtol=0, atol=1e-7)  # float32 components of a unit quaternion
+
+
+def test_recording_lacking_what_its_kind_needs(tmp_path):
+    # A "camera" recording written by another tool: no intrinsics in its config, no depth stream.
+    with RecordingWriter(tmp_path / "odd.h5") as w:
+        w.add_sensor("cam", "camera", 10.0, {"mount": {"parent": None}})
+        w.append("cam", 0.0, {"gray": np.zeros((4, 4))})
+    with pytest.raises(RecordingError, match="cannot convert to Rerun: missing"):
+        R.write_rrd(tmp_path / "odd.h5", tmp_path / "odd.rrd")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["odd.h5"]

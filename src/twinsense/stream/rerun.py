@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from twinsense.errors import ConfigError
+from twinsense.errors import ConfigError, RecordingError
 from twinsense.io.mcap import camera_info
 from twinsense.io.recording import Recording, open_recording
 from twinsense.scene.pose import Pose
@@ -326,7 +326,11 @@ def _write(recording: Recording, out: Path, scene: Scene | None) -> Path:
         rec.flush()
         rec.disconnect()
         os.replace(tmp, out)
+    except KeyError as exc:
+        # A recording whose sensor lacks a stream or config entry its kind has (written by other tools).
+        raise RecordingError(f"{str(recording.path)!r}: cannot convert to Rerun: missing {exc}") from None
     finally:
+        rec.disconnect()  # no sink writes into the temporary file after it is removed
         tmp.unlink(missing_ok=True)
     return out
 
