@@ -158,3 +158,13 @@ def test_open_link_mesh_inside_test_uses_its_convex_hull():
     truth = np.all(np.abs(pts) <= [0.1, 0.2, 0.3], axis=1)
     np.testing.assert_array_equal(closed.contains(pts), truth)
     np.testing.assert_array_equal(opened.contains(pts), truth)
+
+
+def test_format_loaders_take_installed_names():
+    from twinsense.robots import load_mjcf
+
+    assert load_urdf("ur3", shapes="collision").tree.n_joints == 6
+    with pytest.raises(UnknownNameError, match="panda, ur10, ur3, ur5"):
+        load_urdf("panda-mjcf")  # an MJCF robot: load_mjcf or load_robot
+    with pytest.raises(UnknownNameError, match="panda-mjcf, ur5e-mjcf"):
+        load_mjcf("ur5")

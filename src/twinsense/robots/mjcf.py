@@ -22,6 +22,7 @@ import numpy as np
 
 from twinsense.errors import ConfigError
 from twinsense.robots.deps import require
+from twinsense.robots.descriptions import resolve
 from twinsense.robots.materials import link_materials
 from twinsense.robots.meshes import merge, primitive_mesh
 from twinsense.scene.articulated import ArticulatedBody, Joint, JointMotion, KinematicTree, Link
@@ -167,9 +168,10 @@ def mjcf_tree(model_or_path, *, materials=None, geoms: str = "visual", name: str
     return KinematicTree(name or model.names.split(b"\0", 1)[0].decode() or "mjcf", links, joints)
 
 
-def load_mjcf(path, *, name: str | None = None, joints: JointMotion | None = None, materials=None,
+def load_mjcf(path_or_name, *, name: str | None = None, joints: JointMotion | None = None, materials=None,
               base: Pose | Motion | None = None, geoms: str = "visual") -> ArticulatedBody:
-    """A robot from an MJCF file, ready for ``scene.add_articulated`` (kinematics only; see MujocoCosim
-    for MuJoCo's physics)."""
-    tree = mjcf_tree(path, materials=materials, geoms=geoms)
+    """A robot from an MJCF file or an installed MJCF robot's name ("panda-mjcf"), ready for
+    ``scene.add_articulated`` (kinematics only; see MujocoCosim for MuJoCo's physics)."""
+    model = path_or_name if not isinstance(path_or_name, (str, Path)) else resolve(path_or_name, "mjcf")
+    tree = mjcf_tree(model, materials=materials, geoms=geoms)
     return ArticulatedBody(name or tree.name, tree, joints, base)

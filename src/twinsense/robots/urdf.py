@@ -16,6 +16,7 @@ import numpy as np
 
 from twinsense.errors import ConfigError
 from twinsense.robots.deps import require
+from twinsense.robots.descriptions import resolve
 from twinsense.robots.materials import link_materials
 from twinsense.robots.meshes import merge, primitive_mesh, read_mesh
 from twinsense.robots.paths import resolve_uri
@@ -102,12 +103,12 @@ def urdf_tree(path, *, materials=None, shapes: str = "visual", name: str | None 
     return KinematicTree(name or robot.name or p.stem, links, joints)
 
 
-def load_urdf(path, *, name: str | None = None, joints: JointMotion | None = None, materials=None,
+def load_urdf(path_or_name, *, name: str | None = None, joints: JointMotion | None = None, materials=None,
               base: Pose | Motion | None = None, shapes: str = "visual") -> ArticulatedBody:
-    """A robot from a URDF file, ready for ``scene.add_articulated``.
+    """A robot from a URDF file or an installed URDF robot's name ("ur5"), ready for ``scene.add_articulated``.
 
     ``joints`` drives the movable joints (default: held at their home values,
     0 clipped into the limits); ``base`` places the root link in the world.
     """
-    tree = urdf_tree(path, materials=materials, shapes=shapes)
+    tree = urdf_tree(resolve(path_or_name, "urdf"), materials=materials, shapes=shapes)
     return ArticulatedBody(name or tree.name, tree, joints, base)

@@ -1,0 +1,61 @@
+"""Named robot descriptions shipped by installed packages (example-robot-data, robosuite)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from twinsense.errors import UnknownNameError
+from twinsense.robots.paths import example_robot_data_share, robosuite_robots_dir
+
+
+@dataclass(frozen=True)
+class RobotDescription:
+    """Where a named robot's file lives: ``source`` ("example-robot-data" or "robosuite"), the relative path."""
+
+    name: str
+    source: str
+    relpath: str
+    fmt: str  # "urdf" or "mjcf"
+    description: str
+
+    def path(self) -> Path:
+        root = example_robot_data_share() if self.source == "example-robot-data" else robosuite_robots_dir()
+        return root / self.relpath
+
+
+ROBOTS: dict[str, RobotDescription] = {r.name: r for r in (
+    RobotDescription("ur3", "example-robot-data", "robots/ur_description/urdf/ur3_robot.urdf", "urdf",
+                     "Universal Robots UR3, 6 joints (example-robot-data URDF)"),
+    RobotDescription("ur5", "example-robot-data", "robots/ur_description/urdf/ur5_robot.urdf", "urdf",
+                     "Universal Robots UR5, 6 joints (example-robot-data URDF)"),
+    RobotDescription("ur10", "example-robot-data", "robots/ur_description/urdf/ur10_robot.urdf", "urdf",
+                     "Universal Robots UR10, 6 joints (example-robot-data URDF)"),
+    RobotDescription("panda", "example-robot-data", "robots/panda_description/urdf/panda.urdf", "urdf",
+                     "Franka Emika Panda, 7 arm joints + 2 fingers (example-robot-data URDF)"),
+    RobotDescription("panda-mjcf", "robosuite", "panda/robot.xml", "mjcf",
+                     "Franka Emika Panda arm, 7 joints, no gripper (robosuite MJCF)"),
+    RobotDescription("ur5e-mjcf", "robosuite", "ur5e/robot.xml", "mjcf",
+                     "Universal Robots UR5e arm, 6 joints, no gripper (robosuite MJCF)"),
+)}
+
+
+def robot_names() -> list[str]:
+    return sorted(ROBOTS)
+
+
+def robot_path(name: str) -> Path:
+    """The file of a named robot description."""
+    if not isinstance(name, str) or name not in ROBOTS:
+        raise UnknownNameError("robot", name, robot_names())
+    return ROBOTS[name].path()
+
+
+def resolve(path_or_name, fmt: str) -> Path:
+    """A file path, or the file of an installed robot of format ``fmt`` ("urdf" or "mjcf") named so."""
+    if isinstance(path_or_name, str) and path_or_name in ROBOTS:
+        d = ROBOTS[path_or_name]
+        if d.fmt != fmt:
+            raise UnknownNameError(f"{fmt} robot", path_or_name, [n for n, r in ROBOTS.items() if r.fmt == fmt])
+        return d.path()
+    return Path(path_or_name)
