@@ -168,7 +168,10 @@ class ExternalImages:
                               "(fx, fy, cx, cy) or (fx, fy, cx, cy, k1, k2, p1, p2, k3)") from None
         if len(k) not in (4, 9):
             raise ConfigError("images.intrinsics", k, "(fx, fy, cx, cy) or (fx, fy, cx, cy, k1, k2, p1, p2, k3)")
-        cam = PinholeCamera(shape[1], shape[0], *k[:4], tuple(k[4:]) or (0.0,) * 5)
+        try:
+            cam = PinholeCamera(shape[1], shape[0], *k[:4], tuple(k[4:]) or (0.0,) * 5)
+        except ConfigError as e:  # name the images' field, with what the camera allows
+            raise ConfigError("images.intrinsics", k, f"{e.field.split('.')[-1]}: {e.allowed}") from None
         object.__setattr__(self, "intrinsics", (cam.fx, cam.fy, cam.cx, cam.cy, *cam.distortion))
         finite = np.isfinite(depth)
         if self.normals is not None:
