@@ -11,14 +11,19 @@ shared render).
 
 Re-projection, per sensor ray ``o + s d`` (world frame, moved into the
 render camera's frame): the point at parameter ``s`` projects to a pixel of
-the render; the render's surface along that pixel's ray is found by
-interpolating the inverse depth ``1 / z``; its point ``Q`` gives the next
-``s = (Q - o) . d``. For a ray from the render centre (offset b = 0) the
-first step is exact and final. For b != 0 this fixed point converges with
-the factor ~ b tan(incidence) / depth per step; a ray whose final ``Q`` lies
-more than ``miss_tolerance_px`` pixel footprints off the ray saw a surface
-the render did not (it was hidden behind a nearer object from the render
-centre): a miss, like a ray through a hole of the render or outside it.
+the render, where the render's surface is found by interpolating the
+inverse depth ``1 / z``; its point ``Q`` gives ``s = (Q - o) . d``. A ray
+from the render centre (offset b = 0) needs one such step, exact. An offset
+ray is marched from near to far in steps of at most one render pixel until
+its point lies behind the render's surface (the first crossing: a farther
+surface the render also shows is never taken by mistake), the bracket is
+bisected, and the fixed point above polishes the crossing (on a plane it
+contracts by ~ b tan(incidence) / depth per step). A ray whose final ``Q``
+lies more than ``miss_tolerance_px`` pixel footprints off the ray went
+behind a silhouette into what the render does not show: a miss, like a ray
+through a hole of the render or outside it. The loops run compiled
+(:mod:`twinsense.render.external_kernels`); ``compiled=False`` runs the
+NumPy reference of the same steps.
 
 Error bounds (``docs/external-rendering.md``):
 
