@@ -133,9 +133,10 @@ def test_segment_velocities_are_exact_derivatives(walker):
 
 
 def test_foot_peak_speed_is_a_few_times_the_walking_speed(walker):
-    # The swinging toe peaks at about 3-4 times the walking speed (Winter, "Foot trajectory in
-    # human gait", Phys. Ther. 72(1) 1992: ~4.5 m/s at ~1.4 m/s; Chen's micro-Doppler book, ch. 5:
-    # feet reach 3-4 v). Accept 2.5-4.2 v.
+    # The swinging toe peaks at a few times the walking speed: Winter ("Foot trajectory in human
+    # gait", Phys. Ther. 72(1) 1992) measures ~4.5 m/s at ~1.4 m/s (3.2 v); Chen's micro-Doppler
+    # book (ch. 5) shows the feet at 3-4 v with the Boulic model. Measured here 4.16 v (the model's
+    # 70 deg swing knee flexion on Winter's shank). Accept 2.5-4.5 v.
     dc = walker.joint_motion.person.cycle.timing.cycle_duration
     toe = foot_sole_points(H)[1]
     peak = 0.0
@@ -143,7 +144,7 @@ def test_foot_peak_speed_is_a_few_times_the_walking_speed(walker):
         st = walker.state(t)
         p = st.pose("right_foot").apply(toe)
         peak = max(peak, float(np.linalg.norm(st.point_velocity("right_foot", p[None])[0])))
-    assert 2.5 * 1.4 < peak < 4.2 * 1.4
+    assert 2.5 * 1.4 < peak < 4.5 * 1.4
 
 
 def test_walk_along_a_path_turns_smoothly_and_stops_at_its_end():
