@@ -168,3 +168,25 @@ def test_format_loaders_take_installed_names():
         load_urdf("panda-mjcf")  # an MJCF robot: load_mjcf or load_robot
     with pytest.raises(UnknownNameError, match="panda-mjcf, ur5e-mjcf"):
         load_mjcf("ur5")
+
+
+def test_ray_hits_on_a_moving_robot_link_carry_its_analytic_velocity():
+    # The UR5 turning about its base (shoulder pan at 0.8 rad/s, others still): a ray straight down onto the
+    # upper arm hits a point whose velocity is w x r with w = (0, 0, 0.8) about the base z axis.
+    from twinsense.render import Rays, cast
+    from twinsense.scene import JointConstantVelocity
+
+    qd = np.array([0.8, 0, 0, 0, 0, 0])
+    body = load_robot("ur5", shapes="collision", joints=JointConstantVelocity([0, -1.2, 0.3, 0, 0, 0], qd))
+    scene = Scene()
+    scene.add_articulated(body)
+    t = 0.4
+    arm = body.state(t).pose("upper_arm_link")
+    target = arm.apply([0, 0, 0.2])  # on the upper arm's axis, 0.2 m from the shoulder
+    rays = Rays(np.array([[*target[:2], 3.0]]), np.array([[0.0, 0.0, -1.0]]))
+    hits = cast(scene, rays, t, kind="tof", fields=["velocity", "point"])
+    assert scene.objects[hits.object_id[0]].name == "ur5/upper_arm_link"
+    p = hits.point[0]
+    # The base frame is at the origin and the pan axis is world z: v = w x p. The renderer's hit point is
+    # float64 (re-intersected against the triangle's plane), so 1e-9 m/s covers rounding.
+    np.testing.assert_allclose(hits.velocity[0], np.cross([0, 0, 0.8], p), atol=1e-9)
