@@ -32,6 +32,7 @@ def _scenario(radar: bool = True) -> dict:
     d["duration"] = 0.2
     if radar:
         d["sensors"] += [{"name": "radar", "kind": "radar", "preset": "paper_bgt60tr13c", "frame_rate": 10,
+                          "overrides": {"render_width": 250, "render_height": 86},  # coarser render: faster
                           "mount": {"pose": {"look_at": {"eye": [0.0, 0.0, 1.0], "target": [4.0, 0.0, 1.0]}}}},
                          {"name": "tof", "kind": "tof", "preset": "generic", "frame_rate": 10,
                           "overrides": {"width": 32, "height": 24}, "mount": {"pose": LOOK}}]
@@ -168,3 +169,49 @@ def test_bad_options_name_the_field(kwargs, field, tmp_path, monkeypatch):
     with pytest.raises(ConfigError) as err:
         RerunSink(**kwargs)
     assert err.value.field == field
+
+
+def _depth_rows(path: Path) -> list:
+    """Timed depth rows saved so far by a client that is still writing (a partial file may not parse yet)."""
+    try:
+        ents = read_rrd(path)
+    except Exception:  # the client is half-way through a message: read again later
+        return []
+    return [(t, r) for t, r in ents.get("/world/sensors/depth/image/depth", []) if t is not None]
+
+
+def test_grpc_server_keeps_the_run_for_a_late_viewer(tmp_path):
+    # serve=True hosts the gRPC server in-process; a viewer connecting after the run still gets
+    # every frame (the server keeps them). The viewer here is the rerun command-line client saving
+    # what it receives.
+    port = _free_port()
+    sink = RerunSink(serve=True, grpc_port=port)
+    sc = scenario_from_dict(_scenario(radar=False), base_dir=ROOT / "examples")
+    sink.open(sc.scene, sc.sensors)
+    saved = tmp_path / "client.rrd"
+    try:
+        res = simulate(sc.scene, sc.sensors, 0.2, out=tmp_path / "run.h5", on_frame=lambda s, f: sink.send(s, f.t, f))
+        client = subprocess.Popen([str(Path(sys.executable).with_name("rerun")), sink.url, "--save", str(saved)],
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            rows = []
+            for _ in range(600):  # until the client has saved both frames (a readiness poll)
+                rows = _depth_rows(saved) if saved.exists() else []
+                if len(rows) == 2:
+                    break
+                time.sleep(0.1)
+        finally:
+            client.send_signal(signal.SIGINT)
+            try:
+                client.wait(30)
+            except subprocess.TimeoutExpired:
+                os.kill(client.pid, signal.SIGKILL)
+                client.wait()
+    finally:
+        sink.close()
+    with open_recording(res.path) as rec:
+        s = rec["depth"]
+        assert [t for t, _ in rows] == [ns(t) for t in s.timestamps]
+        for k, (_, r) in enumerate(rows):
+            np.testing.assert_array_equal(image(r["DepthImage:buffer"], r["DepthImage:format"], np.float32),
+                                          s["depth"][k])
