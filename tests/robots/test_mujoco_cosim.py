@@ -118,7 +118,7 @@ def test_cosim_errors(tmp_path):
     cosim = MujocoCosim(mujoco.MjModel.from_xml_string(DROP), history=0.05)
     with pytest.raises(UnknownNameError, match="box"):
         cosim.body_state("crate", 0.0)
-    cosim.step_to(0.5)
+    cosim.step_to(3.0)  # 1000 steps: the states older than 0.05 s are dropped (in batches of >= 256)
     with pytest.raises(ConfigError, match="history"):
         cosim.body_state("box", 0.1)
     with pytest.raises(ConfigError, match="MjData"):

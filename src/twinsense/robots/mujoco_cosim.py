@@ -12,7 +12,7 @@ The physics is advanced on demand: asking any object for its state at time t
 steps MuJoCo (its own integrator, controllers, contacts) up to the last step
 at or before t (``step_to``), so ``simulate(cosim.scene, sensors, ...)`` runs
 both on the sensors' clock without a separate loop. Every step's state
-(qpos, qvel, mocap poses) is kept for ``history`` seconds, so sensors that
+(qpos, qvel, mocap poses) is kept for at least ``history`` seconds, so sensors that
 look slightly back in time (a ToF camera's raw sub-frames, a radar's chirps,
 the next sensor's earlier frame) get the state of their own time.
 
@@ -118,7 +118,9 @@ class MujocoCosim:
     materials : dict {body name: material}, optional
         Overrides of the default materials (from the body names).
     history : float
-        Seconds of past physics states kept for sensors that look back [s].
+        Seconds of past physics states kept (at least) for sensors that look back [s].
+        A sensor that resolves the scene at all its frame times before the run
+        (capacitive ``prepare``) needs at least the run's duration.
 
     Attributes
     ----------
@@ -128,7 +130,7 @@ class MujocoCosim:
     """
 
     def __init__(self, model_or_path, data=None, *, control: Callable | None = None, geoms: str = "visual",
-                 materials=None, history: float = 1.0):
+                 materials=None, history: float = 60.0):
         mujoco = require("mujoco", "MuJoCo co-simulation")
         self._mj = mujoco
         self.model = model = load_model(model_or_path)
@@ -167,11 +169,10 @@ class MujocoCosim:
         self._snaps.append((d.qpos.copy(), d.qvel.copy(), d.mocap_pos.copy(), d.mocap_quat.copy()))
         for f in getattr(self, "_followers", ()):
             f.push()
-        # Drop states older than the history, keeping at least the two newest.
+        # Drop states older than the history (in batches: deleting the head of a list moves the rest).
         cut = bisect.bisect_left(self._times, self._times[-1] - self.history) - 1
-        if cut > 0 and len(self._times) - cut >= 2:
+        if cut >= 256:
             del self._times[:cut], self._snaps[:cut]
-            self._cache.clear()
 
     def step_to(self, t: float) -> None:
         """Advance MuJoCo to the last step at or before ``t`` [s] (nothing if it is there already)."""
@@ -220,7 +221,8 @@ class MujocoCosim:
             k = bisect.bisect_right(self._times, t) - 1
             if k < 0:
                 raise ConfigError("t", t, f"a time within the co-simulation's kept history "
-                                  f"[{self._times[0]:.9g}, ...] s (history = {self.history:g} s)")
+                                  f"[{self._times[0]:.9g}, {self._times[-1]:.9g}] s (MujocoCosim(history="
+                                  f"{self.history:g}) keeps that many seconds; raise it for longer look-backs)")
             pos, rot, lin, ang = self._evaluate(k)
             tau = t - self._times[k]
         p = pos[b] + lin[b] * tau

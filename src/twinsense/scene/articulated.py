@@ -26,6 +26,7 @@ without geometry. All links share one forward-kinematics evaluation per time.
 
 from __future__ import annotations
 
+import bisect
 import math
 import threading
 from collections import OrderedDict
@@ -827,7 +828,7 @@ class JointSetpoints(JointMotion):
             self._version += 1
 
     def _at(self, t: float) -> int:
-        i = int(np.searchsorted(self._t, t, side="right")) - 1
+        i = bisect.bisect_right(self._t, t) - 1  # O(log n) on the list, no array conversion
         if i < 0:
             raise ConfigError("setpoints.t", t, f"a time at or after the oldest kept setpoint ({self._t[0]:.9g} s; "
                               f"the last {self._history} setpoints are kept)")
