@@ -149,17 +149,18 @@ def test_foot_peak_speed_is_a_few_times_the_walking_speed(walker):
 
 def test_walk_along_a_path_turns_smoothly_and_stops_at_its_end():
     body = person_body("p", H, (0.0, 0.0), 0.0, walk=Walk(1.2, ((3.0, 0.0), (3.0, 3.0)), start_time=0.5))
+    # (the walk starts at the person's position; the path's waypoints follow)
     person = body.joint_motion.person
     t_end = person.stop_time
     assert t_end == pytest.approx(0.5 + person.path.length / 1.2, rel=1e-12, abs=0)
     yaw = []
-    for t in np.arange(0.0, t_end + 1.0, 0.02):
+    for t in np.arange(0.0, t_end + 1.0, 0.03):
         st = body.state(t).state("pelvis")
         yaw.append(math.atan2(st.pose.rotation[1, 0], st.pose.rotation[0, 0]))
-    # The heading turns through 90 deg without a jump: between 20 ms samples the pelvis yaw moves
+    # The heading turns through 90 deg without a jump: between 30 ms samples the pelvis yaw moves
     # by at most (peak path turn rate 1.5 (pi/2) / 1 m x peak pelvis speed 2.5 m/s + torsion
-    # rate 4 RV deg x 2 pi / D_c) x 20 ms < 0.14 rad.
-    assert np.max(np.abs(np.diff(np.unwrap(yaw)))) < 0.14
+    # rate 4 RV deg x 2 pi / D_c) x 30 ms < 0.21 rad.
+    assert np.max(np.abs(np.diff(np.unwrap(yaw)))) < 0.21
     assert np.unwrap(yaw)[-1] - np.unwrap(yaw)[0] == pytest.approx(math.pi / 2, rel=0, abs=1e-9)
     end = body.state(t_end + 0.5)
     # Standing at the path's end, facing +y; the rounded corner ends the path within 0.15 m of the

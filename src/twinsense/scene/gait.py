@@ -367,7 +367,7 @@ class LegGeometry:
 
 
 _SIDES = ((0.0, -1.0), (0.5, 1.0))  # (phase offset, lateral sign): right (reference), left
-_GRID = 1024  # phase samples per stance to find where the contact rolls from heel to toe
+_GRID = 256  # phase samples per stance to find where the contact rolls from heel to toe
 HIP_SCALE_RANGE = (0.05, 3.0)
 BODY_MODES = ("smooth", "planted")
 SMOOTH_SAMPLES = 512  # phase samples per cycle for the smooth body's height series
