@@ -520,7 +520,7 @@ class PersonMotion:
             q[col[name]], qd[col[name]] = val, der
         return _Plan(pos, vel, psi + tors, psi_d + tors_d, roll, roll_d, q, qd)
 
-    def _plan(self, t: float) -> _Plan:
+    def _plan(self, t: float, reach: bool = True) -> _Plan:
         walk = self.walk
         if walk is None or t <= walk.start_time:
             plan = self._standing(t, self.start_xy, self.heading)
@@ -539,7 +539,7 @@ class PersonMotion:
                 plan = self._walking(t).blend(stand, float(w), float(wd) / START_BLEND)
             else:
                 plan = stand
-        if self.reach is not None:
+        if reach and self.reach is not None:
             self._apply_reach(t, plan)
         return plan
 
@@ -602,18 +602,16 @@ class PersonMotion:
 
     # ------------------------------------------------------------ outputs
     def _at(self, t: float, reach: bool = True):
-        """(q, qd, base MotionState) at t (the last time is cached: links ask in turn)."""
+        """(q, qd, base MotionState) at t (the last time is cached: links ask in turn).
+
+        The cache entry is one tuple, replaced whole, so threads that ask at
+        different times never see a mixed state.
+        """
         t = check_time(t)
         key = (t, reach)
         if self._last is not None and self._last[0] == key:
             return self._last[1]
-        saved = self.reach
-        if not reach:
-            self.reach = None
-        try:
-            plan = self._plan(t)
-        finally:
-            self.reach = saved
+        plan = self._plan(t, reach)
         rz = _rot_z(plan.yaw)
         rot = rz @ _rot_x(plan.roll)
         omega = np.array([0.0, 0.0, plan.yaw_d]) + rz[:, 0] * plan.roll_d
