@@ -7,7 +7,7 @@ Chen, *The Micro-Doppler Effect in Radar*, Artech House 2011, ch. 5; van
 Dorp and Groen, IEE Proc. Radar Sonar Navig. 150(4) 2003 and IET RSN 2(2)
 2008).
 
-Normalisation (Boulic section 3): the walking speed v [m/s] is scaled by the
+Normalisation (Boulic 1990): the walking speed v [m/s] is scaled by the
 leg length H_t [m] (hip-joint height above the ground, "height of the
 thigh") into the relative velocity RV = v / H_t [1/s]. Then
 
@@ -18,9 +18,10 @@ thigh") into the relative velocity RV = v / H_t [1/s]. Then
 
 so a stride is RL_c H_t metres, a step half of it, and the cadence is
 2 / D_c steps per second. The widely copied implementation of the book's
-scripts measures the stride in H_t units but plots it in metres (and its
-cycle lasts RL_c / (RV H_t)); here every length is RL_c H_t, so the walker
-covers exactly v D_c per cycle.
+scripts takes the relative stride RL_c as metres (each cycle advances the
+body RL_c m in RL_c / (RV H_t) s), so its steps are H_t times too short and
+its cadence 1 / H_t times too high; here every length is RL_c H_t, so the
+walker covers exactly v D_c per cycle at the model's cadence.
 
 Inside one cycle the normalised time (phase) ``u`` in [0, 1) starts at the
 heel strike of the *reference* leg (the right one); the other leg follows
@@ -65,8 +66,8 @@ from scipy.interpolate import PchipInterpolator
 from twinsense import validation as V
 from twinsense.errors import ConfigError
 
-STRIDE_COEFF = 1.346  # RL_c = 1.346 sqrt(RV)  (Boulic 1990, eq. 1)
-SUPPORT_SLOPE = 0.752  # D_s = 0.752 D_c - 0.143 [s]  (Boulic 1990, eq. 3)
+STRIDE_COEFF = 1.346  # RL_c = 1.346 sqrt(RV)  (Boulic 1990)
+SUPPORT_SLOPE = 0.752  # D_s = 0.752 D_c - 0.143 [s]  (Boulic 1990)
 SUPPORT_OFFSET = 0.143  # [s]
 MERGE_GAP = 0.02  # [cycle] control points closer than this blend into one
 RV_MAX = 3.0  # the upper end of the model's third RV range [1/s]
@@ -389,24 +390,24 @@ class WalkCycle:
     rocks slightly about its place (0.2-0.45 m/s rms at 0.6-2.2 m/s) but
     does not travel.
 
-    ``body="planted"``: the mode described below, in which the touching
-    point does not slide at all in single support, at the price of a pelvis
-    speed that swings between about 0.5 v and 1.75 v within a step.
+    ``body="planted"``: the touching point does not slide at all in single
+    support, at the price of a pelvis speed that swings between about 0.5 v
+    and 1.75 v within a step.
 
-    The model's own forward and vertical body translations (Boulic appendix
-    A) leave the stance foot of a leg built from anthropometric segment
-    lengths sliding by tenths of a m/s and several centimetres into the
-    floor. Here the pelvis rests on the feet instead (sagittal plane, with
-    the pelvis torsion's shift of the hip joints):
+    Why a fit at all: the model's own forward and vertical body translations
+    (Boulic appendix A) leave the stance foot of a leg built from
+    anthropometric segment lengths sliding by up to 0.6 m/s and 4-8 cm into
+    the floor. In the planted mode the pelvis rests on the feet (sagittal
+    plane, with the pelvis torsion's shift of the hip joints):
 
     - each foot touches the floor at its lowest sole point (heel or toe: the
       foot rolls from one to the other, the touching point never slides);
     - in single support the pelvis is placed by the standing foot: its height
       puts that point on the floor and its forward position is the point's
       fixed world position minus the point's offset from the pelvis;
-    - in double support (from the other heel strike to this toe-off, D_ds)
-      the pelvis blends from one foot's placement to the other's with a C1
-      ramp 3 s^2 - 2 s^3;
+    - in double support (from the landing foot's first touch of the floor,
+      ``touchdown``, to the model's toe-off) the pelvis blends from one
+      foot's placement to the other's with a C1 ramp 3 s^2 - 2 s^3;
     - the feet land exactly one step (RL_c H_t / 2) apart, so the mean speed
       is exactly v and stride and cadence are the model's;
     - the hip-flexion curve is scaled by ``hip_scale`` (root finding) until
@@ -414,7 +415,10 @@ class WalkCycle:
       placements then agree on average and the stance feet slide only by
       their residual mismatch during double support.
 
-    The model's lateral sway, pelvis list and torsion are kept as published.
+    In both modes a swinging foot that would touch the floor is lifted by
+    ``swing_lift`` (see :meth:`swing_knee`), and the model's lateral sway,
+    pelvis list and torsion are kept as published. The mean forward speed
+    is exactly v in both.
     """
 
     def __init__(self, timing: GaitTiming, leg: LegGeometry, body: str = "smooth"):
