@@ -18,6 +18,7 @@ static hits.
 
 from __future__ import annotations
 
+import math
 import weakref
 from collections.abc import Iterable
 
@@ -26,7 +27,7 @@ import numpy as np
 from twinsense.errors import ConfigError
 from twinsense.render.backends import make_intersector
 from twinsense.render.hits import ALWAYS_FIELDS, HIT_FIELDS, Hits, allocate_field, check_fields
-from twinsense.render.kernels import cull_into_frame
+from twinsense.render.kernels import cull_into_frame, direction_cone
 from twinsense.render.parallel import default_workers, map_ordered
 from twinsense.render.rays import Rays
 from twinsense.scene.scene import SENSOR_KINDS, Scene
@@ -174,9 +175,10 @@ class SceneCaster:
                     obj, np.take(self._mat_lut, obj + 1), tri, velocity)
         return rows, hits
 
-    def _moving_changes(self, o, d, states, dist, threads, update=True) -> list[tuple]:
+    def _moving_changes(self, o, d, states, dist, threads, update=True, cone=None) -> list[tuple]:
         """Trace the rays near each moving object; ``dist`` is updated where one is
         nearer (unless ``update`` is False: one object, nothing to cull against).
+        ``cone``: (axis, cos half-angle) around all of ``d`` (rays from one origin), or None.
 
         Returns, per object that wins rays, in order: (rows, object index,
         triangle ids, world normals (not turned), normal . direction, distances).
@@ -190,6 +192,8 @@ class SceneCaster:
             # Cull: only rays that pass through the object's bounding sphere
             # before their current closest hit can hit it.
             centre = pos + rot @ self._moving_centre[k]
+            if cone is not None and _outside_cone(centre - o[0], self._moving_radius[k], *cone):
+                continue
             lo, hi = self._moving_box[k]
             # Both culls and the move into the object's frame in one compiled
             # pass (the same tests as culling.rays_near_sphere / rays_hit_box).
@@ -252,7 +256,10 @@ class SceneCaster:
         dist[:] = dist_s
         obj[:] = obj_s
         # Moving objects, in order; a later one that is nearer overwrites.
-        changes = self._moving_changes(o, d, states, dist, threads) if states else []
+        # From one origin, the cone around this chunk's directions lets most
+        # objects skip the chunk without a pass over its rays.
+        cone = direction_cone(d) if states and len(d) and o.strides[0] == 0 else None
+        changes = self._moving_changes(o, d, states, dist, threads, cone=cone) if states else []
         for rows, i, *_ in changes:
             obj[rows] = i
         if "triangle_id" in out:
@@ -303,6 +310,18 @@ def _frozen(a: np.ndarray) -> bool:
             return False
         a = a.base
     return True
+
+
+def _outside_cone(w: np.ndarray, radius: float, axis: np.ndarray, cos_half: float) -> bool:
+    """True if no ray from the origin within the cone (axis, cos half-angle) can meet the
+    sphere of ``radius`` around the origin + ``w``: the angle from the axis to w exceeds
+    the cone's half-angle plus the sphere's angular radius (a margin of 1e-9 rad)."""
+    dist = math.sqrt(float(w @ w))
+    if dist <= radius * (1.0 + 1e-9) or cos_half <= -1.0:
+        return False
+    to_centre = math.acos(max(-1.0, min(1.0, float(w @ axis) / dist)))
+    half = math.acos(max(-1.0, min(1.0, cos_half)))
+    return to_centre > half + math.asin(min(1.0, radius / dist)) + 1e-9
 
 
 def _dot_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
