@@ -7,7 +7,14 @@ import pytest
 
 from twinsense.capacitive.mechanics import ElasticBody, ElasticMaterial, Indenter, elastic_material, skin_mesh
 from twinsense.capacitive.mechanics.contact import ContactLcp
-from twinsense.capacitive.mechanics.elasticity import stiffness
+from twinsense.capacitive.mechanics.elasticity import (
+    deviatoric_stiffness,
+    element_dofs,
+    gradients,
+    nodal_volumetric_stiffness,
+    scatter,
+    strain_matrices,
+)
 from twinsense.errors import ConfigError, UnknownNameError
 
 SIZE = (24e-3, 10e-3)
@@ -63,7 +70,13 @@ def test_displacement_solves_the_assembled_system(skin):
     mats = (elastic_material("ecoflex_0030"), elastic_material("tpu_cover"))
     lam = np.array([m.lame[0] for m in mats])[lm.element_layer]
     mu = np.array([m.lame[1] for m in mats])[lm.element_layer]
-    r = (stiffness(p, t, lam, mu) @ sol.displacement.ravel()).reshape(-1, 3)
+    # The default formulation (nodal volumetric average), assembled globally
+    # in node order, without the elimination order or the condensation.
+    grad, vol = gradients(p, t)
+    b = strain_matrices(grad)
+    k = (scatter(deviatoric_stiffness(b, vol, mu), element_dofs(t), 3 * len(p))
+         + nodal_volumetric_stiffness(b, vol, t, lam + 2 * mu / 3, lm.element_layer, len(p)))
+    r = (k @ sol.displacement.ravel()).reshape(-1, 3)
     total = sol.force.sum()
     load = np.zeros_like(r)
     load[body.top_nodes, 2] = -sol.nodal_force

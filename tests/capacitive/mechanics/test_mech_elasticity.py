@@ -10,7 +10,16 @@ import skfem
 from skfem.models.elasticity import linear_elasticity
 
 from twinsense.capacitive.mechanics import ElasticBody, ElasticMaterial, Indenter, box_mesh, skin_mesh
-from twinsense.capacitive.mechanics.elasticity import principal_min, stiffness
+from twinsense.capacitive.mechanics.elasticity import (
+    deviatoric_stiffness,
+    element_dofs,
+    gradients,
+    nodal_volumetric_stiffness,
+    principal_min,
+    scatter,
+    stiffness,
+    strain_matrices,
+)
 from twinsense.capacitive.mechanics.kernels import split_diagonal, upper_solve
 from twinsense.capacitive.mechanics.ordering import nested_dissection, node_graph
 
@@ -76,25 +85,49 @@ def test_principal_min_matches_eigvalsh():
     np.testing.assert_allclose(principal_min(voigt), np.linalg.eigvalsh(t)[:, 0], rtol=1e-12, atol=1e-14)
 
 
-def _confined(store):
+def test_affine_fields_store_the_exact_energy():
+    # For u = G x every formulation is exact: the strain is sym(G) in every
+    # cell and at every node, so u^T K_dev u = 2 mu |dev sym G|^2 V and
+    # u^T K_vol u = kappa tr(G)^2 V (V the mesh volume). Rounding: 1e-12.
+    lm = _graded_box()
+    pts, cells = lm.mesh.p.T, lm.mesh.t.T
+    grad, vol = gradients(pts, cells)
+    b = strain_matrices(grad)
+    mu, kappa = 4e4, 3e5
+    g = np.array([[1.0, 0.3, -0.2], [0.1, -0.5, 0.4], [0.2, 0.0, 0.7]]) * 1e-3
+    u = (pts @ g.T).ravel()
+    eps = 0.5 * (g + g.T)
+    dev = eps - np.trace(eps) / 3 * np.eye(3)
+    total = vol.sum()
+    kdev = scatter(deviatoric_stiffness(b, vol, np.full(len(cells), mu)), element_dofs(cells), 3 * len(pts))
+    kvol = nodal_volumetric_stiffness(b, vol, cells, np.full(len(cells), kappa), lm.element_layer, len(pts))
+    assert u @ (kdev @ u) == pytest.approx(2 * mu * np.sum(dev * dev) * total, rel=1e-12, abs=0)
+    assert u @ (kvol @ u) == pytest.approx(kappa * np.trace(g) ** 2 * total, rel=1e-12, abs=0)
+    # Rigid motions carry no volumetric energy either.
+    omega = np.array([0.3, -1.0, 0.5]) * 1e-3
+    w = np.cross(omega, pts).ravel()
+    assert abs(w @ (kvol @ w)) <= 1e-12 * kappa * total * omega @ omega
+
+
+def _confined(store, volumetric="nodal"):
     """Two-layer skin with rollers on its four sides under a punch wider than the skin."""
     lm = skin_mesh((4e-3, 3e-3), (1.0e-3, 0.25e-3), h_xy=1e-3, h_top=0.125e-3, h_z=0.3e-3)
     p = lm.mesh.p.T
     rollers = np.zeros((len(p), 3), bool)
     rollers[np.isclose(np.abs(p[:, 0]), 2e-3), 0] = True
     rollers[np.isclose(np.abs(p[:, 1]), 1.5e-3), 1] = True
-    body = ElasticBody.layered(lm, (SOFT, COVER), rollers=rollers, store_response=store)
+    body = ElasticBody.layered(lm, (SOFT, COVER), rollers=rollers, store_response=store, volumetric=volumetric)
     return lm, body
 
 
-@pytest.mark.parametrize("store", [True, False])
-def test_confined_layers_follow_the_constrained_modulus(store):
+@pytest.mark.parametrize(("store", "volumetric"), [(True, "nodal"), (False, "nodal"), (False, "element")])
+def test_confined_layers_follow_the_constrained_modulus(store, volumetric):
     # A laterally confined stack under uniform pressure p is in uniaxial
     # strain: eps_i = p / M_i with M = E (1 - nu) / ((1 + nu)(1 - 2 nu)), so a
     # rigid plate pushed by d needs p = d / sum(t_i / M_i). The field is linear
     # in each layer, which P1 represents exactly: the only error is rounding
     # in the factorisation (condition ~1e7 here: 1e-8 relative).
-    lm, body = _confined(store)
+    lm, body = _confined(store, volumetric)
     d = 20e-6
     t = np.diff(lm.interfaces)
     m = np.array([SOFT.constrained_modulus, COVER.constrained_modulus])

@@ -24,9 +24,11 @@ import skfem
 from twinsense import validation as v
 from twinsense.capacitive.mechanics.contact import ContactLcp, ContactSolution
 from twinsense.capacitive.mechanics.elasticity import (
+    deviatoric_stiffness,
     element_dofs,
     element_stiffness,
     gradients,
+    nodal_volumetric_stiffness,
     principal_min,
     scatter,
     strain_matrices,
@@ -37,7 +39,10 @@ from twinsense.capacitive.mechanics.materials import LINEAR_STRAIN_LIMIT, Elasti
 from twinsense.capacitive.mechanics.ordering import nested_dissection, node_graph
 from twinsense.errors import ConfigError
 
-__all__ = ["ElasticBody"]
+__all__ = ["VOLUMETRIC", "ElasticBody"]
+
+VOLUMETRIC = ("nodal", "element")
+"""Volumetric energy: averaged at the nodes (relieves locking) or per cell (plain P1)."""
 
 STRAIN_LIMIT_MAX = 0.3
 """Largest ``strain_limit`` accepted: beyond it the linear model is off by more than a third."""
@@ -68,12 +73,20 @@ class ElasticBody:
         sum over its contact nodes instead of one back substitution. Pays
         off over runs of more than n_top frames; off by default.
 
+    volumetric : {"nodal", "element"}
+        ``"nodal"`` (default): the volume change averaged at the nodes
+        (average nodal pressure tetrahedron, see
+        :func:`~twinsense.capacitive.mechanics.elasticity.nodal_volumetric_stiffness`),
+        which relieves the locking of linear tetrahedra as nu -> 0.5;
+        ``"element"``: plain P1 (locks: +25-35 % indentation force at nu = 0.49).
+
     Discretisation: P1 (linear) tetrahedra, consistent nodal forces,
     node-to-plane contact on the top nodes.
     """
 
     def __init__(self, mesh: skfem.MeshTet, element_material, materials: Sequence, fixed, top, *,
-                 rollers=None, strain_limit: float = LINEAR_STRAIN_LIMIT, store_response: bool = False):
+                 rollers=None, strain_limit: float = LINEAR_STRAIN_LIMIT, store_response: bool = False,
+                 volumetric: str = "nodal"):
         if not isinstance(mesh, skfem.MeshTet) or type(mesh).__name__ != "MeshTet1":
             raise ConfigError("ElasticBody.mesh", type(mesh).__name__, "a skfem.MeshTet (linear tetrahedra)")
         points = np.ascontiguousarray(mesh.p.T, float)
@@ -101,6 +114,7 @@ class ElasticBody:
         if np.ptp(zt) > 1e-9 * span:
             raise ConfigError("ElasticBody.top", f"nodes at z = {zt.min():.6g}..{zt.max():.6g} m",
                               "nodes on one plane z = z_top")
+        self.volumetric = v.choice("ElasticBody.volumetric", volumetric, VOLUMETRIC)
         self.strain_limit = v.number("ElasticBody.strain_limit", strain_limit, lo=0.0, lo_open=True,
                                      hi=STRAIN_LIMIT_MAX)
         self.mesh = mesh
@@ -125,7 +139,10 @@ class ElasticBody:
         # normal dofs last: the trailing block of the factor is then the
         # Schur complement S onto them, and C = S^-1 (no solves at all).
         free_node = ~held.all(axis=1)
-        order = nested_dissection(points, node_graph(cells, n), np.flatnonzero(free_node))
+        graph = node_graph(cells, n)
+        if self.volumetric == "nodal":  # node averages couple nodes two cells apart
+            graph = (graph @ graph).astype(bool)
+        order = nested_dissection(points, graph, np.flatnonzero(free_node))
         dofs = (3 * order[:, None] + np.arange(3)).ravel()
         dofs = dofs[~held.ravel()[dofs]]
         top_z = top[dofs // 3] & (dofs % 3 == 2)
@@ -134,7 +151,12 @@ class ElasticBody:
         position = np.full(3 * n, -1, np.int64)
         position[self._free] = np.arange(len(self._free))
         # Assembled straight into the elimination order, constrained dofs dropped.
-        kf = scatter(element_stiffness(bmat, self.volumes, lam, mu), position[edofs], len(self._free))
+        if self.volumetric == "element":
+            kf = scatter(element_stiffness(bmat, self.volumes, lam, mu), position[edofs], len(self._free))
+        else:
+            kvol = nodal_volumetric_stiffness(bmat, self.volumes, cells, lam + 2.0 * mu / 3.0, mat, n)
+            kf = (scatter(deviatoric_stiffness(bmat, self.volumes, mu), position[edofs], len(self._free))
+                  + kvol[self._free][:, self._free]).tocsc()
         try:
             lu = spla.splu(kf, permc_spec="NATURAL", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
         except RuntimeError:

@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["element_dofs", "element_stiffness", "gradients", "hooke_matrix", "principal_min", "scatter", "stiffness",
-           "strain_matrices"]
+__all__ = ["deviatoric_stiffness", "element_dofs", "element_stiffness", "gradients", "hooke_matrix",
+           "nodal_volumetric_stiffness", "principal_min", "scatter", "stiffness", "strain_matrices"]
 
 
 def gradients(points: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -129,3 +129,50 @@ def principal_min(voigt: np.ndarray) -> np.ndarray:
     t[:, 0, 2] = t[:, 2, 0] = 0.5 * voigt[:, 4]
     t[:, 0, 1] = t[:, 1, 0] = 0.5 * voigt[:, 5]
     return np.linalg.eigvalsh(t)[:, 0] if len(t) else np.zeros(0)
+
+
+def deviatoric_stiffness(b: np.ndarray, vol: np.ndarray, mu: np.ndarray) -> np.ndarray:
+    """(m, 12, 12) element stiffness of the deviatoric energy only [N/m].
+
+    ``D_dev = mu (diag(2, 2, 2, 1, 1, 1) - 2/3 m m^T)`` with m = (1, 1, 1, 0, 0, 0):
+    Hooke's matrix less its volumetric part ``kappa m m^T``, kappa = lambda + 2 mu / 3.
+    """
+    d = hooke_matrix(-2.0 / 3.0 * np.asarray(mu, float), mu)
+    return vol[:, None, None] * (np.transpose(b, (0, 2, 1)) @ (d @ b))
+
+
+def nodal_volumetric_stiffness(b: np.ndarray, vol: np.ndarray, cells: np.ndarray, kappa: np.ndarray,
+                               group: np.ndarray, n_nodes: int) -> sp.csr_matrix:
+    """Volumetric stiffness with the volume change averaged at the nodes (3 n, 3 n) [N/m].
+
+    The average nodal pressure tetrahedron (Bonet and Burton, "A simple
+    average nodal pressure tetrahedral element for incompressible and nearly
+    incompressible dynamic explicit applications", Commun. Numer. Meth. Engng
+    14, 437-449, 1998): the volumetric strain is averaged over the cells
+    around each node (weights V_e / 4) and the volumetric energy
+    ``kappa / 2 V_a (div u)_a^2`` summed over the nodes. One constraint per
+    node instead of one per cell relieves the locking of linear tetrahedra as
+    nu -> 0.5. Averages never mix cells of different ``group`` (materials).
+
+    Parameters
+    ----------
+    b : (m, 6, 12) strain matrices; vol : (m,) cell volumes [m^3];
+    cells : (m, 4) int; kappa : (m,) bulk modulus of each cell [Pa];
+    group : (m,) int, material of each cell; n_nodes : int.
+    """
+    div = b[:, 0] + b[:, 1] + b[:, 2]  # (m, 12)
+    dofs = element_dofs(cells)
+    n = 3 * n_nodes
+    k = sp.csr_matrix((n, n))
+    for g in np.unique(group):
+        sel = np.flatnonzero(group == g)
+        w = vol[sel] / 4.0
+        node_vol = np.bincount(cells[sel].ravel(), weights=np.repeat(w, 4), minlength=n_nodes)
+        share = w[:, None] / node_vol[cells[sel]]  # (ms, 4): weight of cell e in node a's average
+        rows = np.repeat(cells[sel], 12, axis=1).ravel()
+        cols = np.tile(dofs[sel], (1, 4)).ravel()
+        data = (share[:, :, None] * div[sel][:, None, :]).ravel()
+        avg = sp.csr_matrix((data, (rows, cols)), shape=(n_nodes, n))
+        kap = np.bincount(cells[sel].ravel(), weights=np.repeat(w * kappa[sel], 4), minlength=n_nodes)
+        k = k + (avg.T @ sp.diags(kap) @ avg).tocsr()
+    return k
