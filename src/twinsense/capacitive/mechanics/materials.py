@@ -4,10 +4,10 @@ Rubber-like solids are nearly incompressible (Poisson's ratio 0.499 and
 above for unfilled silicones). The body is discretised with linear (P1)
 tetrahedra, which lock as nu -> 0.5 (the element volume is constant, so the
 incompressibility constraint over-stiffens the mesh); the presets therefore
-cap nu at :data:`POISSON_MAX` = 0.49 (lambda / mu = 49). Locking is not
-gone there: against Hertz on a thick layer the P1 indentation force is
-25-35 % too stiff at 3-4.5 cells per contact radius with nu = 0.49, against
-4-6 % with nu = 0.3 (docs/tactile.md).
+cap nu at :data:`POISSON_MAX` = 0.49 (lambda / mu = 49). Plain P1 still
+locks there (Hertz indentation force 25-35 % too stiff at 3-4.5 cells per
+contact radius), which the body's default nodal volumetric average removes
+(2-3 %, as for nu = 0.3; docs/tactile.md).
 
 Linear range
 ------------
