@@ -36,3 +36,17 @@ def test_people_entry_builds_the_python_api_person():
 def test_bad_people_entries_name_the_field(entry, field):
     with pytest.raises(ScenarioError, match=field.replace(".", r"\.").replace("[", r"\[").replace("]", r"\]")):
         scenario_from_dict({"people": [{**PERSON, "walk": None, "reach": None, **entry}]})
+
+
+def test_people_example_loads():
+    from pathlib import Path
+
+    from twinsense.scenario import load_scenario
+
+    sc = load_scenario(Path(__file__).resolve().parents[1] / "examples" / "people_radar.yaml")
+    names = {o.name for o in sc.scene.objects}
+    assert {"alice/head", "bob/right_hand", "bob/thorax_clothing"} <= names
+    # Bob's hand reaches the shelf point and stays (hold: .inf); to rounding (1e-9 m).
+    st = sc.scene.object("bob/right_hand").state_at(1.5)
+    hand = st.pose.apply([0.0, 0.0, -0.5 * 0.108 * 1.85])
+    np.testing.assert_allclose(hand, (3.3, -1.1, 1.5), rtol=0, atol=1e-9)
