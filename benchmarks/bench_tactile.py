@@ -12,7 +12,8 @@ and move 0.1 mm between frames (the warm start follows them). Timed:
 factorisation, Schur-complement compliance), and ``ElasticBody.solve``
 (contact active set, displacement of every node, strain check), with the
 default nodal volumetric average and with plain P1 (``volumetric="element"``,
-sparser factor, locks at nu = 0.49).
+sparser factor, locks at nu = 0.49), and with ``store_response=True``
+(unit responses kept: a longer build, a sum over the contact nodes per frame).
 
 Same-run anchor: one plain ``scipy.sparse.linalg.splu`` solve (default
 COLAMD ordering) of the same constrained stiffness, factorised before
@@ -69,18 +70,19 @@ def anchor_solve(lm) -> float:
 def mechanics_section() -> None:
     print("mechanics: 20 x 20 mm skin, 2 mm ecoflex_0030 + 0.5 mm tpu_cover, 8 x 8 taxels at 2.5 mm, "
           "two moving fingertips")
-    for (label, kw), volumetric in [(m, vol) for m in MESHES.items() for vol in ("nodal", "element")]:
+    variants = (("nodal", False), ("nodal", True), ("element", False))
+    for (label, kw), (volumetric, store) in [(m, var) for m in MESHES.items() for var in variants]:
         lm = skin_mesh(SIZE, LAYERS, **kw)
         t0 = time.perf_counter()
-        body = ElasticBody.layered(lm, MATERIALS, volumetric=volumetric)
+        body = ElasticBody.layered(lm, MATERIALS, volumetric=volumetric, store_response=store)
         build = time.perf_counter() - t0
         n_dof = 3 * int((~lm.fixed).sum())
         frames = iter(range(10**6))
         body.solve(fingertips(0))
         best, med = best_and_median(lambda b=body, f=frames: b.solve(fingertips(next(f))), repeats=40)
         sol = body.solve(fingertips(3))
-        print(f"  {label}, volumetric={volumetric}: {lm.mesh.p.shape[1]} nodes, {lm.mesh.t.shape[1]} tets, "
-              f"{n_dof} dofs, {len(body.top_nodes)} contact nodes; build {build:.2f} s")
+        print(f"  {label}, volumetric={volumetric}, store_response={store}: {lm.mesh.p.shape[1]} nodes, "
+              f"{lm.mesh.t.shape[1]} tets, {n_dof} dofs, {len(body.top_nodes)} contact nodes; build {build:.2f} s")
         print(f"    solve, 2 contacts          {best * 1e3:7.2f} ms best {med * 1e3:7.2f} ms median"
               f"  -> {1 / med:6.0f} frames/s  (forces {sol.force[0]:.3f} N, {sol.force[1]:.3f} N; "
               f"{int(sol.active.sum())} contact nodes; max strain {sol.max_strain:.3f})")

@@ -38,11 +38,15 @@ def _upper_solve_1(indptr, indices, data, diag, b):  # pragma: no cover - compil
 @_jit
 def _upper_solve_k(indptr, indices, data, diag, b):  # pragma: no cover - compiled
     x = b.copy()
+    k = b.shape[1]
     for j in range(b.shape[0] - 1, -1, -1):
-        x[j] /= diag[j]
-        xj = x[j]
+        for c in range(k):
+            x[j, c] /= diag[j]
         for p in range(indptr[j], indptr[j + 1]):
-            x[indices[p]] -= data[p] * xj
+            i = indices[p]
+            a = data[p]
+            for c in range(k):
+                x[i, c] -= a * x[j, c]
     return x
 
 
