@@ -240,6 +240,9 @@ def test_bad_person_inputs(kwargs, field):
     (lambda: Walk(speed=0.0, heading_deg=0.0), "walk.speed"),
     (lambda: Walk(speed=1.0), "walk.path"),
     (lambda: Walk(speed=1.0, heading_deg=0.0, body="hover"), "walk.body"),
+    # A slow planted walk would lift the swinging foot past the ankle's 30 deg: refused at set-up.
+    (lambda: person_body("p", walk=Walk(0.6, heading_deg=0.0, body="planted")), "walk.speed"),
+    (lambda: Walker(speed=2.6), "walk.speed"),
     (lambda: Reach(target=(1.0, 2.0)), "reach.target"),
     (lambda: Reach(side="middle"), "reach.side"),
     (lambda: Reach(hold=-1.0), "reach.hold"),

@@ -458,6 +458,23 @@ class PersonMotion:
                 self.stop_time = walk.start_time + self.path.length / walk.speed
         self._reach_q = None
         self._last = None
+        if walk is not None:
+            self._check_gait_limits()
+
+    def _check_gait_limits(self) -> None:
+        """Refuse, at set-up, a walk whose joint curves would leave the joint limits (the swing
+        lift of a slow planted walk can), rather than fail in the middle of a run."""
+        lo, hi = self.tree.limits.T
+        dc = self.cycle.timing.cycle_duration
+        for t in self.walk.start_time + START_BLEND + np.linspace(0.0, dc, 97):
+            q = self._walking(float(t)).q
+            bad = np.nonzero((q < lo) | (q > hi))[0]
+            if len(bad):
+                j = self.tree.joint_names[bad[0]]
+                raise ConfigError("walk.speed", self.walk.speed,
+                                  f"a speed whose gait keeps every joint within its limits (joint {j!r} reaches "
+                                  f"{math.degrees(q[bad[0]]):.1f} deg, limits [{math.degrees(lo[bad[0]]):.0f}, "
+                                  f"{math.degrees(hi[bad[0]]):.0f}] deg; body={self.walk.body!r})")
 
     # ------------------------------------------------------------ pieces
     def _standing(self, t: float, xy, heading: float) -> _Plan:
