@@ -32,7 +32,7 @@ the joint trajectory, each with exact time derivatives:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.interpolate import CubicHermiteSpline
@@ -658,6 +658,8 @@ class PersonJoints(JointMotion):
     """The joint trajectory of a :class:`PersonMotion` (every joint of its tree)."""
 
     def __init__(self, person: PersonMotion):
+        if not isinstance(person, PersonMotion):
+            raise ConfigError("person.joints", person, "a PersonMotion")
         self.person = person
 
     @property
@@ -682,7 +684,11 @@ class PersonJoints(JointMotion):
 class PersonBase(Motion):
     """The pelvis (root link) motion of a :class:`PersonMotion`."""
 
-    person: PersonMotion = field(default=None)
+    person: PersonMotion
+
+    def __post_init__(self):
+        if not isinstance(self.person, PersonMotion):
+            raise ConfigError("person.base", self.person, "a PersonMotion")
 
     def state(self, t):
         return self.person.base_state(t)
