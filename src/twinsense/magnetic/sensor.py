@@ -172,3 +172,18 @@ class MagneticSensor:
         b = self.true_field(scene, t)
         raw, rep = self._convert(self._front_end(b, rng))
         return {"t": t, "field_true": b, "field": rep, "raw": raw}
+
+    def capture_frames(self, scene: Scene, times, rng: np.random.Generator) -> list[MagneticFrame]:
+        """Frames at each of ``times`` (T,), in time order, computed in one vectorised pass.
+
+        The same frames, bit for bit, and the same random draws as ``capture`` called at each time in
+        turn with ``rng``: the noise of all frames is one ``standard_normal`` call of shape (T, n, a),
+        which a numpy Generator fills element by element in the order T calls of shape (1, n, a) would.
+        ``simulate`` uses it for runs of consecutive frames of this sensor.
+        """
+        t = np.asarray(times, dtype=float)
+        for tk in t:
+            check_time(float(tk))
+        out = self.capture_many(scene, t, rng)
+        b, rep, raw = out["field_true"], out["field"], out["raw"]
+        return [MagneticFrame(float(tk), b[k], rep[k], raw[k]) for k, tk in enumerate(t)]
