@@ -81,8 +81,13 @@ def test_a_dielectric_glove_strengthens_the_hand_coupling(sensor):
     assert drop[0] < drop[1] < drop[2]
 
 
-def test_contacts_from_the_mechanics_give_forces_and_a_resolved_pressure_map():
-    s = make_tactile("skin_patch_8x8", name="skin")
+@pytest.fixture(scope="module")
+def patch():
+    return make_tactile("skin_patch_8x8", name="skin")
+
+
+def test_contacts_from_the_mechanics_give_forces_and_a_resolved_pressure_map(patch):
+    s = patch
     lay = s.config.layout
     r = 0.01
     x0, y0 = lay.x_centers[1], lay.y_centers[1]
@@ -113,8 +118,8 @@ def test_contacts_from_the_mechanics_give_forces_and_a_resolved_pressure_map():
         assert np.min(np.hypot(pos[:, 0] - x, pos[:, 1] - y)) < lay.pitch
 
 
-def test_a_press_beyond_the_linear_range_names_the_object():
-    s = make_tactile("skin_patch_8x8")
+def test_a_press_beyond_the_linear_range_names_the_object(patch):
+    s = patch
     lay = s.config.layout
     scene = _scene(("fingertip", Sphere(0.004), "plastic", Pose((0.0, 0.0, lay.total_thickness + 0.004 - 0.6e-3))))
     with pytest.raises(ConfigError, match="fingertip"):
