@@ -123,6 +123,12 @@ def _moving_rows(v: np.ndarray, vr: np.ndarray, config: RadarConfig, eps: float)
     return moving
 
 
+def _range_rate(p: np.ndarray, v: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """(k,) p.v / |p| of the rows ``rows``: the range rate from the sensor origin [m/s]."""
+    pr, vr = np.take(p, rows, axis=0), np.take(v, rows, axis=0)
+    return np.einsum("ij,ij->i", pr, vr) / np.maximum(np.linalg.norm(pr, axis=1), 1e-12)
+
+
 def _output(cube: np.ndarray, config: RadarConfig) -> np.ndarray:
     return cube if config.if_chain.complex_if else cube.real.copy()
 
@@ -210,6 +216,12 @@ def synthesize(points: np.ndarray, velocities: np.ndarray | None, weights: np.nd
         tasks += [("static", lo, min(lo + CHUNK, n)) for lo in range(0, n, CHUNK)]
     if len(mv):
         bistatic = pr is not p
+        if len(mv) > CHUNK:
+            # Movers in chunks of similar range rate: the Taylor series of each
+            # chunk then only covers the small spread of its chirp-phase
+            # curvature around the chunk's mid-range (S x range rate), which
+            # lowers its order when the whole scene moves (a moving radar).
+            mv = mv[np.argsort(_range_rate(p, v, mv) + _range_rate(pr, vr, mv), kind="stable")]
         pm, vm, wm = np.take(p, mv, axis=0), np.take(v, mv, axis=0), np.take(w, mv)
         prm = np.take(pr, mv, axis=0) if bistatic else None
         vrm = np.take(vr, mv, axis=0) if bistatic else None
