@@ -67,13 +67,15 @@ def test_block_capture_gives_the_recording_of_one_by_one_capture(tmp_path):
     assert raw.min() == 0 and raw.max() == 1
 
 
-def test_a_lone_sensor_runs_in_blocks_and_keeps_frames_and_callbacks_in_order():
+def test_a_lone_sensor_runs_in_blocks_and_keeps_frames_and_callbacks_in_order(monkeypatch):
+    # Blocks of 64 frames (the block length only bounds memory) so that 200 frames span several blocks.
+    monkeypatch.setattr("twinsense.simulate._BLOCK", 64)
     seen = []
-    res = simulate(scene(), sensors(MagneticSensor)[:1], 0.11, None, seed=3,
+    res = simulate(scene(), sensors(MagneticSensor)[:1], 0.02, None, seed=3,
                    on_frame=lambda s, f: seen.append(f.t))
-    ref = simulate(scene(), sensors(OneByOne)[:1], 0.11, None, seed=3)
+    ref = simulate(scene(), sensors(OneByOne)[:1], 0.02, None, seed=3)
     fb, f1 = res.frames["array"], ref.frames["array"]
-    assert len(fb) == len(f1) == 1100  # more than one block of _BLOCK frames
+    assert len(fb) == len(f1) == 200
     assert seen == [f.t for f in f1]
     for x, y in zip(fb, f1):
         for k in ("field_true", "field", "raw"):
