@@ -7,6 +7,8 @@ with the block path switched off (``capture_frames = None``), so both runs go th
 sensor, the real clock and the real HDF5 writer.
 """
 
+import sys
+
 import h5py
 import numpy as np
 import pytest
@@ -69,7 +71,7 @@ def test_block_capture_gives_the_recording_of_one_by_one_capture(tmp_path):
 
 def test_a_lone_sensor_runs_in_blocks_and_keeps_frames_and_callbacks_in_order(monkeypatch):
     # Blocks of 64 frames (the block length only bounds memory) so that 200 frames span several blocks.
-    monkeypatch.setattr("twinsense.simulate._BLOCK", 64)
+    monkeypatch.setattr(sys.modules["twinsense.simulate"], "_BLOCK", 64)
     seen = []
     res = simulate(scene(), sensors(MagneticSensor)[:1], 0.02, None, seed=3,
                    on_frame=lambda s, f: seen.append(f.t))
