@@ -108,5 +108,5 @@ def test_a_whole_scene_moving_past_a_turning_radar_matches_exact():
     w = rng.lognormal(0, 0.5, len(p)) * np.exp(1j * rng.uniform(0, 2 * np.pi, len(p)))
     fast = synthesize(p, v, w, cfg, workers=1)
     np.testing.assert_array_equal(fast, synthesize(p, v, w, cfg, workers=2))
-    ref = synthesize_exact(p, v, w, cfg)
+    ref = synthesize_exact(p, v, w, cfg, chunk=4096)  # large chunks: the same sum, faster
     assert np.linalg.norm(fast - ref) / np.linalg.norm(ref) < 1e-5
