@@ -9,6 +9,7 @@ from twinsense.errors import ConfigError
 from twinsense.scene import Scene
 from twinsense.scene.human import (
     HAND,
+    HeadingPath,
     Reach,
     Turn,
     Walk,
@@ -163,12 +164,31 @@ def test_walk_along_a_path_turns_smoothly_and_stops_at_its_end():
     assert np.max(np.abs(np.diff(np.unwrap(yaw)))) < 0.21
     assert np.unwrap(yaw)[-1] - np.unwrap(yaw)[0] == pytest.approx(math.pi / 2, rel=0, abs=1e-9)
     end = body.state(t_end + 0.5)
-    # Standing at the path's end, facing +y; the rounded corner ends the path within 0.15 m of the
-    # last waypoint (it cuts the corner by ell (1 - 2/pi) / 2 < 0.15 m on each leg for ell = 1 m).
+    # Standing at the path's end, facing +y: the fillet rejoins the last segment, so the walk ends
+    # on the last waypoint (position spline and Gauss-Legendre nodes: 1e-6 m).
     pelvis = end.pose("pelvis")
-    assert np.linalg.norm(pelvis.position[:2] - (3.0, 3.0)) < 0.3
+    np.testing.assert_allclose(pelvis.position[:2], (3.0, 3.0), rtol=0, atol=1e-6)
     np.testing.assert_allclose(end.linear_velocities, 0.0, rtol=0, atol=1e-12)
     assert pelvis.rotation[:, 0] @ np.array([0.0, 1.0, 0.0]) == pytest.approx(1.0, rel=0, abs=1e-9)
+
+
+def test_path_fillets_leave_and_join_the_segments():
+    path = HeadingPath([[0.0, 0.0], [3.0, 0.0], [3.0, 3.0], [0.0, 5.0]], turn_length=1.0)
+    # The path ends at the last waypoint: to 1e-8 m (measured 2e-9: 5-point Gauss-Legendre per
+    # 1 cm integrates the heading's kinks at the ramp ends to ~1e-11 m per node over 930 nodes).
+    np.testing.assert_allclose(path.at(path.length)[0], (0.0, 5.0), rtol=0, atol=1e-8)
+    # Just before a fillet it lies on the incoming segment, just after on the outgoing one
+    # (cross products with the segment directions vanish to the spline's 1e-7 m).
+    for i, (a, b, c) in enumerate((((0, 0), (3, 0), (3, 3)), ((3, 0), (3, 3), (0, 5)))):
+        a, b, c = (np.array(x, float) for x in (a, b, c))
+        p_in = path.at(path._starts[i] - 1e-3)[0] - a
+        p_out = path.at(path._starts[i] + path._ells[i] + 1e-3)[0] - b
+        u, w = (b - a) / np.linalg.norm(b - a), (c - b) / np.linalg.norm(c - b)
+        assert abs(u[0] * p_in[1] - u[1] * p_in[0]) < 1e-7
+        assert abs(w[0] * p_out[1] - w[1] * p_out[0]) < 1e-7
+    # The heading ramps continuously: the rate is the smoothstep's, peak 1.5 turn / ell at mid-ramp.
+    mid = path._starts[0] + 0.5 * path._ells[0]
+    assert path.at(mid)[3] == pytest.approx(1.5 * (np.pi / 2) / path._ells[0], rel=1e-12, abs=0)
 
 
 def test_standing_and_turning_on_the_spot():

@@ -205,14 +205,29 @@ def _wrap(a):
     return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
 
 
+def _tangent_distance(turn: float) -> float:
+    """Distance [per metre of ramp] from a corner to where a heading ramp turning by ``turn`` [rad]
+    leaves the incoming line (and, by symmetry, joins the outgoing one)."""
+    if abs(turn) < 1e-9:
+        return 0.5
+    gx, gw = np.polynomial.legendre.leggauss(24)
+    w, _ = smoothstep(0.5 * (gx + 1.0))
+    dx, dy = 0.5 * float(gw @ np.cos(turn * w)), 0.5 * float(gw @ np.sin(turn * w))
+    # The ramp ends at (dx, dy) heading along `turn`; that line meets the incoming x axis at the corner.
+    return dx - dy / math.tan(turn)
+
+
 class HeadingPath:
     """A floor path whose heading turns smoothly: position and heading by arc length.
 
-    ``points`` (n >= 2, 2 or 3) [m] are waypoints on the floor (z ignored);
-    at each inner waypoint the heading ramps from the incoming to the
-    outgoing direction over ``turn_length`` [m] of path (C1 ramp, so the
-    heading rate is continuous), which rounds the corner. ``points`` of one
-    row plus ``heading`` [rad] give an endless straight line.
+    ``points`` (n >= 2, 2 or 3) [m] are waypoints on the floor (z ignored).
+    Each inner waypoint is a corner rounded by a fillet: the heading ramps
+    (C1, 3 s^2 - 2 s^3 in arc length, so the heading rate is continuous) from
+    the incoming to the outgoing direction over ``turn_length`` [m] of path,
+    leaving the incoming segment and joining the outgoing one at the same
+    distance from the waypoint; the path therefore runs along every segment
+    and ends exactly at the last waypoint. ``points`` of one row plus
+    ``heading`` [rad] give an endless straight line.
     """
 
     NODE_SPACING = 0.01  # [m] between the nodes of the position spline
@@ -239,12 +254,20 @@ class HeadingPath:
         turns = _wrap(np.diff(self.headings))
         if np.any(np.abs(turns) > np.radians(175)):
             raise ConfigError("walk.path", points, "turns of less than 175 deg at each waypoint")
-        # Ramp centres at the waypoints' arc lengths, each ramp at most half of
-        # either neighbouring segment long.
-        cum = np.concatenate([[0.0], np.cumsum(lens)])
-        ell = np.minimum(self.turn_length, 0.5 * np.minimum(lens[:-1], lens[1:]))
-        self._centres, self._ells, self._turns = cum[1:-1], ell, turns
-        self.length = float(cum[-1])
+        # Each corner is a fillet: the heading ramp leaves the incoming segment and joins the
+        # outgoing one at the same distance d from the waypoint (symmetric ramp), d = ell d1(turn);
+        # ell = turn_length unless d would pass half of either neighbouring segment.
+        d1 = np.array([_tangent_distance(float(tn)) for tn in turns])
+        ell = np.minimum(self.turn_length, 0.5 * np.minimum(lens[:-1], lens[1:]) / d1)
+        d = ell * d1
+        starts, s_arc, before = [], 0.0, 0.0
+        for i in range(len(turns)):
+            s_arc += lens[i] - before - d[i]
+            starts.append(s_arc)
+            s_arc += ell[i]
+            before = d[i]
+        self._starts, self._ells, self._turns = np.array(starts), ell, turns
+        self.length = float(s_arc + lens[-1] - before)
         n = max(math.ceil(self.length / self.NODE_SPACING), 2)
         s = np.linspace(0.0, self.length, n + 1)
         # Node positions: 5-point Gauss-Legendre on each interval of the unit tangent.
@@ -266,8 +289,8 @@ class HeadingPath:
         dpsi = np.zeros(s.shape)
         if len(self.headings) == 1:
             return psi, dpsi
-        for c, ell, turn in zip(self._centres, self._ells, self._turns, strict=True):
-            w, wd = smoothstep((s - c + 0.5 * ell) / ell)
+        for a, ell, turn in zip(self._starts, self._ells, self._turns, strict=True):
+            w, wd = smoothstep((s - a) / ell)
             psi = psi + turn * w
             dpsi = dpsi + turn * wd / ell
         return psi, dpsi
