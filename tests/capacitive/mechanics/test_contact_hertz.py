@@ -68,7 +68,7 @@ def quarter_body(thickness: float, cells_per_a: float, volumetric: str = "elemen
         rollers[p[:, 0] == 0.0, 0] = True
         rollers[p[:, 1] == 0.0, 1] = True
         _BODIES[key] = ElasticBody(lm.mesh, np.zeros(lm.mesh.t.shape[1], np.int64), (mat,), lm.fixed, top,
-                                   rollers=rollers, volumetric=volumetric)
+                                   rollers=rollers, volumetric=volumetric, store_response=False)
     return _BODIES[key]
 
 

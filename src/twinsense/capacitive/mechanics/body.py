@@ -7,8 +7,8 @@ order (:mod:`.ordering`) with the contact nodes' normal dofs last, and
 condenses it onto them: the trailing block of the factor is the Schur
 complement ``S`` and the compliance is ``C = S^-1`` (n_top, n_top) [m/N]. A
 frame solves the contact problem on ``C`` (:mod:`.contact`) and recovers the
-displacement of every node by one back substitution with the factor (or,
-for long runs, from stored unit responses).
+displacement of every node from the stored unit responses of the top nodes
+(when they fit in :data:`RESPONSE_BYTES_MAX`) or by one back substitution.
 """
 
 from __future__ import annotations
@@ -39,7 +39,10 @@ from twinsense.capacitive.mechanics.materials import LINEAR_STRAIN_LIMIT, Elasti
 from twinsense.capacitive.mechanics.ordering import nested_dissection, node_graph
 from twinsense.errors import ConfigError
 
-__all__ = ["VOLUMETRIC", "ElasticBody"]
+__all__ = ["RESPONSE_BYTES_MAX", "VOLUMETRIC", "ElasticBody"]
+
+RESPONSE_BYTES_MAX = 128e6
+"""Largest store of unit responses (8 n_free n_top bytes) kept by default [bytes]."""
 
 VOLUMETRIC = ("nodal", "element")
 """Volumetric energy: averaged at the nodes (relieves locking) or per cell (plain P1)."""
@@ -67,11 +70,11 @@ class ElasticBody:
     strain_limit : float
         Largest compressive principal strain accepted [1] (default
         :data:`~twinsense.capacitive.mechanics.materials.LINEAR_STRAIN_LIMIT`).
-    store_response : bool
+    store_response : bool, optional
         Keep the unit response of every top node (``8 n_free n_top`` bytes,
-        n_top back substitutions up front): a frame's displacement is then a
-        sum over its contact nodes instead of one back substitution. Pays
-        off over runs of more than n_top frames; off by default.
+        one multi-right-hand-side back substitution up front): a frame's
+        displacement is then a sum over its contact nodes instead of one back
+        substitution. Default: when it fits in :data:`RESPONSE_BYTES_MAX`.
 
     volumetric : {"nodal", "element"}
         ``"nodal"`` (default): the volume change averaged at the nodes
@@ -85,7 +88,7 @@ class ElasticBody:
     """
 
     def __init__(self, mesh: skfem.MeshTet, element_material, materials: Sequence, fixed, top, *,
-                 rollers=None, strain_limit: float = LINEAR_STRAIN_LIMIT, store_response: bool = False,
+                 rollers=None, strain_limit: float = LINEAR_STRAIN_LIMIT, store_response: bool | None = None,
                  volumetric: str = "nodal"):
         if not isinstance(mesh, skfem.MeshTet) or type(mesh).__name__ != "MeshTet1":
             raise ConfigError("ElasticBody.mesh", type(mesh).__name__, "a skfem.MeshTet (linear tetrahedra)")
@@ -187,6 +190,8 @@ class ElasticBody:
         self._u_ii = split_diagonal(sp.csc_matrix((up.data[:end], up.indices[:end], up.indptr[:ni + 1]),
                                                   shape=(ni, ni)))
         self._u_t = up[:, ni:]
+        if store_response is None:
+            store_response = 8.0 * len(self._free) * nt <= RESPONSE_BYTES_MAX
         self.store_response = bool(store_response)
         self._response = None
         if self.store_response:
