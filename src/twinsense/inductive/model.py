@@ -34,6 +34,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from twinsense.inductive.kernels import sector_sum
 from twinsense.inductive.table import TableSpec
 
 _DENSE = 512  # resampled distances: linear interpolation between them adds < 1e-4 of the spline's error
@@ -59,6 +60,7 @@ class ResponseModel:
         re = CubicSpline(self.distances, table.real, axis=1)(self.grid)
         im = CubicSpline(self.distances, table.imag, axis=1)(self.grid)
         self._dense = (re + 1j * im)  # (M, G, K)
+        self._dense_re, self._dense_im = np.ascontiguousarray(re), np.ascontiguousarray(im)
         self._step = self.grid[1] - self.grid[0]
         self._ring_area = np.pi * np.diff(self.edges ** 2)
         self._cum_area = np.cumsum(self._ring_area)
@@ -84,23 +86,11 @@ class ResponseModel:
         Rays are ring-major, (K * S,) as :meth:`face_points`.
         """
         K, S = len(self.edges) - 1, self.sectors
-        mat = np.asarray(material).reshape(K, S)
-        d = np.asarray(distance, dtype=float).reshape(K, S)
-        hit = (mat >= 0) & (d <= self.distances[-1])
-        if not hit.any():
-            return 0j
-        cols = np.flatnonzero(hit.any(axis=0))
-        h = hit[:, cols]
-        outer = K - 1 - np.argmax(h[::-1], axis=0)  # outermost hit ring per sector
-        w = np.where(h, self._ring_area[:, None], 0.0)
-        frac = w.sum(axis=0) / self._cum_area[outer]
-        dist = (w * np.where(h, d[:, cols], 0.0)).sum(axis=0) / w.sum(axis=0)
-        m = mat[outer, cols]
-        x = (np.clip(dist, self.distances[0], self.distances[-1]) - self.grid[0]) / self._step
-        i0 = np.minimum(x.astype(np.int64), _DENSE - 2)
-        t = x - i0
-        val = (1 - t) * self._dense[m, i0, outer] + t * self._dense[m, i0 + 1, outer]
-        return complex(np.sum(frac * val) / S)
+        mat = np.ascontiguousarray(material, dtype=np.int64).reshape(K * S)
+        d = np.ascontiguousarray(distance, dtype=float).reshape(K * S)
+        re, im = sector_sum(mat, d, K, S, self._ring_area, self._cum_area, self.distances[0], self.distances[-1],
+                            self.grid[0], self._step, self._dense_re, self._dense_im)
+        return complex(re, im)
 
     def disc(self, material: int, distance, radius_index: int) -> np.ndarray:
         """``delta Z`` [ohm] of a centred disc of table radius ``radius_index`` at each ``distance`` [m]."""

@@ -74,6 +74,7 @@ class InductiveSensor:
         self._models: dict[tuple[float, float], tuple[ResponseModel, int]] = {}
         self._prepared = False
         self._metal_scenes: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+        self._fixed_rays: tuple[Mount, Rays] | None = None
 
     @property
     def frame_rate(self) -> float:
@@ -170,16 +171,30 @@ class InductiveSensor:
         self._metal_scenes[scene] = (scene.version, sub)
         return sub
 
+    def _rays(self, scene: Scene, t: float) -> Rays:
+        """The face's rays in the world at ``t``; a mount in the world gives the same read-only arrays
+        every time (so the caster keeps the hits on static metal and traces only the moving objects)."""
+        if self.mount.parent is None and self._fixed_rays is not None and self._fixed_rays[0] is self.mount:
+            return self._fixed_rays[1]
+        pose = self.mount.pose_at(scene, t)
+        pts = self.model.face_points()
+        origins = pose.apply(pts)
+        dirs = np.ascontiguousarray(np.broadcast_to(pose.apply_vectors(np.array([[0.0, 0.0, 1.0]])), pts.shape))
+        rays = Rays(origins, dirs)
+        if self.mount.parent is None:
+            origins.setflags(write=False)
+            dirs.setflags(write=False)
+            self._fixed_rays = (self.mount, rays)
+        return rays
+
     def delta_z(self, scene: Scene, t: float) -> complex:
         """Impedance change [ohm] of the coil from the metal in front of the face at ``t``."""
         self.prepare()
         sub = self._metal_scene(scene)
         if len(sub) == 0:
             return 0j
-        pose = self.mount.pose_at(scene, t)
-        pts = self.model.face_points()
-        dirs = np.broadcast_to(pose.apply_vectors(np.array([[0.0, 0.0, 1.0]])), pts.shape)
-        hits = cast(sub, Rays(pose.apply(pts), np.ascontiguousarray(dirs)), t, kind=self.kind, fields=("distance",))
+        # 24 rays: one thread (handing them to the pool costs more than tracing them).
+        hits = cast(sub, self._rays(scene, t), t, kind=self.kind, fields=("distance",), workers=1)
         ids = np.asarray(hits.object_id)
         if len(sub) == 1:  # one metal object: no split by object
             mat = sub.objects[0].material
