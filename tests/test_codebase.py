@@ -28,7 +28,7 @@ TESTS = Path(__file__).parent
 LAYERS: list[tuple[str, frozenset[str]]] = [
     ("ground", frozenset({"errors", "constants", "validation", "linalg", "_version", "data"})),
     ("scene", frozenset({"scene"})),
-    ("robots", frozenset({"robots"})),
+    ("robots", frozenset({"robots", "safety"})),
     ("render", frozenset({"render"})),
     ("sensor interface", frozenset({"sensors"})),
     ("sensor packages", frozenset({"tof", "radar", "capacitive", "depthcam", "lidar", "ultrasonic", "magnetic",

@@ -259,7 +259,7 @@ def test_robot_cell_example_and_demo_scene_agree():
     # the example file must describe the very same scene.
     from twinsense.demos.robot_cell import build_robot_cell_scene
 
-    sc = load_scenario(EXAMPLE.parent / "robot_cell.yaml")
+    sc = load_scenario(EXAMPLE.parent / "cylinder_cell.yaml")
     ref = build_robot_cell_scene()
     a, b = sc.scene.to_dict(), ref.to_dict()
     a.pop("name", None), b.pop("name", None)

@@ -259,6 +259,7 @@ class RobotSpec(_Model):
     base: PoseSpec = PoseSpec()
     joints: dict[str, Any] | None = None  # see twinsense.robots.spec.joint_motion_from_dict
     materials: dict[str, str] = {}
+    shapes: Literal["visual", "collision"] = "visual"  # the link meshes: URDF visuals / MJCF display geoms, or collision
 
 
 class PersonWalkSpec(_Model):
@@ -604,7 +605,7 @@ def _add_robots(spec: ScenarioSpec, scene: Scene, base_dir: Path) -> list:
             from twinsense.robots.spec import robot_from_dict
 
             body = robot_from_dict(rs.name, rs.description, base=rs.base.build(f"robots[{i}].base"),
-                                   joints=rs.joints, materials=rs.materials, base_dir=base_dir)
+                                   joints=rs.joints, materials=rs.materials, base_dir=base_dir, shapes=rs.shapes)
             body.add_to(scene)
         except ConfigError as e:
             tail = e.field.removeprefix(f"{rs.name}.")

@@ -1,23 +1,78 @@
-"""The robot cell of ``examples/robot_cell.yaml``, built in Python for the demos.
+"""The robot cells: the UR5 pick-and-place cell of ``examples/robot_cell.yaml`` and the simple cylinder cell.
 
-A floor, a back wall 3 m away, a table, a robot link oscillating sideways
-above it, a person walking across the cell and a corner reflector on the
-table. The demos need the scene without a source checkout (a pip install
-has no ``examples/``); ``tests/test_scenario.py`` checks that the example
-file and this function build the same scene.
+``build_arm_cell`` builds the robot-cell demo's scene and sensors in Python
+(a pip install has no ``examples/``); ``tests/demos/test_robot_cell.py``
+checks that ``examples/robot_cell.yaml`` describes the same cell. A UR5
+(example-robot-data's URDF with its collision meshes: 5,340 triangles, the
+visual meshes have 95,694) picks a part from a table and places it; a person
+walks up to the cell from the side and reaches towards the robot. A ToF
+camera and a radar on the side wall, a ToF camera on the wrist flange and a
+capacitive proximity skin on the forearm: the ``pad-grid`` preset, a flat
+12 x 9 cm patch tangent to the forearm (the tactile skin presets are flat
+patches too; a flat patch on a 58 mm radius link leaves up to 25 mm of air
+under its long edges).
+
+``build_robot_cell_scene`` is the simple cell of ``examples/cylinder_cell.yaml``
+(a cylinder link, a capsule person), which the LiDAR and ultrasonic demos use.
+
+``run_robot_cell_demo`` (``twinsense demo robot-cell``) writes the depth
+frames of both ToF cameras, the radar's micro-Doppler spectrogram with the
+torso's true radial speed, the separation plot (true human-robot minimum
+distance against what the radar, the wall ToF camera and the skin see, with
+ISO/TS 15066's protective separation distance for the robot's speed) and an
+HDF5 recording of every sensor.
 """
 
 from __future__ import annotations
 
-from twinsense.scene import Box, Capsule, Cylinder, Oscillation, Plane, Pose, Scene, Waypoints
+from dataclasses import dataclass
+from pathlib import Path
 
-#: Sensor kinds that see the robot link: every kind but the capacitive skin riding on it.
+import numpy as np
+from scipy.spatial import cKDTree
+
+from twinsense.errors import ConfigError
+from twinsense.plotting import pyplot, save_figure
+from twinsense.presets import make_sensor
+from twinsense.robots import load_robot
+from twinsense.safety import SeparationMonitor, SeparationParameters, point_box_distance, protective_separation_distance
+from twinsense.scene import Box, Capsule, Cylinder, JointKeyframes, Mount, Oscillation, Plane, Pose, Scene, Waypoints
+from twinsense.scene.human import Reach, Walk, add_person
+from twinsense.simulate import simulate
+
+#: Sensor kinds that see the cylinder cell's robot link: every kind but the capacitive skin riding on it.
 LINK_LAYERS = ("tof", "radar", "camera", "lidar", "ultrasonic")
+
+#: The pick-and-place cycle [s] and joint values [rad] (URDF order: shoulder pan, shoulder lift, elbow,
+#: wrist 1-3); the flange points down throughout, 1.05 m above the floor over the part and the place,
+#: 0.885 m at them. Far inside the UR5's +-2 pi (elbow +-pi) limits.
+TIMES = (0.0, 0.8, 1.3, 1.8, 2.8, 3.3, 3.8, 4.6)
+HOME = (0.0, -1.57, 1.57, -1.57, -1.57, 0.0)
+ABOVE_PICK = (0.2, -1.20, 1.60, -1.97, -1.57, 0.2)
+PICK = (0.2, -0.95, 1.70, -2.32, -1.57, 0.2)
+ABOVE_PLACE = (-0.8, -1.20, 1.60, -1.97, -1.57, -0.8)
+PLACE = (-0.8, -0.95, 1.70, -2.32, -1.57, -0.8)
+KEYFRAMES = (HOME, ABOVE_PICK, PICK, ABOVE_PICK, ABOVE_PLACE, PLACE, ABOVE_PLACE, HOME)
+CYCLE = TIMES[-1]
+
+ROBOT = "ur5"
+PERSON = "person"
+WRIST_LINK = "tool0"
+FOREARM_LINK = "forearm_link"
+#: Wall sensor positions [m] (on the side wall, y = -3 m) and what they look at.
+WALL_TOF_EYE, WALL_TOF_TARGET = (0.3, -2.95, 2.0), (0.5, 0.0, 0.9)
+RADAR_EYE, RADAR_TARGET = (1.0, -2.95, 1.2), (1.1, 0.0, 1.0)
+#: The radar's waveform for micro-Doppler: 64 chirps at 100 us (10 kHz slow time, +-12.5 m/s, above the
+#: feet's ~5 m/s; 0.39 m/s Doppler cells), 64 samples; 96 x 48 rays.
+RADAR_OVERRIDES = {"num_samples": 64, "num_chirps": 64, "chirp_repetition_time": 1.0e-4,
+                   "ramp_end_time": 4.0e-5, "render_width": 96, "render_height": 48}
+#: The skin: flat, tangent to the forearm (radius 58 mm) 20 cm along it, its normal along the link's -y.
+SKIN_POSE = Pose.from_euler_deg((0.0, -0.062, 0.2), (90, -90, 0))
 
 
 def build_robot_cell_scene() -> Scene:
-    """The robot cell's objects (world frame, z up, sizes in metres)."""
-    s = Scene(name="robot_cell")
+    """The simple cylinder cell of ``examples/cylinder_cell.yaml`` (world frame, z up, sizes in metres)."""
+    s = Scene(name="cylinder_cell")
     s.add_object("floor", Plane((6.0, 6.0)), "concrete")
     s.add_object("back_wall", Plane((6.0, 3.0)), "drywall",
                  pose=Pose.from_euler_deg((3.0, 0.0, 1.5), (0, -90, 0)))
@@ -30,3 +85,245 @@ def build_robot_cell_scene() -> Scene:
                  motion=Waypoints([[1.2, -1.5, 0.9], [1.2, 1.5, 0.9]], speed=1.2, mode="back_and_forth"))
     s.add_object("corner_reflector", Box((0.08, 0.08, 0.08)), "corner_reflector", pose=Pose((2.5, -0.5, 0.79)))
     return s
+
+
+#: The cell's static boxes (name, size, centre) [m]: what an SSM system knows of its cell.
+STATIC_BOXES = (("pedestal", (0.3, 0.3, 0.8), (0.0, 0.0, 0.4)),
+                ("table", (0.6, 1.0, 0.75), (0.6, 0.0, 0.375)),
+                ("part", (0.12, 0.08, 0.05), (0.58, 0.23, 0.775)))
+
+
+def build_arm_cell_scene(person: bool = True) -> Scene:
+    """The UR5 cell of ``examples/robot_cell.yaml``: floor, walls, pedestal, table, part, UR5, person
+    (``person=False``: the cell without the person)."""
+    s = Scene(name="robot_cell")
+    s.add_object("floor", Plane((6.0, 6.0)), "concrete")
+    s.add_object("back_wall", Plane((6.0, 3.0)), "drywall", pose=Pose.from_euler_deg((2.5, 0.0, 1.5), (0, -90, 0)))
+    s.add_object("side_wall", Plane((6.0, 3.0)), "drywall", pose=Pose.from_euler_deg((0.0, -3.0, 1.5), (-90, 0, 0)))
+    materials = {"pedestal": "mild_steel", "table": "wood", "part": "plastic"}
+    for name, size, centre in STATIC_BOXES:
+        s.add_object(name, Box(size), materials[name], pose=Pose(centre))
+    ur5 = load_robot("ur5", name=ROBOT, joints=JointKeyframes(TIMES, KEYFRAMES), base=Pose((0.0, 0.0, 0.8)),
+                     shapes="collision")
+    s.add_articulated(ur5)
+    if person:
+        add_person(s, PERSON, 1.75, (1.3, -2.4), walk=Walk(1.2, path=((1.15, -0.75),)),
+                   reach=Reach((0.75, -0.45, 1.05), 2.4, 0.8, 0.8, "right"))
+    return s
+
+
+def build_arm_cell_sensors(tof_rate: float = 10.0, radar_rate: float = 10.0, skin_rate: float = 20.0) -> list:
+    """The cell's sensors (``examples/robot_cell.yaml`` at the default rates [Hz])."""
+    return [
+        make_sensor("tof", "pmd_pico_flexx", name="wall_tof", mode="MODE_9_25FPS_450", frame_rate=tof_rate,
+                    mount=Mount(Pose.look_at(WALL_TOF_EYE, WALL_TOF_TARGET))),
+        make_sensor("radar", "paper_bgt60tr13c", name="radar", frame_rate=radar_rate,
+                    mount=Mount(Pose.look_at(RADAR_EYE, RADAR_TARGET)), **RADAR_OVERRIDES),
+        make_sensor("tof", "pmd_pico_flexx", name="wrist_tof", frame_rate=tof_rate,
+                    mount=Mount(Pose((0.0, 0.0, 0.02)), parent=f"{ROBOT}/{WRIST_LINK}")),
+        make_sensor("capacitive", "pad-grid", name="skin", frame_rate=skin_rate,
+                    mount=Mount(SKIN_POSE, parent=f"{ROBOT}/{FOREARM_LINK}")),
+    ]
+
+
+def build_arm_cell(**rates) -> tuple[Scene, list]:
+    """(scene, sensors) of the robot-cell demo; ``rates``: see :func:`build_arm_cell_sensors`."""
+    return build_arm_cell_scene(), build_arm_cell_sensors(**rates)
+
+
+def torso_radial_velocity(scene: Scene, radar_position, t: float) -> float:
+    """The person's thorax radial velocity [m/s] seen from ``radar_position`` (3,) (> 0 moving away)."""
+    st = scene.object(f"{PERSON}/thorax").state_at(t)
+    los = st.pose.position - np.asarray(radar_position, dtype=float)
+    return float(st.linear_velocity @ los / np.linalg.norm(los))
+
+
+def micro_doppler(frames, scene: Scene, gate: float = 0.5) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(times (n,) [s], velocity axis (m,) [m/s], power (n, m) over the person's range bins, truth (n,) [m/s]).
+
+    Each processed frame's range-Doppler power summed over the range bins within
+    ``gate`` [m] of the thorax's true range (the robot and the table move or sit
+    at other ranges); the truth is the thorax's radial velocity.
+    """
+    times, rows, truth = [], [], []
+    vel = None
+    for f in frames:
+        pr = f.processed
+        if pr is None:
+            raise ConfigError("radar.process", False, "a radar that processes its frames (range-Doppler maps)")
+        radar_pos = f.pose.position
+        r_torso = np.linalg.norm(scene.object(f"{PERSON}/thorax").pose_at(f.t).position - radar_pos)
+        sel = np.abs(pr.range_axis - r_torso) <= gate
+        rows.append(pr.power[:, sel].sum(axis=1))
+        vel = pr.velocity_axis
+        times.append(f.t)
+        truth.append(torso_radial_velocity(scene, radar_pos, f.t))
+    return np.array(times), np.asarray(vel), np.array(rows), np.array(truth)
+
+
+def torso_line(velocity_axis, power) -> np.ndarray:
+    """The strongest moving line per frame [m/s]: the peak Doppler bin, the zero bin left out (static clutter)."""
+    p = np.array(power, dtype=float)
+    p[:, np.argmin(np.abs(velocity_axis))] = 0.0
+    return np.asarray(velocity_axis)[np.argmax(p, axis=1)]
+
+
+@dataclass(frozen=True)
+class SeparationTrace:
+    """Separations [m] per time (n,): true, per sensor (NaN when the sensor sees nobody), S_p."""
+
+    times: np.ndarray
+    true: np.ndarray
+    robot_speed: np.ndarray
+    protective: np.ndarray
+
+
+def _robot_distance(monitor: SeparationMonitor, points, t: float, exclude: float) -> float:
+    """Smallest distance [m] from ``points`` (n, 3) to the robot surface at t, ignoring points within
+    ``exclude`` [m] of it (the robot's own returns: the robot knows where it is)."""
+    if len(points) == 0:
+        return np.nan
+    d, _ = cKDTree(monitor.robot_points(t)[0]).query(points)
+    d = d[d > exclude]
+    return float(d.min()) if len(d) else np.nan
+
+
+def _static_mask(points, margin: float = 0.04) -> np.ndarray:
+    """Points on the cell's known static surfaces: floor, walls and the boxes (within ``margin`` [m])."""
+    p = np.asarray(points)
+    on = (p[:, 2] < margin) | (p[:, 0] > 2.5 - margin) | (p[:, 1] < -3.0 + margin)
+    for _, size, centre in STATIC_BOXES:
+        on |= point_box_distance(p - np.asarray(centre), size) < margin
+    return on
+
+
+def tof_separation(monitor, frame, exclude: float = 0.05) -> float:
+    """The wall ToF's separation [m]: its valid points off the static cell and off the robot, nearest the robot."""
+    pts = frame.points_world[frame.valid]
+    pts = pts[np.isfinite(pts).all(axis=1)]
+    return _robot_distance(monitor, pts[~_static_mask(pts)], frame.t, exclude)
+
+
+def radar_separation(monitor, frame, min_speed: float, exclude: float = 0.15) -> float:
+    """The radar's separation [m]: moving detections (|v| >= ``min_speed``) off the robot, nearest the robot."""
+    det = frame.detections
+    if det is None or det.points_world is None:
+        return np.nan
+    moving = np.abs(det.velocity) >= min_speed
+    return _robot_distance(monitor, det.points_world[moving], frame.t, exclude)
+
+
+def run_robot_cell_demo(out_dir, duration: float = CYCLE, progress: bool = False, *, tof_rate: float = 10.0,
+                        radar_rate: float = 20.0, skin_rate: float = 5.0, seed: int = 1,
+                        params: SeparationParameters = SeparationParameters()) -> dict[str, Path]:
+    """Run the UR5 cell for ``duration`` [s] and write its pictures and recording into ``out_dir``.
+
+    Writes ``depth_wall.png`` and ``depth_wrist.png`` (three depth frames
+    each), ``micro_doppler.png`` (radar spectrogram, time vs radial velocity,
+    with the thorax's true radial speed), ``separation.png`` and
+    ``robot_cell.h5`` (every sensor's frames).
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    scene, sensors = build_arm_cell(tof_rate=tof_rate, radar_rate=radar_rate, skin_rate=skin_rate)
+    res = simulate(scene, sensors, duration, out=out / "robot_cell.h5", seed=seed, progress=progress,
+                   keep_frames=True)
+    frames = res.frames
+    written = {"recording": res.path}
+    for cam in ("wall_tof", "wrist_tof"):
+        written[f"depth_{cam.split('_')[0]}_png"] = _depth_figure(frames[cam], out / f"depth_{cam.split('_')[0]}.png",
+                                                                  cam)
+    t_md, vel, power, truth = micro_doppler(frames["radar"], scene)
+    written["micro_doppler_png"] = _doppler_figure(t_md, vel, power, truth, out / "micro_doppler.png")
+
+    monitor = SeparationMonitor(scene, ROBOT, PERSON)
+    times = np.arange(0.0, duration, 0.05)
+    samples = [monitor.at(float(t)) for t in times]
+    true = np.array([s.distance for s in samples])
+    speed = np.array([s.robot_speed for s in samples])
+    trace = SeparationTrace(times, true, speed, protective_separation_distance(speed, params))
+    cell = np.diff(vel[:2])[0] if len(vel) > 1 else 0.1
+    tof = [(f.t, tof_separation(monitor, f)) for f in frames["wall_tof"]]
+    radar = [(f.t, radar_separation(monitor, f, min_speed=cell)) for f in frames["radar"]]
+    skin = _skin_triggers(sensors[3], frames["skin"], seed)
+    written["separation_png"] = _separation_figure(trace, tof, radar, skin, monitor, params,
+                                                   out / "separation.png")
+    return written
+
+
+def _skin_triggers(skin, frames, seed: int) -> list[tuple[float, float, float]]:
+    """(t, the person's share of the largest channel change [F], threshold [F]) per skin frame.
+
+    The person's share is the measured reading minus the same skin's true
+    channels in the cell without the person at that time (the robot's own
+    arm and the table change the baseline as the arm moves); the threshold is
+    five times the converter noise at the skin's frame rate.
+    """
+    twin = build_arm_cell_scene(person=False)
+    ro = skin.config.readout
+    thr = 5.0 * ro.noise_rms * np.sqrt(skin.frame_rate / ro.noise_rate)
+    rng = np.random.default_rng(seed)
+    out = []
+    for f in frames:
+        empty = skin.capture(twin, f.t, rng)
+        out.append((f.t, float(np.max(np.abs(f.readout - empty.channels))), thr))
+    return out
+
+
+def _depth_figure(frames, path: Path, title: str) -> Path:
+    plt = pyplot()
+    pick = [frames[i] for i in sorted({0, len(frames) // 2, len(frames) - 1})]
+    fig, axes = plt.subplots(1, len(pick), figsize=(4.2 * len(pick), 3.4), squeeze=False)
+    for ax, f in zip(axes[0], pick):
+        d = np.where(f.valid, f.depth, np.nan)
+        im = ax.imshow(d, cmap="turbo", vmin=0.0, vmax=np.nanmax(d) if np.isfinite(d).any() else 1.0)
+        ax.set_title(f"{title}, t = {f.t:.2f} s", fontsize=9)
+        ax.set_axis_off()
+        fig.colorbar(im, ax=ax, label="depth [m]", fraction=0.04)
+    return save_figure(fig, path)
+
+
+def _doppler_figure(t, vel, power, truth, path: Path) -> Path:
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(8.0, 4.2))
+    db = 10 * np.log10(np.maximum(power, power.max() * 1e-9) / power.max())
+    dt = np.diff(t).mean() if len(t) > 1 else 0.05
+    ax.imshow(db.T, origin="lower", aspect="auto", cmap="magma", vmin=-40, vmax=0,
+              extent=(t[0] - dt / 2, t[-1] + dt / 2, vel[0], vel[-1]))
+    ax.plot(t, truth, "c-", lw=1.5, label="thorax radial speed (truth)")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("radial velocity [m/s] (> 0 away)")
+    ax.set_ylim(-6, 6)
+    ax.legend(loc="upper right", fontsize=8)
+    ax.set_title("wall radar micro-Doppler: range-Doppler power over the person's range bins [dB]", fontsize=9)
+    return save_figure(fig, path)
+
+
+def _separation_figure(trace: SeparationTrace, tof, radar, skin, monitor, params, path: Path) -> Path:
+    plt = pyplot()
+    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(8.0, 6.4), sharex=True, height_ratios=(3, 1))
+    ax.plot(trace.times, trace.true, "k-", lw=2, label="true minimum distance (robot surface to body)")
+    ax.plot(trace.times, trace.protective, "r--", lw=1.5,
+            label=f"ISO/TS 15066 S_p (v_h {params.human_speed} m/s, T_r {params.reaction_time} s, "
+                  f"T_s {params.stopping_time} s, C {params.intrusion_distance} m)")
+    stop = trace.true < trace.protective
+    ax.fill_between(trace.times, 0, 1, where=stop, color="r", alpha=0.1, transform=ax.get_xaxis_transform(),
+                    label="protective stop required")
+    if tof:
+        ax.plot(*np.array(tof).T, "o", ms=4, color="tab:blue", label="wall ToF: nearest person point")
+    if radar:
+        ax.plot(*np.array(radar).T, "s", ms=3, color="tab:green", label="radar: nearest moving detection")
+    ax.set_ylabel("separation [m]")
+    ax.set_ylim(bottom=0)
+    ax.legend(fontsize=7, loc="upper right")
+    ax.set_title(f"human-robot separation (true: link meshes within {monitor.spacing / np.sqrt(3) * 1e3:.0f} mm "
+                 "vs exact body capsules and boxes)", fontsize=9)
+    if skin:
+        ts, dc, thr = np.array(skin).T
+        ax2.semilogy(ts, np.maximum(dc, 1e-18) * 1e15, "o-", color="tab:purple", ms=3,
+                     label="skin: person's largest channel change")
+        ax2.axhline(thr[0] * 1e15, color="tab:purple", ls=":", label="proximity threshold (5 x noise)")
+        ax2.legend(fontsize=7)
+    ax2.set_ylabel("|dC| [fF]")
+    ax2.set_xlabel("time [s]")
+    return save_figure(fig, path)

@@ -72,8 +72,11 @@ def joint_motion_from_dict(data: Any, field: str = "joints") -> JointMotion | No
 
 
 def robot_from_dict(name: str, description: str, *, base: Pose | Motion | None = None, joints: Any = None,
-                    materials: dict | None = None, base_dir: Path | None = None) -> ArticulatedBody:
-    """An articulated robot from a description (installed name or file path, relative to ``base_dir``)."""
+                    materials: dict | None = None, base_dir: Path | None = None,
+                    shapes: str = "visual") -> ArticulatedBody:
+    """An articulated robot from a description (installed name or file path, relative to ``base_dir``).
+
+    ``shapes``: "visual" or "collision" link meshes (URDF ``shapes``, MJCF ``geoms``)."""
     if not isinstance(description, str) or not description:
         raise ConfigError("description", description, "an installed robot (" + ", ".join(robot_names())
                           + ") or the path of a .urdf / MJCF .xml file")
@@ -91,4 +94,8 @@ def robot_from_dict(name: str, description: str, *, base: Pose | Motion | None =
             raise ConfigError("description", str(p), "an existing robot description file (.urdf or MJCF .xml), "
                               "or an installed robot: " + ", ".join(robot_names()))
         target = p
-    return load_robot(target, name=name, joints=motion, materials=materials or None, base=base)
+    if shapes not in ("visual", "collision"):
+        raise ConfigError("shapes", shapes, "visual, collision")
+    fmt = ROBOTS[target].fmt if isinstance(target, str) else ("urdf" if target.suffix.lower() == ".urdf" else "mjcf")
+    kw = {"shapes": shapes} if fmt == "urdf" else {"geoms": shapes}
+    return load_robot(target, name=name, joints=motion, materials=materials or None, base=base, **kw)
