@@ -159,7 +159,7 @@ def main() -> None:
         f = FoxgloveSink(port=0)
         f.scene, f.sensors = _EmptyScene(), [sen]
         f._start()  # the transport alone: the sender thread's work is timed on this thread
-        best, med = send_cost(f._publish, sen, data[:200])
+        best, med = send_cost(lambda s, t, fr, f=f: f._publish(s, t, (fr, [])), sen, data[:200])
         f._stop()
         print(f"  {'Foxglove conversion + log per frame':<46s} best {best * 1e3:8.3f} ms, median {med * 1e3:8.3f} ms")
     print_load_at_end()

@@ -32,7 +32,6 @@ counted when it is full.
 from __future__ import annotations
 
 import json
-import threading
 import time
 from typing import Any
 
@@ -88,22 +87,6 @@ def _plain(obj: Any) -> Any:
     return json.loads(json.dumps(obj, default=default))
 
 
-class _Subscriptions:
-    """A foxglove ServerListener counting the clients' channel subscriptions (server threads call it)."""
-
-    def __init__(self):
-        self.count = 0
-        self._lock = threading.Lock()
-
-    def on_subscribe(self, client, channel) -> None:
-        with self._lock:
-            self.count += 1
-
-    def on_unsubscribe(self, client, channel) -> None:
-        with self._lock:
-            self.count -= 1
-
-
 class FoxgloveSink(QueuedSink):
     """A Foxglove WebSocket server publishing every frame (a :class:`~twinsense.stream.sinks.FrameSink`).
 
@@ -133,9 +116,8 @@ class FoxgloveSink(QueuedSink):
         self.server = None
         self._channels: dict[str, Any] = {}
         self._channel_names: dict[str, list] = {}
-        self._subs = _Subscriptions()
         self._camera_info: dict[str, dict | None] = {}
-        self._last_t: float | None = None
+        self._posed_t: float | None = None
 
     # --- transport ---------------------------------------------------------------
     def _start(self) -> None:
@@ -144,7 +126,7 @@ class FoxgloveSink(QueuedSink):
         self._ctx = fg.Context()  # its own channels, never the process-wide default context
         try:
             self.server = fg.start_server(name="twinsense", host=self.host, port=self.port, context=self._ctx,
-                                          message_backlog_size=self.backlog, server_listener=self._subs)
+                                          message_backlog_size=self.backlog)
         except Exception as err:
             raise ConfigError("foxglove_port", self.port, f"a free TCP port on {self.host} ({err})") from None
         self.port = int(self.server.port)
@@ -163,15 +145,25 @@ class FoxgloveSink(QueuedSink):
     def _stop(self) -> None:
         if self.server is not None:
             self._log_stats()
-            if self._subs.count > 0:
+            if self.subscribed > 0:
                 time.sleep(LINGER)
             self.server.stop()
             self.server = None
 
+    @property
+    def subscribed(self) -> int:
+        """Channels (topics) at least one client is subscribed to, as the server has them now.
+
+        Channels are advertised with their first message, and a subscription
+        takes effect when the server has processed it: messages logged before
+        that do not reach the client.
+        """
+        return sum(1 for ch in list(self._channels.values()) if ch.has_sinks())
+
     def stats(self) -> dict:
-        """Frames sent and dropped per sensor, and the frames queued now."""
+        """Frames sent and dropped per sensor, the frames queued now and the clients' subscriptions."""
         return {"sent": dict(self.sent), "dropped": dict(self.dropped), "queued": self.queued,
-                "subscriptions": self._subs.count}
+                "subscribed_channels": self.subscribed}
 
     # --- messages ----------------------------------------------------------------
     def _channel(self, topic: str, cls_name: str | None):
@@ -212,11 +204,20 @@ class FoxgloveSink(QueuedSink):
         return m.PointCloud(timestamp=self._stamp(ns), frame_id=frame_id, pose=pose,
                             point_stride=pts.dtype.itemsize, fields=fields, data=pts.tobytes())
 
-    def _transforms(self, t: float, ns: int):
+    def send(self, sensor, t: float, frame) -> None:
+        # The moving objects' poses are taken here, on the simulation thread: the sender thread never
+        # reads the scene (a motion may keep per-time state that is not safe to share between threads).
+        t = float(t)
+        poses = None
+        if t != self._posed_t:
+            poses = [(WORLD_FRAME, o.name, o.pose_at(t)) for o in getattr(self, "_moving", ())]
+            self._posed_t = t
+        super().send(sensor, t, (frame, poses))
+
+    def _transforms(self, poses: list, ns: int):
         m = self._m
-        poses = self._static + [(WORLD_FRAME, o.name, o.pose_at(t)) for o in self._moving]
         out = []
-        for parent, child, pose in poses:
+        for parent, child, pose in self._static + poses:
             x, y, z = (float(v) for v in pose.position)
             qx, qy, qz, qw = (float(v) for v in pose.quat_xyzw)
             out.append(m.FrameTransform(timestamp=self._stamp(ns), parent_frame_id=parent, child_frame_id=child,
@@ -224,14 +225,14 @@ class FoxgloveSink(QueuedSink):
                                         rotation=m.Quaternion(x=qx, y=qy, z=qz, w=qw)))
         return m.FrameTransforms(transforms=out)
 
-    def _publish(self, sensor, t: float, frame) -> None:
+    def _publish(self, sensor, t: float, item) -> None:
+        frame, poses = item
         ns = stamp_ns(t)
         name, kind = sensor.name, sensor.kind
         fid = sensor_frame(name, kind)
-        if t != self._last_t:
+        if poses is not None:
             # Every transform at every new frame time: a client that joins late has them at once.
-            self._log("/tf", "FrameTransforms", self._transforms(t, ns), ns)
-            self._last_t = t
+            self._log("/tf", "FrameTransforms", self._transforms(poses, ns), ns)
         if kind in ("camera", "tof"):
             if name not in self._camera_info:
                 self._camera_info[name] = camera_info(kind, _plain(sensor.config_dict()))
