@@ -2,7 +2,8 @@
 
 :mod:`materials` (``ElasticMaterial``, presets, the linear range) ->
 :mod:`skin_mesh` (layered box meshes) -> :mod:`elasticity` (P1 stiffness and
-strains) with :mod:`ordering` (nested dissection for the factorisation) ->
+strains, the nodal volumetric average) with :mod:`ordering` (nested
+dissection for the factorisation) and :mod:`kernels` (back substitution) ->
 :class:`ElasticBody` (factorised once, contact compliance of the top
 surface) -> :mod:`contact` (active-set solve of the Signorini problem) with
 :class:`Indenter` (rigid bodies pressed on the skin). See docs/tactile.md.
