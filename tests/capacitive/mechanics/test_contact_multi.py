@@ -5,7 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from twinsense.capacitive.mechanics import ElasticBody, ElasticMaterial, Indenter, elastic_material, skin_mesh
+from twinsense.capacitive.mechanics import (
+    ElasticBody,
+    ElasticMaterial,
+    Indenter,
+    box_mesh,
+    elastic_material,
+    skin_mesh,
+)
 from twinsense.capacitive.mechanics.contact import ContactLcp
 from twinsense.capacitive.mechanics.elasticity import (
     deviatoric_stiffness,
@@ -179,6 +186,13 @@ def test_bad_inputs_name_the_field(skin):
         ElasticMaterial("incompressible", 1e5, 0.5)
     with pytest.raises(ConfigError, match="young"):
         ElasticMaterial("x", float("nan"), 0.3)
+    with pytest.raises(ConfigError, match="thicknesses"):
+        skin_mesh((4e-3, 4e-3), (1e-3, -1e-3), h_xy=1e-3, h_top=0.5e-3)
+    with pytest.raises(ConfigError, match="interfaces"):
+        box_mesh([0, 1e-3], [0, 1e-3], [0, 1e-3, 2e-3], interfaces=[0, 1.5e-3, 2e-3])
+    with pytest.raises(ConfigError, match="volumetric"):
+        ElasticBody.layered(skin_mesh((4e-3, 4e-3), LAYERS, h_xy=1e-3, h_top=0.5e-3), ("ecoflex_0030",) * 2,
+                            volumetric="mixed")
     lm = skin_mesh((4e-3, 4e-3), LAYERS, h_xy=1e-3, h_top=0.5e-3)
     n = lm.mesh.p.shape[1]
     with pytest.raises(ConfigError, match="ElasticBody.fixed"):
