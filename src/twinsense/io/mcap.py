@@ -3,10 +3,12 @@
 Messages are ROS 2 messages (``ros2msg`` schemas, CDR encoding) written with
 the ``mcap`` and ``mcap-ros2-support`` libraries (the ``ros2`` extra). The
 converter reads only the recording: each sensor's streams and its
-``config`` JSON, and, for the poses of the scene's objects on ``/tf``, a
-:class:`~twinsense.scene.scene.Scene` the caller rebuilds from the
-recording's scenario (``twinsense convert`` does this). Topics, frames and
-message layouts are described in docs/ros2-mcap.md.
+``config`` JSON, and, for the poses of the scene's objects on ``/tf`` and
+for radar detections (derived from the recorded ADC codes), the scene and
+sensors the caller rebuilds from the recording's scenario (``twinsense
+convert`` does this). One builder per sensor kind makes its messages
+(:data:`KIND_MESSAGES`, :func:`register_messages` for a new kind). Topics,
+frames and message layouts are described in docs/ros2-mcap.md.
 """
 
 from __future__ import annotations
