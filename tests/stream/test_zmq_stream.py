@@ -117,8 +117,9 @@ def test_every_frame_arrives_with_its_values(tmp_path):
                                    f.arrays["detections.range"], rtol=1e-12, atol=0)
 
 
-def test_topic_filter_and_late_joiner():
-    # A paced run (rate 1: 20 frames over 1 s); a subscriber to "depth" only joins after the 5th frame.
+def test_topic_filter_late_joiner_and_vanished_client():
+    # A paced run (rate 1: 20 frames over 1 s); a subscriber to "depth" only joins after the 5th frame,
+    # another one takes two frames and leaves.
     sc = scenario(1.0, [{"name": "depth2", "kind": "camera", "preset": "generic", "frame_rate": 5,
                          "overrides": {"width": 16, "height": 12}, "mount": {"pose": LOOK}}],
                   camera={"frame_rate": 20})
@@ -139,10 +140,20 @@ def test_topic_filter_and_late_joiner():
             got.extend(sub)
             got.append(sub)
 
+    vanished = []
+
+    def leave_early(sinks):
+        def run():
+            with Subscriber(sink.endpoint, timeout=10.0) as sub:
+                vanished.extend([sub.recv(), sub.recv()])
+
+        threading.Thread(target=run).start()
+
     th = threading.Thread(target=late)
     th.start()
-    res = serve(sc.scene, sc.sensors, sc.duration, [keep, sink], rate=1.0, seed=sc.seed)
+    res = serve(sc.scene, sc.sensors, sc.duration, [keep, sink], rate=1.0, seed=sc.seed, on_open=leave_early)
     th.join()
+    assert len(vanished) == 2 and all(f is not None for f in vanished)
     sub, frames = got[-1], got[:-1]
     assert res.result.frame_counts == {"depth": 20, "depth2": 5} and sub.ended
     # Only "depth" (not "depth2", whose topic starts alike); none of the frames published before it joined,
