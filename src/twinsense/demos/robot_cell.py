@@ -25,7 +25,7 @@ HDF5 recording of every sensor.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -107,22 +107,32 @@ def build_arm_cell_scene(person: bool = True) -> Scene:
                      shapes="collision")
     s.add_articulated(ur5)
     if person:
-        add_person(s, PERSON, 1.75, (1.3, -2.4), walk=Walk(1.2, path=((1.15, -0.75),)),
-                   reach=Reach((0.75, -0.45, 1.05), 2.4, 0.8, 0.8, "right"))
+        add_person(s, PERSON, 1.75, (1.3, -2.4), walk=Walk(1.2, path=((0.6, -0.8),)),
+                   reach=Reach((0.205, -0.349, 1.099), 2.6, 0.7, 0.5, "left"))
     return s
 
 
-def build_arm_cell_sensors(tof_rate: float = 10.0, radar_rate: float = 10.0, skin_rate: float = 20.0) -> list:
-    """The cell's sensors (``examples/robot_cell.yaml`` at the default rates [Hz])."""
+def build_arm_cell_sensors(tof_rate: float = 10.0, radar_rate: float = 10.0, skin_rate: float = 20.0,
+                           fast: bool = False) -> list:
+    """The cell's sensors (``examples/robot_cell.yaml`` at the default rates [Hz]).
+
+    ``fast``: one ray per ToF pixel (no 2 x 2 supersampling) and a coarse skin
+    mesh (4 mm at the electrodes, 20 mm cells, no refinement around objects):
+    for quick runs, not for figures."""
+    tof_kw = {"supersample": 1} if fast else {}
+    skin = make_sensor("capacitive", "pad-grid", name="skin", frame_rate=skin_rate,
+                       mount=Mount(SKIN_POSE, parent=f"{ROBOT}/{FOREARM_LINK}"))
+    if fast:
+        skin = make_sensor("capacitive", "pad-grid", name="skin", frame_rate=skin_rate, mount=skin.mount,
+                           mesh=replace(skin.config.mesh, h_min=4e-3, h_max=0.02, object_cells=0.0))
     return [
         make_sensor("tof", "pmd_pico_flexx", name="wall_tof", mode="MODE_9_25FPS_450", frame_rate=tof_rate,
-                    mount=Mount(Pose.look_at(WALL_TOF_EYE, WALL_TOF_TARGET))),
+                    mount=Mount(Pose.look_at(WALL_TOF_EYE, WALL_TOF_TARGET)), **tof_kw),
         make_sensor("radar", "paper_bgt60tr13c", name="radar", frame_rate=radar_rate,
                     mount=Mount(Pose.look_at(RADAR_EYE, RADAR_TARGET)), **RADAR_OVERRIDES),
         make_sensor("tof", "pmd_pico_flexx", name="wrist_tof", frame_rate=tof_rate,
-                    mount=Mount(Pose((0.0, 0.0, 0.02)), parent=f"{ROBOT}/{WRIST_LINK}")),
-        make_sensor("capacitive", "pad-grid", name="skin", frame_rate=skin_rate,
-                    mount=Mount(SKIN_POSE, parent=f"{ROBOT}/{FOREARM_LINK}")),
+                    mount=Mount(Pose((0.0, 0.0, 0.02)), parent=f"{ROBOT}/{WRIST_LINK}"), **tof_kw),
+        skin,
     ]
 
 
@@ -178,9 +188,9 @@ class SeparationTrace:
     protective: np.ndarray
 
 
-def _robot_distance(monitor: SeparationMonitor, points, t: float, exclude: float) -> float:
+def _robot_distance(monitor: SeparationMonitor, points, t: float, exclude) -> float:
     """Smallest distance [m] from ``points`` (n, 3) to the robot surface at t, ignoring points within
-    ``exclude`` [m] of it (the robot's own returns: the robot knows where it is)."""
+    ``exclude`` [m] (scalar or (n,)) of it (the robot's own returns: the robot knows where it is)."""
     if len(points) == 0:
         return np.nan
     d, _ = cKDTree(monitor.robot_points(t)[0]).query(points)
@@ -188,8 +198,9 @@ def _robot_distance(monitor: SeparationMonitor, points, t: float, exclude: float
     return float(d.min()) if len(d) else np.nan
 
 
-def _static_mask(points, margin: float = 0.04) -> np.ndarray:
-    """Points on the cell's known static surfaces: floor, walls and the boxes (within ``margin`` [m])."""
+def _static_mask(points, margin=0.04) -> np.ndarray:
+    """Points on the cell's known static surfaces: floor, walls and the boxes (within ``margin`` [m],
+    scalar or per point (n,))."""
     p = np.asarray(points)
     on = (p[:, 2] < margin) | (p[:, 0] > 2.5 - margin) | (p[:, 1] < -3.0 + margin)
     for _, size, centre in STATIC_BOXES:
@@ -197,11 +208,15 @@ def _static_mask(points, margin: float = 0.04) -> np.ndarray:
     return on
 
 
-def tof_separation(monitor, frame, exclude: float = 0.05) -> float:
-    """The wall ToF's separation [m]: its valid points off the static cell and off the robot, nearest the robot."""
-    pts = frame.points_world[frame.valid]
-    pts = pts[np.isfinite(pts).all(axis=1)]
-    return _robot_distance(monitor, pts[~_static_mask(pts)], frame.t, exclude)
+def tof_separation(monitor, frame, margin: float = 0.03) -> float:
+    """The wall ToF's separation [m]: its valid points off the static cell and off the robot, nearest the robot.
+
+    A point within ``margin`` + 3 x its own depth noise [m] of the robot is the robot's (at 3 m the
+    pico flexx's depth noise reaches several centimetres)."""
+    ok = frame.valid & np.isfinite(frame.points_world).all(axis=-1)
+    pts, noise = frame.points_world[ok], frame.noise[ok]
+    keep = ~_static_mask(pts, 0.04 + 3.0 * noise)
+    return _robot_distance(monitor, pts[keep], frame.t, margin + 3.0 * noise[keep])
 
 
 def radar_separation(monitor, frame, min_speed: float, exclude: float = 0.15) -> float:
@@ -214,18 +229,18 @@ def radar_separation(monitor, frame, min_speed: float, exclude: float = 0.15) ->
 
 
 def run_robot_cell_demo(out_dir, duration: float = CYCLE, progress: bool = False, *, tof_rate: float = 10.0,
-                        radar_rate: float = 20.0, skin_rate: float = 5.0, seed: int = 1,
+                        radar_rate: float = 20.0, skin_rate: float = 5.0, seed: int = 1, fast: bool = False,
                         params: SeparationParameters = SeparationParameters()) -> dict[str, Path]:
     """Run the UR5 cell for ``duration`` [s] and write its pictures and recording into ``out_dir``.
 
     Writes ``depth_wall.png`` and ``depth_wrist.png`` (three depth frames
     each), ``micro_doppler.png`` (radar spectrogram, time vs radial velocity,
     with the thorax's true radial speed), ``separation.png`` and
-    ``robot_cell.h5`` (every sensor's frames).
+    ``robot_cell.h5`` (every sensor's frames). ``fast``: see :func:`build_arm_cell_sensors`.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    scene, sensors = build_arm_cell(tof_rate=tof_rate, radar_rate=radar_rate, skin_rate=skin_rate)
+    scene, sensors = build_arm_cell(tof_rate=tof_rate, radar_rate=radar_rate, skin_rate=skin_rate, fast=fast)
     res = simulate(scene, sensors, duration, out=out / "robot_cell.h5", seed=seed, progress=progress,
                    keep_frames=True)
     frames = res.frames
