@@ -67,6 +67,21 @@ def test_incremental_reassembly_equals_a_fresh_assembly_on_the_deformed_mesh():
     np.testing.assert_allclose(es.system.k_data, fresh.k_data, rtol=0, atol=1e-12 * scale)
 
 
+def test_fast_element_matrices_equal_the_assembly_modules():
+    from twinsense.capacitive.assembly import element_stiffness
+    from twinsense.capacitive.mesh import SimplexMesh
+    from twinsense.capacitive.tactile.deformed import tet_stiffness
+
+    rng = np.random.default_rng(4)
+    mesh = tensor_tet_mesh(np.linspace(0, 1e-2, 4), np.linspace(0, 1e-2, 4), np.linspace(0, 2e-3, 3))
+    pts = mesh.points + rng.uniform(-3e-4, 3e-4, mesh.points.shape)  # a distorted but valid mesh
+    k, vol = tet_stiffness(pts, mesh.cells)
+    ref = SimplexMesh(pts, mesh.cells)
+    # Two algebraic routes to the same matrices: equal to rounding (1e-12 of the largest entry).
+    np.testing.assert_allclose(k, element_stiffness(ref), rtol=0, atol=1e-12 * np.abs(k).max())
+    np.testing.assert_allclose(vol, ref.volumes, rtol=1e-12, atol=0)
+
+
 def test_porous_dielectric_follows_looyenga_with_closing_pores():
     por = PorousPermittivity(eps_solid=2.8, porosity=0.4)
     # Closed forms: no strain -> Looyenga at porosity 0.4; strain -0.4 closes every pore -> the solid.

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from twinsense.capacitive.assembly import element_stiffness
 from twinsense.capacitive.coupling import map_inclusions
 from twinsense.capacitive.fem import EPS0, ElectrostaticSystem
 from twinsense.capacitive.mesh import SimplexMesh
@@ -24,7 +23,7 @@ from twinsense.capacitive.tactile.permittivity import PorousPermittivity
 from twinsense.capacitive.tactile.stack_mesh import DIELECTRIC, StackMesh
 from twinsense.errors import ConfigError
 
-__all__ = ["DeformedElectrostatics", "volumetric_strain"]
+__all__ = ["DeformedElectrostatics", "tet_stiffness", "volumetric_strain"]
 
 MOVE_TOL = 1e-9
 """Node moves below this [m] leave a cell's stiffness alone: a nanometre changes a
@@ -32,6 +31,32 @@ MOVE_TOL = 1e-9
 converter noise (~1 fF on ~0.1-1 pF), and it keeps the far field of a
 contact, where the displacement decays but never reaches zero, out of the
 re-assembly."""
+
+
+def tet_stiffness(points: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit-permittivity P1 element matrices of tetrahedra, and their volumes.
+
+    The same matrices as :func:`twinsense.capacitive.assembly.element_stiffness`
+    (tested to rounding), with the barycentric gradients from cross products
+    of the edges instead of batched 3 x 3 inverses: about twice as fast, and
+    the moved cells are re-computed every frame.
+
+    Parameters
+    ----------
+    points : (n, 3) float [m]; cells : (m, 4) int.
+
+    Returns
+    -------
+    (m, 4, 4) float [m]; (m,) float signed volumes [m^3].
+    """
+    p = points[cells]
+    e1, e2, e3 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0], p[:, 3] - p[:, 0]
+    g = np.empty_like(p)
+    g[:, 1], g[:, 2], g[:, 3] = np.cross(e2, e3), np.cross(e3, e1), np.cross(e1, e2)
+    g[:, 0] = -(g[:, 1] + g[:, 2] + g[:, 3])
+    det = np.einsum("md,md->m", e1, g[:, 1])  # 6 V
+    # K_ab = V grad_a . grad_b with grad = g / (6 V): g g^T / (36 V).
+    return (g @ g.transpose(0, 2, 1)) / (6.0 * det)[:, None, None], det / 6.0
 
 
 def volumetric_strain(points0: np.ndarray, points: np.ndarray, cells: np.ndarray) -> np.ndarray:
@@ -128,23 +153,21 @@ class DeformedElectrostatics:
         mask[moved] = True
         cells = np.flatnonzero(mask[self.stack.mesh.cells].any(axis=1))
         pts = self.points0 + u
-        sub = SimplexMesh.__new__(SimplexMesh)  # skip the orientation checks: volumes are checked below
-        object.__setattr__(sub, "points", pts)
-        object.__setattr__(sub, "cells", self.stack.mesh.cells[cells])
-        vol = sub.volumes
+        k_new, vol = tet_stiffness(pts, self.stack.mesh.cells[cells])
         if np.any(vol <= 0):
             k = cells[int(np.argmin(vol))]
             raise ConfigError("displacement", f"inverts mesh cell {k}",
                               "a deformation that keeps every cell's orientation (smaller load, or first_air "
                               "larger than the indentation)")
-        k_new = element_stiffness(sub)
         sys_ = self.system
         self.displacement = u.copy()
         eps_stack = self._stack_eps(cells)
         self._base_eps[cells] = eps_stack
         eps_new = np.where(np.isin(cells, self._air), self._object_eps[cells], eps_stack)
-        sys_.pattern.scatter_add(sys_.k_data, cells, sys_.local[cells], -EPS0 * sys_.eps_r[cells])
-        sys_.pattern.scatter_add(sys_.k_data, cells, k_new, EPS0 * eps_new)
+        # One bincount over the moved cells' slots (np.add.at is several times slower at this size).
+        vals = EPS0 * (eps_new[:, None, None] * k_new - sys_.eps_r[cells][:, None, None] * sys_.local[cells])
+        sys_.k_data += np.bincount(sys_.pattern.slots[cells].ravel(), weights=vals.ravel(),
+                                   minlength=sys_.pattern.nnz)
         sys_.local[cells] = k_new
         eps = sys_.eps_r.copy()
         eps[cells] = eps_new
