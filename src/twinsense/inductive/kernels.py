@@ -11,15 +11,26 @@ from twinsense.render.kernels import jit
 
 
 @jit
+def _lookup(dense, m, d, k, d_lo, d_hi, grid0, step):  # pragma: no cover
+    """Table value of material m, disc k at distance d (clipped to the table), linear on the dense grid."""
+    g = dense.shape[1]
+    x = (min(max(d, d_lo), d_hi) - grid0) / step
+    i0 = min(int(x), g - 2)
+    t = x - i0
+    return (1 - t) * dense[m, i0, k] + t * dense[m, i0 + 1, k]
+
+
+@jit
 def sector_sum(mat, dist, rings, sectors, ring_area, cum_area, d_lo, d_hi, grid0, step, dense_re,
                dense_im):  # pragma: no cover
-    """(Re, Im) of ``(1 / S) sum_s f_s dZ(m_s, d_s, a_{o_s})`` [ohm].
+    """(Re, Im) of ``(1 / S) sum_s f_s sum_{k <= o_s} [dZ(m_s, a_k, d_ks) - dZ(m_s, a_{k-1}, d_ks)]`` [ohm].
 
+    ``d_ks`` is ring k's hit distance in sector s, or the sector's area-weighted mean hit distance for a
+    ring without a hit (so a sector at one distance telescopes to ``dZ(m_s, a_{o_s}, d_s)``).
     mat (K * S,) int64 material index per ray (-1: no metal), ring-major; dist (K * S,) [m];
     ring_area, cum_area (K,) [m^2]; d_lo, d_hi the table's distance range [m]; grid0, step the
     resampled distance grid [m]; dense_re, dense_im (M, G, K) [ohm].
     """
-    g = dense_re.shape[1]
     re = 0.0
     im = 0.0
     for s in range(sectors):
@@ -35,11 +46,18 @@ def sector_sum(mat, dist, rings, sectors, ring_area, cum_area, d_lo, d_hi, grid0
         if outer < 0:
             continue
         frac = w / cum_area[outer]
-        d = min(max(wd / w, d_lo), d_hi)
-        x = (d - grid0) / step
-        i0 = min(int(x), g - 2)
-        t = x - i0
+        mean = wd / w
         m = mat[outer * sectors + s]
-        re += frac * ((1 - t) * dense_re[m, i0, outer] + t * dense_re[m, i0 + 1, outer])
-        im += frac * ((1 - t) * dense_im[m, i0, outer] + t * dense_im[m, i0 + 1, outer])
+        zr = 0.0
+        zi = 0.0
+        for k in range(outer + 1):
+            j = k * sectors + s
+            d = dist[j] if (mat[j] >= 0 and dist[j] <= d_hi) else mean
+            zr += _lookup(dense_re, m, d, k, d_lo, d_hi, grid0, step)
+            zi += _lookup(dense_im, m, d, k, d_lo, d_hi, grid0, step)
+            if k > 0:
+                zr -= _lookup(dense_re, m, d, k - 1, d_lo, d_hi, grid0, step)
+                zi -= _lookup(dense_im, m, d, k - 1, d_lo, d_hi, grid0, step)
+        re += frac * zr
+        im += frac * zi
     return re / sectors, im / sectors

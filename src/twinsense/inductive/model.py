@@ -4,17 +4,23 @@ The sensing face is split into rings at the table's disc radii
 ``0 = a_0 < a_1 < ... < a_K`` and every ring into ``S`` equal sectors. A
 ray parallel to the sensor axis from the middle of each cell (area-weighted
 ring radius, sector centre angle) finds the nearest metal and its distance.
-Each sector is then treated as a sector of a disc:
+Each sector is then treated as a sector of a disc whose rings may lie at
+different distances:
 
-    delta Z = (1 / S) sum_s f_s dZ(m_s, d_s, a_{o_s}),
+    delta Z = (1 / S) sum_s f_s sum_{k <= o_s} [dZ(m_s, d_ks, a_k) - dZ(m_s, d_ks, a_{k-1})],
 
 with ``o_s`` the outermost ring of sector ``s`` that sees metal, ``f_s``
-the share of the area inside ``a_{o_s}`` that the hit cells cover, ``d_s``
-the area-weighted mean distance of the hits, ``m_s`` the material of the
-outermost hit and ``dZ(m, d, a)`` the FEM impedance change of a disc of
-material ``m`` and radius ``a`` at distance ``d``. A centred disc of a table
-radius gives the table exactly; a plate offset sideways covers the sectors
-towards it further out than the others. Why the extent and a covered
+the share of the area inside ``a_{o_s}`` that the hit cells cover, ``d_ks``
+ring k's hit distance (for a ring without a hit, the area-weighted mean
+distance of the sector's hits), ``m_s`` the material of the outermost hit
+and ``dZ(m, d, a)`` the FEM impedance change of a disc of material ``m`` and
+radius ``a`` at distance ``d`` (``dZ(m, d, 0) = 0``). At one distance the sum
+telescopes to ``f_s dZ(m_s, d_s, a_{o_s})``: a centred disc of a table
+radius gives the table exactly, and a plate offset sideways covers the
+sectors towards it further out than the others. A tilted plate puts each
+ring of a sector at its own distance: the ring's share of the disc response
+is then taken at that distance (with one mean distance per sector, a plate
+tilted 20 deg came out 1.7x the reference, see docs/inductive.md). Why the extent and a covered
 share rather than a sum of ring responses: the eddy currents of a disc run
 mostly under the winding, and an inner disc screens the ring around it, so
 ring responses do not add (tests/inductive measure both on a washer against
