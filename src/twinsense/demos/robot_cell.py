@@ -107,7 +107,7 @@ def build_arm_cell_scene(person: bool = True) -> Scene:
                      shapes="collision")
     s.add_articulated(ur5)
     if person:
-        add_person(s, PERSON, 1.75, (1.3, -2.4), walk=Walk(1.2, path=((0.6, -0.8),)),
+        add_person(s, PERSON, 1.75, (1.3, -2.4), walk=Walk(1.2, path=((0.6, -0.8),), body="smooth"),
                    reach=Reach((0.205, -0.349, 1.099), 2.6, 0.7, 0.5, "left"))
     return s
 
