@@ -93,9 +93,9 @@ STATIC_BOXES = (("pedestal", (0.3, 0.3, 0.8), (0.0, 0.0, 0.4)),
                 ("part", (0.12, 0.08, 0.05), (0.58, 0.23, 0.775)))
 
 
-def build_arm_cell_scene(person: bool = True) -> Scene:
+def build_arm_cell_scene(person: bool = True, shapes: str = "collision") -> Scene:
     """The UR5 cell of ``examples/robot_cell.yaml``: floor, walls, pedestal, table, part, UR5, person
-    (``person=False``: the cell without the person)."""
+    (``person=False``: the cell without the person; ``shapes="visual"``: the UR5's visual meshes)."""
     s = Scene(name="robot_cell")
     s.add_object("floor", Plane((6.0, 6.0)), "concrete")
     s.add_object("back_wall", Plane((6.0, 3.0)), "drywall", pose=Pose.from_euler_deg((2.5, 0.0, 1.5), (0, -90, 0)))
@@ -104,7 +104,7 @@ def build_arm_cell_scene(person: bool = True) -> Scene:
     for name, size, centre in STATIC_BOXES:
         s.add_object(name, Box(size), materials[name], pose=Pose(centre))
     ur5 = load_robot("ur5", name=ROBOT, joints=JointKeyframes(TIMES, KEYFRAMES), base=Pose((0.0, 0.0, 0.8)),
-                     shapes="collision")
+                     shapes=shapes)
     s.add_articulated(ur5)
     if person:
         add_person(s, PERSON, 1.75, (1.3, -2.4), walk=Walk(1.2, path=((0.6, -0.8),), body="smooth"),
