@@ -1,0 +1,161 @@
+"""The robot cell (``twinsense demo robot-cell``, examples/robot_cell.yaml) at speed.
+
+Measures, with the UR5 running its pick-and-place trajectory and the person
+walking (every frame at a new time, so every moving object moves):
+
+- the wrist ToF camera (``pmd_pico_flexx``, 224 x 171, 2 x 2 rays per pixel)
+  on the moving flange; target >= 60 frames/s;
+- a ``paper_bgt60tr13c`` radar (preset waveform: 512 samples, 16 chirps, 2 Rx)
+  on the moving flange; target >= 30 frames/s;
+- the whole cell (wall ToF, wrist ToF, wall radar, forearm skin at the file's
+  rates: 10, 10, 10 and 20 frames/s) through ``simulate`` over 1 s of scene
+  time after a warm-up run: wall time per scene second (target <= 1, real time),
+  and each sensor's share;
+- the true separation (``SeparationMonitor.at``) per time;
+- the UR5's link meshes used (collision, 5,340 triangles) against the visual
+  ones (95,694): the wrist ToF frame with the visual meshes, and how far the
+  visual surface lies from the collision surface (the geometric error of the
+  lighter meshes).
+
+Same-run anchor: a bare single-thread embreex cast of the same rays against the
+scene posed at that time, one world-space BVH built beforehand.
+
+Run:  .venv/bin/python benchmarks/bench_robot_cell.py [--frames N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+import trimesh
+from _timing import best_and_median, embree_anchor, print_anchor, print_load_at_end, print_machine
+
+from twinsense.demos.robot_cell import PERSON, ROBOT, build_arm_cell, build_arm_cell_scene, build_arm_cell_sensors
+from twinsense.radar import FMCWRadar
+from twinsense.render.rays import PinholeCamera
+from twinsense.robots import load_robot
+from twinsense.safety import SeparationMonitor
+from twinsense.scene import Mount, Pose
+from twinsense.simulate import simulate
+
+T0 = 0.9  # [s] the arm between pick and lift, the person walking in
+
+
+def timed(fn, frames: int) -> tuple[float, float, float]:
+    """(best, median) wall seconds and median process CPU seconds of fn(k), k = 1..frames, after fn(0)."""
+    fn(0)
+    wall, cpu = [], []
+    for k in range(1, frames + 1):
+        c0, t0 = time.process_time(), time.perf_counter()
+        fn(k)
+        wall.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
+    return min(wall), float(np.median(wall)), float(np.median(cpu))
+
+
+def report(label: str, best: float, median: float, cpu: float, anchor: float, target: float) -> None:
+    fps = 1 / median
+    print(f"  {label:<52s} {best * 1e3:7.1f} ms best {median * 1e3:7.1f} ms median -> {fps:6.1f} frames/s "
+          f"(target {target:.0f}: {'met' if fps >= target else 'NOT met'}); CPU {cpu * 1e3:.1f} ms/frame")
+    print_anchor("bare embreex cast, same rays", anchor, median)
+
+
+def wrist_tof(scene, tof, frames: int, label: str) -> None:
+    times = [T0 + k / 30.0 for k in range(frames + 1)]
+    pose = tof.mount.pose_at(scene, times[1])
+    rays = tof._renderer.rays(pose.rotation, pose.position)
+    _, anchor = embree_anchor(scene, "tof", times[1], rays.origins, rays.directions, repeats=9)
+    rng = np.random.default_rng(0)
+    report(label, *timed(lambda k: tof.capture(scene, times[k], rng), frames), anchor, 60.0)
+
+
+def wrist_radar(scene, frames: int) -> None:
+    radar = FMCWRadar.preset("paper_bgt60tr13c", name="wrist_radar",
+                             mount=Mount(Pose((0.06, 0.0, 0.02)), parent=f"{ROBOT}/tool0"))
+    cfg = radar.config
+    times = [T0 + k / 30.0 for k in range(frames + 1)]
+    pose = radar.mount.pose_at(scene, times[1])
+    rays = PinholeCamera.from_fov(cfg.render_width, cfg.render_height, cfg.hfov_deg, cfg.vfov_deg).rays(pose)
+    _, anchor = embree_anchor(scene, "radar", times[1], rays.origins, rays.directions, repeats=9)
+    report(f"radar paper_bgt60tr13c on the moving flange ({cfg.render_width} x {cfg.render_height} rays)",
+           *timed(lambda k: radar.capture(scene, times[k], np.random.default_rng(k)), frames), anchor, 30.0)
+
+
+def whole_cell(seconds: float) -> None:
+    scene, sensors = build_arm_cell()
+    spent = {s.name: 0.0 for s in sensors}
+
+    class Timed:
+        """A sensor whose captures are timed (simulate reads name, kind, frame_rate and capture)."""
+
+        def __init__(self, s):
+            self.s, self.name, self.kind, self.frame_rate = s, s.name, s.kind, s.frame_rate
+
+        def capture(self, scene, t, rng):
+            t0 = time.perf_counter()
+            f = self.s.capture(scene, t, rng)
+            spent[self.name] += time.perf_counter() - t0
+            return f
+
+    wrapped = [Timed(s) for s in sensors]
+    simulate(scene, wrapped, 0.1, t0=T0 - 0.2)  # warm-up: meshes, caches, compiled kernels
+    spent.update({k: 0.0 for k in spent})
+    t0 = time.perf_counter()
+    simulate(scene, wrapped, seconds, t0=T0)
+    wall = time.perf_counter() - t0
+    print(f"  whole cell, {seconds:.1f} s of scene time: {wall:.2f} s wall -> {wall / seconds:.2f} s per scene "
+          f"second ({'real time met' if wall <= seconds else 'real time NOT met'})")
+    for s in sensors:
+        n = round(seconds * s.frame_rate)
+        print(f"    {s.name:<10s} {s.frame_rate:4.0f} frames/s: {spent[s.name]:6.2f} s "
+              f"({spent[s.name] / max(n, 1) * 1e3:7.1f} ms per frame, {spent[s.name] / wall:5.1%} of the run)")
+
+
+def mesh_error() -> None:
+    """How far the UR5's visual surface lies from its collision surface, per link."""
+    vis = load_robot("ur5", shapes="visual")
+    col = load_robot("ur5", shapes="collision")
+    rng = np.random.default_rng(0)
+    worst = []
+    for lk in vis.tree.links:
+        gv, gc = lk.link_frame_geometry(), col.tree.link(lk.name).link_frame_geometry()
+        if gv is None or gc is None:
+            continue
+        pts, _ = trimesh.sample.sample_surface(gv.mesh, 3000, seed=int(rng.integers(1 << 31)))
+        _, d, _ = trimesh.proximity.closest_point(gc.mesh, pts)
+        worst.append((lk.name, float(np.median(d)), float(np.percentile(d, 99)), float(d.max())))
+    print("  visual surface -> collision surface [mm] (median / 99th percentile / max of 3000 samples):")
+    for name, med, p99, mx in worst:
+        print(f"    {name:<16s} {med * 1e3:5.1f} / {p99 * 1e3:5.1f} / {mx * 1e3:5.1f}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--frames", type=int, default=10)
+    ap.add_argument("--seconds", type=float, default=1.0)
+    args = ap.parse_args()
+    print_machine()
+    scene, sensors = build_arm_cell()
+    n_tri = sum(len(o.geometry.mesh.faces) for o in scene.objects)
+    print(f"\n== robot cell: {len(scene.objects)} objects, {n_tri} triangles (UR5 collision meshes), arm and person "
+          "moving")
+    wrist_tof(scene, sensors[2], args.frames, "wrist ToF pmd_pico_flexx, 2 x 2 rays per pixel")
+    wrist_radar(scene, args.frames)
+    whole_cell(args.seconds)
+    mon = SeparationMonitor(scene, ROBOT, PERSON)
+    best, med = best_and_median(lambda: mon.at(T0), 9)
+    print(f"  true separation (SeparationMonitor.at, {sum(len(p) for _, p in mon._robot_points)} robot surface "
+          f"points): {med * 1e3:.1f} ms median ({best * 1e3:.1f} best)")
+
+    print("\n== the same cell with the UR5's visual meshes")
+    heavy = build_arm_cell_scene(shapes="visual")
+    print(f"  {sum(len(o.geometry.mesh.faces) for o in heavy.objects)} triangles")
+    wrist_tof(heavy, build_arm_cell_sensors()[2], max(3, args.frames // 2), "wrist ToF, visual meshes")
+    mesh_error()
+    print_load_at_end()
+
+
+if __name__ == "__main__":
+    main()
