@@ -289,9 +289,11 @@ def _depth_figure(frames, path: Path, title: str) -> Path:
     plt = pyplot()
     pick = [frames[i] for i in sorted({0, len(frames) // 2, len(frames) - 1})]
     fig, axes = plt.subplots(1, len(pick), figsize=(4.2 * len(pick), 3.4), squeeze=False)
-    for ax, f in zip(axes[0], pick):
-        d = np.where(f.valid, f.depth, np.nan)
-        im = ax.imshow(d, cmap="turbo", vmin=0.0, vmax=np.nanmax(d) if np.isfinite(d).any() else 1.0)
+    depths = [np.where(f.valid, f.depth, np.nan) for f in pick]
+    valid = np.concatenate([d[np.isfinite(d)] for d in depths])
+    top = float(np.percentile(valid, 99)) if len(valid) else 1.0  # one colour scale for all frames
+    for ax, f, d in zip(axes[0], pick, depths):
+        im = ax.imshow(d, cmap="turbo", vmin=0.0, vmax=top)
         ax.set_title(f"{title}, t = {f.t:.2f} s", fontsize=9)
         ax.set_axis_off()
         fig.colorbar(im, ax=ax, label="depth [m]", fraction=0.04)
