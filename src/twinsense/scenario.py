@@ -270,7 +270,7 @@ class PersonWalkSpec(_Model):
     heading_deg: Finite | None = None
     start_time: Finite = 0.0
     turn_length: Pos = 1.0
-    body: Literal["smooth", "planted"] = "smooth"
+    body: Literal["planted", "smooth"] = "planted"
 
 
 class PersonReachSpec(_Model):

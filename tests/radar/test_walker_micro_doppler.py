@@ -50,14 +50,20 @@ def test_torso_line_is_the_walking_speed(spectrogram):
 
 def test_limb_envelope_repeats_every_step(spectrogram):
     power, vel, _, body = spectrogram
-    # Doppler extent of each frame: the fastest velocity within 20 dB of the frame's peak (the
-    # swinging foot and shank, up to ~3.7 v). It repeats once per step, D_c / 2 (each leg swings
-    # once per cycle, D_c = 1.346 / sqrt(RV) = 1.096 s at 1.4 m/s): 0.548 s = 11.0 frames at 20 fps.
     rel_db = 10 * np.log10(power / power.max(axis=1, keepdims=True))
+    # Doppler extent of each frame: the fastest velocity within 20 dB of the frame's peak (the
+    # swinging foot and shank, up to ~4 v): the feet are in the picture.
     extent = np.array([np.max(np.abs(vel[row > -20])) for row in rel_db])
-    assert extent.max() > 2.5 * SPEED  # the feet are in the picture
-    x = extent - extent.mean()
-    ac = np.correlate(x, x, "full")[len(x) - 1:]
+    assert np.median(extent) > 1.4 * SPEED
+    assert extent.max() > 2.5 * SPEED
+    # The micro-Doppler signature repeats once per step, D_c / 2 (each leg swings once per cycle and
+    # the legs are mirror images in radial velocity; D_c = 1.346 / sqrt(RV) = 1.096 s at 1.4 m/s):
+    # 0.548 s = 11.0 frames at 20 fps. The autocorrelation over frames of the whole spectrum (dB,
+    # clipped 30 dB below each frame's peak, each Doppler bin's mean removed) peaks there.
+    s = np.maximum(rel_db, -30.0)
+    s = s - s.mean(axis=0)
+    n = len(s)
+    ac = np.array([np.sum(s[: n - lag] * s[lag:]) / (n - lag) for lag in range(n // 2)])
     step = body.joint_motion.person.cycle.timing.cycle_duration / 2
     lags = np.arange(len(ac))
     search = (lags >= 5) & (lags <= 16)  # between half a step and 1.5 steps
@@ -65,5 +71,5 @@ def test_limb_envelope_repeats_every_step(spectrogram):
     # Sub-frame peak: the vertex of the parabola through the peak and its neighbours.
     y0, y1, y2 = ac[best - 1], ac[best], ac[best + 1]
     peak = best + 0.5 * (y0 - y2) / (y0 - 2 * y1 + y2)
-    # The autocorrelation's peak lies within one frame (0.05 s) of the step period.
+    # Within one frame (0.05 s) of the step period (measured 10.3 frames = 0.517 s).
     assert abs(peak / FPS - step) <= 1.0 / FPS

@@ -370,95 +370,214 @@ class LegGeometry:
 _SIDES = ((0.0, -1.0), (0.5, 1.0))  # (phase offset, lateral sign): right (reference), left
 _GRID = 256  # phase samples per stance to find where the contact rolls from heel to toe
 HIP_SCALE_RANGE = (0.05, 3.0)
-BODY_MODES = ("smooth", "planted")
+PLANTED_SCALE_RANGE = (0.3, 2.0)  # hip scales the planted body's fit searches
+BODY_MODES = ("planted", "smooth")
 SMOOTH_SAMPLES = 512  # phase samples per cycle for the smooth body's height series
 SMOOTH_HARMONICS = 8  # cycle harmonics kept in the smooth body's height
 MIN_TRANSFER = 0.02  # [cycle] shortest weight transfer between the feet
 SWING_CLEARANCE = 0.01  # [m] lowest sole point of a swinging foot above the floor
+# The stance time-warp (planted body). The foot's backward sweep under the pelvis slows
+# towards toe-off; below this fraction of the mean rate (v D_c per cycle) the warp would
+# have to play the leg's curves more than ~2.5 times faster than published, so the stance
+# inversion stops there and the other foot takes the pelvis over.
+WARP_MIN_RATE = 0.5
+# Elsewhere in the stance (just after heel strike the heel rolls onto the sole slowly) the
+# sweep must stay above this fraction: the curves then run at most ~5 times faster.
+WARP_FLOOR = 0.2
+WARP_SAMPLES = 1024  # model-phase samples of the foot's placement over a stance
+WARP_KNOTS = 128  # knots of the stance warp (PCHIP), over the inverted part of the stance
+HEIGHT_SOFTNESS = 0.001  # [m] width of the smooth maximum that picks the foot holding the pelvis
+WARP_SWING_GAP = 0.04  # [cycle] the warp returns to the published timing this far into the swing
 
 
 class WalkCycle:
     """The Boulic joint curves plus a body translation that fits them to the floor.
 
-    ``body="smooth"`` (default): the pelvis moves forward as the model
-    prescribes, v t plus its forward sway a_a H_t sin 2 pi (2u + 2 phi_a)
-    (so the torso's speed stays within +-0.2 m/s of v, as in measured gait),
-    its height is the Fourier series (harmonics <= 8 of the cycle) of the
-    height that puts the standing foot's lowest sole point on the floor, and
-    the hip-flexion curve is scaled by ``hip_scale`` (root finding) until the
-    standing foot's mean velocity over single support is zero. The foot then
-    rocks slightly about its place (0.2-0.45 m/s rms at 0.6-2.2 m/s) but
-    does not travel.
+    ``body="planted"`` (default): the standing foot does not slide and the
+    pelvis moves forward as the model publishes (v t plus the forward sway
+    a_a H_t sin 2 pi (2u + 2 phi_a), so the torso's speed varies by +-14-19 %
+    of v within a step, as measured in gait). Both at once come from a
+    monotone time-warp of each leg's hip, knee and ankle curves over its
+    stance (the curves keep their shapes and values; only the rate at which
+    the leg runs through them changes):
 
-    ``body="planted"``: the touching point does not slide at all in single
-    support, at the price of a pelvis speed that swings between about 0.5 v
-    and 1.75 v within a step.
+    - each foot touches the floor at its lowest sole point (heel or toe: the
+      foot rolls from one to the other, the touching point never slides);
+      the pelvis position relative to the foot's landing point is then a
+      function X(psi) of the leg's model phase psi (sagittal plane, with the
+      pelvis torsion's shift of the hip joint);
+    - the warp psi = w(phi) of the leg's phase phi inverts it: X(w(phi))
+      follows the published pelvis trajectory v D_c phi + forward sway
+      (PCHIP through WARP_KNOTS inverted points: monotone and C1, derivatives
+      by the chain rule, w' / D_c on every leg curve);
+    - the inversion runs from heel strike to where the foot's sweep slows
+      below WARP_MIN_RATE of its mean near toe-off; from there the warp
+      returns to the published timing within WARP_SWING_GAP of the swing;
+    - the pelvis rests on the standing foot; in double support (heel strike
+      to the end of the back foot's inversion) it blends from one foot's
+      placement to the other's with a C1 ramp; the two placements agree up to
+      the warp's interpolation, so the hand-over is nearly slip-free; the
+      back foot then pivots on its toe until toe-off;
+    - the hip-flexion curve is scaled by ``hip_scale`` (root finding) so that
+      the foot sweeps under the pelvis exactly the published pelvis travel
+      over the inverted stance: the stance keeps its published duration;
+    - the feet land exactly one step (RL_c H_t / 2) apart, so the mean speed
+      is exactly v and stride and cadence are the model's.
+
+    ``body="smooth"``: the pelvis moves forward as published, without the
+    warp; its height is the Fourier series (harmonics <= 8 of the cycle) of
+    the height that puts the standing foot's lowest sole point on the floor,
+    and the hip-flexion curve is scaled until the standing foot's mean
+    velocity over single support is zero. The foot then rocks about its
+    place (0.2-0.4 m/s rms at 0.8-1.8 m/s) but does not travel. Kept as the
+    model's own timing, for comparison.
 
     Why a fit at all: the model's own forward and vertical body translations
     (Boulic appendix A) leave the stance foot of a leg built from
     anthropometric segment lengths sliding by up to 0.6 m/s and 4-8 cm into
-    the floor. In the planted mode the pelvis rests on the feet (sagittal
-    plane, with the pelvis torsion's shift of the hip joints):
-
-    - each foot touches the floor at its lowest sole point (heel or toe: the
-      foot rolls from one to the other, the touching point never slides);
-    - in single support the pelvis is placed by the standing foot: its height
-      puts that point on the floor and its forward position is the point's
-      fixed world position minus the point's offset from the pelvis;
-    - in double support (from the landing foot's first touch of the floor,
-      ``touchdown``, to the model's toe-off) the pelvis blends from one
-      foot's placement to the other's with a C1 ramp 3 s^2 - 2 s^3;
-    - the feet land exactly one step (RL_c H_t / 2) apart, so the mean speed
-      is exactly v and stride and cadence are the model's;
-    - the hip-flexion curve is scaled by ``hip_scale`` (root finding) until
-      the feet's spacing during double support averages one step; the two
-      placements then agree on average and the stance feet slide only by
-      their residual mismatch during double support.
+    the floor.
 
     In both modes a swinging foot that would touch the floor is lifted by
     ``swing_lift`` (see :meth:`swing_knee`), and the model's lateral sway,
-    pelvis list and torsion are kept as published. The mean forward speed
-    is exactly v in both.
+    pelvis list and torsion are kept as published (unwarped).
     """
 
-    def __init__(self, timing: GaitTiming, leg: LegGeometry, body: str = "smooth"):
+    def __init__(self, timing: GaitTiming, leg: LegGeometry, body: str = "planted"):
         if not isinstance(timing, GaitTiming):
             raise ConfigError("gait.timing", timing, "a GaitTiming")
         if not isinstance(leg, LegGeometry):
             raise ConfigError("gait.leg", leg, "a LegGeometry")
         self.body = V.choice("walk.body", body, BODY_MODES)
-        from scipy.optimize import brentq
-
         self.gait = BoulicGait(timing)
         self.timing = timing
         self.leg = leg
         self.double_support = timing.relative_support - 0.5  # D_ds / D_c
-        self._height = None
-        if self.body == "smooth":
-            self._init_smooth()
-            return
-        lo, hi = HIP_SCALE_RANGE
-        f = self._mismatch
         self.touchdown = 0.0
-        if not f(lo) * f(hi) < 0:
-            raise ConfigError("walk.speed", timing.speed,
-                              f"a speed whose step the leg reaches with a hip-flexion scale in [{lo:g}, {hi:g}]")
-        # The landing foot reaches the floor a little after the model's heel-strike phase;
-        # the weight moves over from then to toe-off. Refit the scale for that window.
-        self.hip_scale = float(brentq(f, lo, hi, xtol=1e-12))
-        for _ in range(4):
-            before = (self.touchdown, self.hip_scale)
-            self.touchdown = self._touchdown(self.hip_scale)
-            if not f(lo) * f(hi) < 0:  # slow walks: keep the transfer window that has a solution
-                self.touchdown, self.hip_scale = before
-                break
-            self.hip_scale = float(brentq(f, lo, hi, xtol=1e-12))
-        self._pieces = self._contact_pieces(self.hip_scale)
+        self.transfer = self.double_support  # [cycle] weight transfer after each heel strike
+        self.stance_end = timing.relative_support  # [cycle] end of the warp's stance inversion
+        self._height = None
+        self._warp = None
+        self._cache = {}
         self.swing_lift = 0.0
         self._shift = 0.0
+        if self.body == "smooth":
+            self._init_smooth()
+        else:
+            self._init_planted()
+
+    # --------------------------------------------------------------- planted: the stance warp
+    def _target(self, phi) -> tuple[np.ndarray, np.ndarray]:
+        """G(phi) [m] and dG/dphi [m/cycle]: the published pelvis advance v D_c phi + forward sway,
+        plus the pelvis torsion's shift of the reference hip joint (the foot's placement X must
+        follow it for the pelvis to move as published)."""
+        Dc = self.timing.cycle_duration
+        t = np.asarray(phi, float) * Dc
+        fw, fwd = self.gait.curve("forward", t)
+        yaw, yawd = self.gait.curve("pelvis_torsion", t)
+        hw = self.leg.hip_half_width
+        g = self.timing.speed * t + fw + hw * np.sin(yaw)
+        return g, (self.timing.speed + fwd + hw * np.cos(yaw) * yawd) * Dc
+
+    def _placement(self, k: float):
+        """Model stance phases psi, the pelvis placement X(psi) = -(contact x of the leg) [m]
+        (without the torsion), and the end of the part where the foot sweeps back fast enough."""
+        rs = self.timing.relative_support
+        psi = np.linspace(0.0, rs, WARP_SAMPLES + 1)
+        pieces = self._contact_pieces(k)
+        x, z, xd, zd = self._leg(psi, k, 0.0, cached=True)
+        c, _, cd, _ = self._contact(x, z, xd, zd, (0, 1), psi, pieces)
+        X, Xd = -c, -cd
+        late = (Xd < WARP_MIN_RATE * self.timing.stride_length) & (psi > 0.5)
+        j = int(np.argmax(late)) if late.any() else len(psi) - 1
+        if np.any(Xd[:j] < WARP_FLOOR * self.timing.stride_length) or psi[j] < 0.5 + MIN_TRANSFER:
+            raise ConfigError("walk.speed", self.timing.speed,
+                              "a speed at which the standing foot sweeps back under the pelvis through its "
+                              "stance (the planted walk's range; body='smooth' reaches further)")
+        return psi[: j + 1], X[: j + 1]
+
+    def _end_gap(self, k: float, end: float | None = None) -> float:
+        """(foot sweep) - (published pelvis travel) over the inverted stance [m]."""
+        psi, X = self._placement(k)
+        if end is not None:
+            X = X[psi <= end]
+            psi = psi[psi <= end]
+        g = self._target(np.array([0.0, psi[-1]]))[0]
+        return float((X[-1] - X[0]) - (g[1] - g[0]))
+
+    def _init_planted(self) -> None:
+        from scipy.optimize import brentq
+
+        lo, hi = PLANTED_SCALE_RANGE
+
+        def gap(k, end):
+            try:
+                return self._end_gap(k, end)
+            except ConfigError:
+                return np.nan
+
+        # The inverted stance ends where the sweep slows (it moves with k): fix it, fit k, refit.
+        end = None
+        self.hip_scale = 1.0
+        grid = np.linspace(lo, hi, 18)
+        for _ in range(3):
+            g = np.array([gap(k, end) for k in grid])
+            ok = np.nonzero(np.isfinite(g[:-1]) & np.isfinite(g[1:]) & (g[:-1] * g[1:] <= 0))[0]
+            if not len(ok) and len(grid) == 2:  # not near the last scale: search the whole range
+                grid = np.linspace(lo, hi, 18)
+                g = np.array([gap(k, end) for k in grid])
+                ok = np.nonzero(np.isfinite(g[:-1]) & np.isfinite(g[1:]) & (g[:-1] * g[1:] <= 0))[0]
+            if not len(ok):
+                raise ConfigError("walk.speed", self.timing.speed,
+                                  f"a speed whose stance the leg sweeps with a hip-flexion scale in [{lo:g}, {hi:g}] "
+                                  "(the planted walk's range; body='smooth' reaches further)")
+            i = ok[np.argmin(np.abs(grid[ok] - 1.0))]  # the scale nearest the published curve
+            self.hip_scale = float(brentq(gap, grid[i], grid[i + 1], args=(end,), xtol=1e-10))
+            end = float(self._placement(self.hip_scale)[0][-1])
+            grid = self.hip_scale + np.array([-0.02, 0.02])  # the next pass moves the end a little
+        psi, X = self._placement(self.hip_scale)
+        psi, X = psi[psi <= end], X[psi <= end]
+        self.stance_end = end
+        self.transfer = end - 0.5
+        phi = np.linspace(0.0, end, WARP_KNOTS + 1)
+        g = self._target(phi)[0]
+        inverse = PchipInterpolator(X, psi)
+        star = inverse(np.clip(g - g[0] + X[0], X[0], X[-1]))
+        rs = self.timing.relative_support
+        swing = np.linspace(rs + WARP_SWING_GAP, 1.0 - WARP_SWING_GAP, 12)
+        kx = np.concatenate([swing - 1.0, phi, swing, phi + 1.0])
+        ky = np.concatenate([swing - 1.0, star, swing, star + 1.0])
+        spline = PchipInterpolator(kx, ky)
+        self._warp = (spline, spline.derivative())
+        self._pieces = self._contact_pieces(self.hip_scale)
+        self.touchdown = self._touchdown()
         self.swing_lift = self._fit_swing_lift()
         self._shift = -float(self.body_translation(0.0)[0][0, 0])
 
+    def _touchdown(self) -> float:
+        """Phase after a heel strike at which the landing foot first reaches the floor under the
+        pelvis as the back foot places it; at most ``transfer - MIN_TRANSFER``."""
+        Dc = self.timing.cycle_duration
+        f = np.linspace(0.0, self.transfer, 257)
+        x, z, xd, zd = self.sole_points(f * Dc)
+        back_z = self._contact(x, z, xd, zd, (2, 3), self.warp(f + 0.5)[0], self._pieces)[1]
+        down = np.nonzero(z[:2].min(axis=0) <= back_z)[0]
+        first = f[down[0]] if len(down) else self.transfer
+        return float(min(first, self.transfer - MIN_TRANSFER))
+
+    def warp(self, phase) -> tuple[np.ndarray, np.ndarray]:
+        """Model phase psi of a leg's curves and d psi / d phase at leg phases ``phase`` [cycles].
+
+        The identity without a warp (smooth body). w(phase + 1) = w(phase) + 1.
+        """
+        phase = np.asarray(phase, float)
+        if self._warp is None:
+            return phase, np.ones_like(phase)
+        n = np.floor(phase)
+        f = phase - n
+        spline, deriv = self._warp
+        return n + spline(f), deriv(f)
+
+    # --------------------------------------------------------------- smooth body
     def _init_smooth(self) -> None:
         """Published forward sway, height fitted to the floor, hip scaled for zero mean slip."""
         from scipy.optimize import brentq
@@ -484,9 +603,6 @@ class WalkCycle:
                               f"a speed whose step the leg reaches with a hip-flexion scale in [{lo:g}, {hi:g}]")
         self.hip_scale = float(brentq(mean_slip, lo, hi, xtol=1e-12))
         self._pieces = self._contact_pieces(self.hip_scale)
-        self.touchdown = 0.0
-        self.swing_lift = 0.0
-        self._shift = 0.0
         self._fit_height()
         self.swing_lift = self._fit_swing_lift()
         self._fit_height()
@@ -507,8 +623,15 @@ class WalkCycle:
         self._height = coef
 
     # --------------------------------------------------------------- sagittal sole points
+    def _lift(self, psi, b: float):
+        """Swing knee lift b sin^2(pi (psi - r_s) / (1 - r_s)) [rad] and its d/dpsi at model phases."""
+        rs = self.timing.relative_support
+        w = np.mod(np.asarray(psi, float), 1.0)
+        arg = np.pi * np.clip((w - rs) / (1 - rs), 0.0, 1.0)
+        return b * np.sin(arg) ** 2, b * np.sin(2 * arg) * np.pi / (1 - rs)
+
     def swing_knee(self, t, side_phase: float = 0.0, lift: float | None = None):
-        """Extra knee flexion [rad] (and rate) in swing: lift sin^2(pi (u - r_s) / (1 - r_s)).
+        """Extra knee flexion [rad] (and rate [rad/s]) in swing: lift sin^2(pi (psi - r_s) / (1 - r_s)).
 
         The ankle dorsiflexes by the same angle, so the foot keeps its pitch
         while the shank folds back. Zero in stance, so it never moves the
@@ -517,20 +640,24 @@ class WalkCycle:
         """
         b = self.swing_lift if lift is None else lift
         Dc = self.timing.cycle_duration
-        rs = self.timing.relative_support
-        u = np.mod(np.asarray(t, float) / Dc + side_phase, 1.0)
-        arg = np.pi * np.clip((u - rs) / (1 - rs), 0.0, 1.0)
-        return b * np.sin(arg) ** 2, b * np.sin(2 * arg) * np.pi / ((1 - rs) * Dc)
+        psi, wd = self.warp(np.asarray(t, float) / Dc + side_phase)
+        v, d = self._lift(psi, b)
+        return v, d * wd / Dc
 
     def joint_curve(self, name: str, t, side_phase: float = 0.0):
-        """(value, d/dt) of a Boulic curve as this walk uses it (hip scaled, knee lifted in swing)."""
-        v, d = self.gait.curve(name, t, side_phase)
+        """(value, d/dt) of a Boulic curve as this walk uses it (leg curves warped in stance, hip
+        scaled, knee lifted in swing)."""
+        if name not in ("hip_flexion", "knee_flexion", "ankle_flexion"):
+            return self.gait.curve(name, t, side_phase)
+        Dc = self.timing.cycle_duration
+        psi, wd = self.warp(np.asarray(t, float) / Dc + side_phase)
+        v, d = self.gait._per_cycle(name, psi)
         if name == "hip_flexion":
-            return self.hip_scale * v, self.hip_scale * d
-        if name in ("knee_flexion", "ankle_flexion"):
-            lv, ld = self.swing_knee(t, side_phase)
-            return v + lv, d + ld
-        return v, d
+            v, d = self.hip_scale * v, self.hip_scale * d
+        else:
+            lv, ld = self._lift(psi, self.swing_lift)
+            v, d = v + lv, d + ld
+        return v, d * wd / Dc
 
     def _fit_swing_lift(self) -> float:
         """Smallest swing knee lift [rad] that keeps the swinging foot SWING_CLEARANCE above the floor."""
@@ -556,6 +683,41 @@ class WalkCycle:
                               "the floor with a knee lift below 1.5 rad")
         return float(brentq(margin, 0.0, 1.5, xtol=1e-10))
 
+    def _angles(self, psi, cached: bool):
+        """Published hip, knee, ankle curves and d/dpsi at model phases (fixed set-up grids cached)."""
+        key = (psi.shape, float(psi[0]), float(psi[-1])) if cached else None
+        if key is not None and key in self._cache:
+            return self._cache[key]
+        out = tuple(self.gait._per_cycle(n, psi) for n in ("hip_flexion", "knee_flexion", "ankle_flexion"))
+        if key is not None:
+            self._cache[key] = out
+        return out
+
+    def _leg(self, psi, k: float, lift: float, cached: bool = False):
+        """Heel and toe of one leg relative to the pelvis origin at model phases ``psi``, sagittal,
+        without the pelvis torsion: x, z, dx/dpsi, dz/dpsi, each (2, n) [m], [m/cycle]."""
+        L = self.leg
+        psi = np.atleast_1d(np.asarray(psi, float))
+        (h, hd), (kn, knd), (a, ad) = self._angles(psi, cached)
+        h, hd = k * h, k * hd
+        lv, ld = self._lift(psi, lift)
+        kn, knd, a, ad = kn + lv, knd + ld, a + lv, ad + ld
+        ph, phd = h - kn, hd - knd
+        fa, fad = ph + a, phd + ad
+        ax = L.thigh * np.sin(h) + L.shank * np.sin(ph)
+        axd = L.thigh * np.cos(h) * hd + L.shank * np.cos(ph) * phd
+        az = -L.thigh * np.cos(h) - L.shank * np.cos(ph)
+        azd = L.thigh * np.sin(h) * hd + L.shank * np.sin(ph) * phd
+        c, sn = np.cos(fa), np.sin(fa)
+        fz = -L.ankle_height
+        xs, zs, xds, zds = [], [], [], []
+        for fx in (-L.heel, L.toe):
+            xs.append(ax + fx * c - fz * sn)
+            zs.append(az + fx * sn + fz * c)
+            xds.append(axd + (-fx * sn - fz * c) * fad)
+            zds.append(azd + (fx * c - fz * sn) * fad)
+        return np.array(xs), np.array(zs), np.array(xds), np.array(zds)
+
     def sole_points(self, t, hip_scale: float | None = None, lift: float | None = None):
         """Heel and toe of both feet relative to the pelvis origin, sagittal plane.
 
@@ -564,104 +726,62 @@ class WalkCycle:
         (without the pelvis list); xd, zd their time derivatives [m/s].
         """
         k = self.hip_scale if hip_scale is None else hip_scale
-        L = self.leg
+        b = self.swing_lift if lift is None else lift
+        hw = self.leg.hip_half_width
+        Dc = self.timing.cycle_duration
         t = np.atleast_1d(np.asarray(t, float))
-        g = self.gait
-        yaw, yawd = g.curve("pelvis_torsion", t)
-        xs, zs, xds, zds = [], [], [], []
+        yaw, yawd = self.gait.curve("pelvis_torsion", t)
+        out = []
         for off, s in _SIDES:
-            h, hd = g.curve("hip_flexion", t, off)
-            h, hd = k * h, k * hd
-            kn, knd = g.curve("knee_flexion", t, off)
-            a, ad = g.curve("ankle_flexion", t, off)
-            if lift is not None or hasattr(self, "swing_lift"):
-                lv, ld = self.swing_knee(t, off, lift)
-                kn, knd = kn + lv, knd + ld
-                a, ad = a + lv, ad + ld
-            ph, phd = h - kn, hd - knd
-            fa, fad = ph + a, phd + ad
-            ax = L.thigh * np.sin(h) + L.shank * np.sin(ph) - s * L.hip_half_width * np.sin(yaw)
-            axd = L.thigh * np.cos(h) * hd + L.shank * np.cos(ph) * phd - s * L.hip_half_width * np.cos(yaw) * yawd
-            az = -L.thigh * np.cos(h) - L.shank * np.cos(ph)
-            azd = L.thigh * np.sin(h) * hd + L.shank * np.sin(ph) * phd
-            c, sn = np.cos(fa), np.sin(fa)
-            fz = -L.ankle_height
-            for fx in (-L.heel, L.toe):
-                xs.append(ax + fx * c - fz * sn)
-                zs.append(az + fx * sn + fz * c)
-                xds.append(axd + (-fx * sn - fz * c) * fad)
-                zds.append(azd + (fx * c - fz * sn) * fad)
-        return np.array(xs), np.array(zs), np.array(xds), np.array(zds)
+            psi, wd = self.warp(t / Dc + off)
+            x, z, xd, zd = self._leg(psi, k, b)
+            rate = wd / Dc
+            out.append((x - s * hw * np.sin(yaw), z, xd * rate - s * hw * np.cos(yaw) * yawd, zd * rate))
+        return tuple(np.concatenate([r[i] for r in out]) for i in range(4))
 
     def _contact_pieces(self, k):
         """Where the right foot's touching point rolls between heel and toe in its stance.
 
-        Returns (starts [cycle], point (0 heel, 1 toe), offset [m]) per piece;
-        the offset keeps the contact's x continuous (the world contact is
-        x_contact + offset of the first point).
+        Returns (starts [model phase], point (0 heel, 1 toe), offset [m]) per
+        piece; the offset keeps the contact's x continuous (the world contact
+        is x_contact + offset of the first point).
         """
-        from scipy.optimize import brentq
-
-        Dc = self.timing.cycle_duration
         rs = self.timing.relative_support
         u = np.linspace(0.0, rs, _GRID + 1)
-        _, z, _, _ = self.sole_points(u * Dc, k)
-        idx = np.where(z[1] < z[0], 1, 0)
+        _, z, _, _ = self._leg(u, k, 0.0, cached=True)
+        gap = z[0] - z[1]
+        idx = np.where(gap > 0, 1, 0)
         starts, points = [0.0], [int(idx[0])]
         for j in np.nonzero(np.diff(idx))[0]:
-            def gap(w):
-                _, zz, _, _ = self.sole_points(w * Dc, k)
-                return zz[0, 0] - zz[1, 0]
-
-            starts.append(float(brentq(gap, u[j], u[j + 1], xtol=1e-14)))
+            # Where heel and toe are level: the secant between the samples, then two Newton steps
+            # on the exact rate (the gap is smooth there; its error falls to ~1e-15 cycle).
+            w = u[j] - gap[j] * (u[j + 1] - u[j]) / (gap[j + 1] - gap[j])
+            for _ in range(2):
+                _, zz, _, zzd = self._leg(np.array([w]), k, 0.0)
+                w = float(np.clip(w - (zz[0, 0] - zz[1, 0]) / (zzd[0, 0] - zzd[1, 0]), u[j], u[j + 1]))
+            starts.append(w)
             points.append(int(idx[j + 1]))
         starts = np.array(starts)
-        xs, _, _, _ = self.sole_points(starts * Dc, k)
+        xs, _, _, _ = self._leg(starts, k, 0.0)
         off = np.zeros(len(points))
         for j in range(1, len(points)):
             off[j] = off[j - 1] + xs[points[j - 1], j] - xs[points[j], j]
         return starts, np.array(points), off
 
     def _contact(self, x, z, xd, zd, rows, phase, pieces):
-        """Contact x (with offset), z and their rates of one foot at its stance phases."""
+        """Contact x (with offset), z and their rates of one foot at its stance (model) phases."""
         starts, points, off = pieces
         j = np.clip(np.searchsorted(starts, phase, side="right") - 1, 0, len(points) - 1)
         r = np.asarray(rows)[points[j]]
         cols = np.arange(x.shape[1])
         return x[r, cols] + off[j], z[r, cols], xd[r, cols], zd[r, cols]
 
-    def _touchdown(self, k) -> float:
-        """Phase after the other foot's heel strike at which it first reaches the floor.
-
-        The pelvis is placed by the back foot alone here; at most
-        ``double_support - MIN_TRANSFER`` so the weight transfer keeps a minimum length.
-        """
-        Dc = self.timing.cycle_duration
-        d = self.double_support
-        f = 0.5 + np.linspace(0.0, d, 257)
-        x, z, xd, zd = self.sole_points(f * Dc, k)
-        back_z = self._contact(x, z, xd, zd, (0, 1), f, self._contact_pieces(k))[1]
-        down = np.nonzero(z[2:].min(axis=0) <= back_z)[0]
-        first = f[down[0]] - 0.5 if len(down) else d
-        return float(min(first, d - MIN_TRANSFER))
-
-    def _mismatch(self, k) -> float:
-        """Mean over the weight transfer of (one step) - (front contact - back contact) [m]."""
-        pieces = self._contact_pieces(k)
-        Dc = self.timing.cycle_duration
-        d = self.double_support
-        f = 0.5 + np.linspace(self.touchdown, d, 65)
-        x, z, xd, zd = self.sole_points(f * Dc, k)
-        back = self._contact(x, z, xd, zd, (0, 1), f, pieces)[0]
-        front = self._contact(x, z, xd, zd, (2, 3), f - 0.5, pieces)[0]
-        return float(np.mean(self.timing.step_length - (front - back)))
-
     # --------------------------------------------------------------- body translation
     def support_weight(self, t) -> tuple[np.ndarray, np.ndarray]:
         """Share of the right (reference) foot in placing the pelvis, and its rate [1/s]."""
         Dc = self.timing.cycle_duration
         f = np.mod(np.asarray(t, float) / Dc, 1.0)
-        a, d = self.touchdown, self.double_support
+        a, d = self.touchdown, self.transfer
         up, upd = smoothstep((f - a) / (d - a))
         down, downd = smoothstep((f - 0.5 - a) / (d - a))
         w = np.where(f < 0.5, up, 1.0 - down)
@@ -692,9 +812,10 @@ class WalkCycle:
         n = np.floor(t / Dc)
         f = t / Dc - n
         x, z, xd, zd = self.sole_points(t)
-        rc, rz, rcd, rzd = self._contact(x, z, xd, zd, (0, 1), f, self._pieces)
-        lphase = np.mod(f - 0.5, 1.0)
-        lc, lz, lcd, lzd = self._contact(x, z, xd, zd, (2, 3), lphase, self._pieces)
+        rpsi = self.warp(f)[0]
+        lpsi = self.warp(np.mod(f - 0.5, 1.0))[0]
+        rc, rz, rcd, rzd = self._contact(x, z, xd, zd, (0, 1), rpsi, self._pieces)
+        lc, lz, lcd, lzd = self._contact(x, z, xd, zd, (2, 3), lpsi, self._pieces)
         # World x of each foot's first contact: right lands at n strides,
         # left one step later (the left stance in progress began at n - 0.5 if f < 0.5).
         xr = n * T.stride_length
@@ -703,7 +824,13 @@ class WalkCycle:
         pr, pl = xr - rc, xl - lc
         px = w * pr + (1 - w) * pl + self._shift
         pxd = wd * (pr - pl) - w * rcd - (1 - w) * lcd
-        pz = -(w * rz + (1 - w) * lz)
-        pzd = -(wd * (rz - lz) + w * rzd + (1 - w) * lzd)
+        # Height: the pelvis rests on whichever foot holds it higher (a smooth maximum of the two
+        # feet's placements -rz, -lz, width HEIGHT_SOFTNESS), so in the hand-over neither foot
+        # sinks into the floor; a swinging foot is higher and has no say (<= HEIGHT_SOFTNESS ln 2).
+        e = HEIGHT_SOFTNESS
+        hi = np.maximum(-rz, -lz)
+        sr, sl = np.exp((-rz - hi) / e), np.exp((-lz - hi) / e)
+        pz = hi + e * np.log(sr + sl)
+        pzd = -(sr * rzd + sl * lzd) / (sr + sl)
         # The model's lateral sway is positive towards the reference (right) leg: -y.
         return np.stack([px, -ly, pz], axis=1), np.stack([pxd, -lyd, pzd], axis=1)

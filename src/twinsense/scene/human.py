@@ -40,7 +40,7 @@ from scipy.interpolate import CubicHermiteSpline
 from twinsense import validation as V
 from twinsense.errors import ConfigError
 from twinsense.scene.articulated import ArticulatedBody, Joint, JointMotion, KinematicTree, Link
-from twinsense.scene.gait import GaitTiming, LegGeometry, WalkCycle, smoothstep
+from twinsense.scene.gait import BODY_MODES, GaitTiming, LegGeometry, WalkCycle, smoothstep
 from twinsense.scene.geometry import Box, Capsule
 from twinsense.scene.motion import Motion, MotionState, check_time
 from twinsense.scene.pose import Pose
@@ -317,18 +317,20 @@ class Walk:
     """Walk at ``speed`` [m/s] from ``start_time`` [s] along ``path`` (waypoints (n, 2|3) [m],
     starting at the first) or, without a path, endlessly along ``heading_deg`` [deg, from +x
     towards +y]. ``turn_length`` [m]: path length over which a corner's heading change ramps.
-    ``body``: "smooth" or "planted" pelvis translation (see :class:`~twinsense.scene.gait.WalkCycle`)."""
+    ``body``: "planted" (the standing foot stays put and the pelvis moves as published, by a
+    time-warp of the stance leg's curves) or "smooth" (the published timing; the standing foot
+    rocks about its place); see :class:`~twinsense.scene.gait.WalkCycle`."""
 
     speed: float = 1.3
     path: tuple | None = None
     heading_deg: float | None = None
     start_time: float = 0.0
     turn_length: float = 1.0
-    body: str = "smooth"
+    body: str = "planted"
 
     def __post_init__(self):
         V.positive("walk.speed", self.speed, "m/s")
-        V.choice("walk.body", self.body, ("smooth", "planted"))
+        V.choice("walk.body", self.body, BODY_MODES)
         V.time("walk.start_time", self.start_time)
         if self.path is None and self.heading_deg is None:
             raise ConfigError("walk.path", None, "a path (waypoints) or a heading_deg")
