@@ -391,7 +391,7 @@ class TactileSensor:
 def make_tactile(preset: str, /, **overrides: Any) -> TactileSensor:
     """A TactileSensor from ``preset``; ``overrides`` take ``name``, ``mount``,
     ``frame_rate`` [Hz] (both converters' sample rate) and any TactileConfig field."""
-    if preset not in PRESETS:
+    if not isinstance(preset, str) or preset not in PRESETS:
         raise UnknownNameError("tactile preset", preset, list(PRESETS))
     config = PRESETS[preset][0]()
     sensor_kw = {k: overrides.pop(k) for k in ("name", "mount") if k in overrides}
@@ -402,7 +402,7 @@ def make_tactile(preset: str, /, **overrides: Any) -> TactileSensor:
     valid = {f.name for f in fields(TactileConfig)}
     for key in overrides:
         if key not in valid:
-            raise UnknownNameError("tactile preset override", key, sorted(valid | {"name", "mount", "frame_rate"}))
+            raise UnknownNameError("sensor.overrides", key, sorted(valid | {"name", "mount", "frame_rate"}))
     if overrides:
         config = replace(config, **overrides)
     sensor_kw.setdefault("name", preset)
