@@ -377,7 +377,7 @@ def _center(layout: Layout) -> np.ndarray:
 def make_capacitive(preset: str, /, **overrides: Any) -> CapacitiveSensor:
     """A CapacitiveSensor from ``preset``; ``overrides`` take ``name``, ``mount``,
     ``frame_rate`` [Hz] (the readout's sample rate) and any CapacitiveConfig field."""
-    if preset not in PRESETS:
+    if not isinstance(preset, str) or preset not in PRESETS:
         raise UnknownNameError("capacitive preset", preset, list(PRESETS))
     config = PRESETS[preset][0]()
     sensor_kw = {k: overrides.pop(k) for k in ("name", "mount") if k in overrides}
@@ -387,7 +387,7 @@ def make_capacitive(preset: str, /, **overrides: Any) -> CapacitiveSensor:
     valid = {f.name for f in fields(CapacitiveConfig)}
     for key in overrides:
         if key not in valid:
-            raise UnknownNameError("capacitive preset override", key, sorted(valid | {"name", "mount", "frame_rate"}))
+            raise UnknownNameError("sensor.overrides", key, sorted(valid | {"name", "mount", "frame_rate"}))
     if overrides:
         kw = {f.name: getattr(config, f.name) for f in fields(CapacitiveConfig)}
         kw.update(overrides)
