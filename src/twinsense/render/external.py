@@ -53,6 +53,7 @@ from __future__ import annotations
 
 import functools
 import itertools
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -280,15 +281,19 @@ class ExternalImages:
         try:
             with np.load(path, allow_pickle=False) as z:
                 d = {k: z[k] for k in z.files}
-        except (OSError, ValueError) as exc:
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:  # a truncated file is a BadZipFile
             raise ConfigError("path", str(path), f"a readable .npz file ({exc})") from None
         missing = sorted({"depth", "intensity", "intrinsics", "pose"} - set(d))
         if missing:
             raise ConfigError("path", str(path), "an .npz with the arrays depth, intensity, intrinsics, pose "
                               f"(missing: {', '.join(missing)})")
-        return cls(d["depth"], d["intensity"], tuple(d["intrinsics"].tolist()), Pose.from_matrix(d["pose"]),
-                   float(d.get("t", 0.0)), str(d.get("depth_kind", "range")), d.get("normals"),
-                   d.get("velocity"), d.get("material_id"))
+        t = np.asarray(d.get("t", 0.0))
+        try:
+            return cls(d["depth"], d["intensity"], tuple(np.ravel(d["intrinsics"]).tolist()),
+                       Pose.from_matrix(d["pose"]), t.item() if t.size == 1 else t.tolist(), str(d.get("depth_kind", "range")),
+                       d.get("normals"), d.get("velocity"), d.get("material_id"))
+        except ConfigError as e:  # name the file as well as the array in it
+            raise ConfigError(f"{path.name}: {e.field}", e.value, e.allowed) from None
 
 
 def read_image(path: str | Path) -> np.ndarray:
