@@ -42,6 +42,8 @@ plates.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from scipy.interpolate import RectBivariateSpline
 
@@ -123,10 +125,16 @@ def head_field_for(head, frequency: float, mesh_spec, r_max: float, z_max: float
     return head_field(coil, regions, frequency, r_nodes, z_nodes, r_max, z_max)
 
 
+@functools.lru_cache(maxsize=8)
+def _gauss_legendre(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss-Legendre nodes and weights on [-1, 1] (computed once per n: an eigenvalue problem)."""
+    return np.polynomial.legendre.leggauss(n)
+
+
 def disc_delta_z(field: HeadField, distance: float, radius: float, thickness: float, sigma: float,
                  mu_r: float, n: int = 400) -> complex:
     """First-order ``dZ`` [ohm per A^2] of a centred disc (``psi = 0``), Gauss-Legendre in r (``n`` nodes)."""
-    x, w = np.polynomial.legendre.leggauss(n)
+    x, w = _gauss_legendre(n)
     r = 0.5 * radius * (x + 1)
     w = 0.5 * radius * w * 2 * np.pi * r
     pts = np.stack([r, np.zeros_like(r), np.full_like(r, distance)], axis=1)
