@@ -157,9 +157,9 @@ def test_planted_stance_foot_does_not_slide(planted):
 def test_planted_pelvis_speed_is_the_published_one(planted):
     # The warp makes the pelvis follow the published forward translation v t + a_a H_t sin 2 pi
     # (2u + 2 phi_a), a_a = 0.021 (RV >= 0.5): the speed oscillates by 4 pi a_a H_t / D_c about v,
-    # +-14-22 % of v over 1.8-0.8 m/s. Gait laboratories measure the forward speed of the centre
-    # of mass varying within a step by roughly +-10-25 % of v (Cavagna, Thys and Zamboni,
-    # J. Physiol. 262, 1976); the Boulic amplitude is itself a fit to measured trunk motion.
+    # +-14-22 % of v over 1.8-0.8 m/s. The centre of mass slows in single support and speeds up in
+    # double support (Cavagna, Thys and Zamboni, J. Physiol. 262, 1976), by roughly +-10-25 % of v
+    # at normal speeds; the Boulic amplitude is itself a fit to measured trunk motion.
     w = planted
     speed, dc = w.timing.speed, w.timing.cycle_duration
     t = np.linspace(0.0, dc, 801)[:-1]
