@@ -70,6 +70,11 @@ def _address(field_name: str, address: Any) -> str:
     if not isinstance(address, str) or "://" not in address:
         raise ConfigError(field_name, address, "a ZeroMQ endpoint such as 'tcp://127.0.0.1:5555' "
                                                "(tcp://host:*  picks a free port), ipc://path or inproc://name")
+    if address.startswith("tcp://"):
+        # libzmq takes the port modulo 65536 (tcp://host:70000 binds port 4464): check it here.
+        port = address.rpartition(":")[2]
+        if port != "*" and not (port.isdigit() and 1 <= int(port) <= 65535):
+            raise ConfigError(field_name, address, "a tcp:// endpoint with a port 1..65535 or * (a free port)")
     return address
 
 
@@ -126,7 +131,7 @@ class ZmqSink:
             sock.close(0)
             self._ctx.term()
             self._ctx = None
-            raise ConfigError("zmq", self.address, f"an endpoint this process can bind ({err})") from None
+            raise ConfigError("ZmqSink.address", self.address, f"an endpoint this process can bind ({err})") from None
         self._sock = sock
         self.endpoint = sock.getsockopt_string(zmq.LAST_ENDPOINT)
         for s in sensors:
