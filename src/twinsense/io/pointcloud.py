@@ -79,6 +79,8 @@ def _atomic_write(path: Path, data: bytes) -> Path:
     try:
         tmp.write_bytes(data)
         os.replace(tmp, path)
+    except OSError as exc:  # a folder of that name, a read-only folder, a full disk: nothing is left behind
+        raise ConfigError("path", str(path), f"a writable file path ({exc.strerror})") from None
     finally:
         tmp.unlink(missing_ok=True)
     return path
