@@ -731,7 +731,8 @@ def Walker(name: str = "person", height: float = 1.75, speed: float = 1.3, start
     ``start_time`` [s], through the waypoints ``path`` (then stops), or
     without a path endlessly along ``heading_deg``.
     """
-    walk = Walk(speed, None if path is None else tuple(map(tuple, np.atleast_2d(np.asarray(path, float)))),
+    walk = Walk(speed, None if path is None else tuple(map(tuple, np.atleast_2d(
+        V._floats("walk.path", path, "waypoints (n, 2) or (n, 3) [m]")))),
                 heading_deg if path is None else None, start_time, turn_length)
     return person_body(name, height, start, heading_deg if heading_deg is not None else 0.0, walk=walk,
                        reach=reach, clothing=clothing)
