@@ -10,6 +10,7 @@ pose places the robot). Mimic joints are kept as joints of their own.
 from __future__ import annotations
 
 import math
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
@@ -76,6 +77,11 @@ def urdf_tree(path, *, materials=None, shapes: str = "visual", name: str | None 
         raise ConfigError("urdf.path", str(path), "an existing URDF file")
     if shapes not in SHAPE_SOURCES:
         raise ConfigError(f"{field}.shapes", shapes, "one of: " + ", ".join(SHAPE_SOURCES))
+    try:
+        # yourdfpy falls back to a recovering parser on broken XML and loads what it can: refuse it first.
+        ET.parse(p)
+    except ET.ParseError as exc:
+        raise ConfigError("urdf.path", str(path), f"a well-formed URDF XML file ({exc})") from None
     try:
         robot = yourdfpy.URDF.load(str(p), build_scene_graph=False, load_meshes=False,
                                    build_collision_scene_graph=False, load_collision_meshes=False).robot
