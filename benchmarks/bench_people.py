@@ -21,7 +21,7 @@ from twinsense.scene.human import Walk, add_person, leg_geometry
 def main() -> None:
     print_machine()
     leg = leg_geometry(1.75)
-    for body in ("smooth", "planted"):
+    for body in ("planted", "smooth"):
         best, med = best_and_median(lambda b=body: WalkCycle(GaitTiming(1.4, leg.leg_length), leg, b), repeats=3)
         print(f"walk cycle set-up ({body}, 1.4 m/s): {best * 1e3:7.1f} ms best, {med * 1e3:7.1f} ms median")
 
