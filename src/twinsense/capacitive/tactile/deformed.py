@@ -19,6 +19,7 @@ from twinsense.capacitive.coupling import map_inclusions
 from twinsense.capacitive.fem import EPS0, ElectrostaticSystem
 from twinsense.capacitive.mesh import SimplexMesh
 from twinsense.capacitive.solver import MaxwellResult, MaxwellSolver, SolverConfig
+from twinsense.capacitive.tactile.kernels import moved_cells, restamp, tet_stiffness_nb
 from twinsense.capacitive.tactile.permittivity import PorousPermittivity
 from twinsense.capacitive.tactile.stack_mesh import DIELECTRIC, StackMesh
 from twinsense.errors import ConfigError
@@ -122,6 +123,7 @@ class DeformedElectrostatics:
         object.__setattr__(self._air_mesh, "cells", air_cells)
         self._air_index = np.full(mesh.n_cells, -1, np.int64)
         self._air_index[self._air] = np.arange(len(self._air))
+        self._is_air = self._air_index >= 0
         _ = self._air_mesh.centroids, self._air_mesh.cell_bounds
         self.reassembled = 0  # cells re-computed by the last set_displacement
 
@@ -145,30 +147,29 @@ class DeformedElectrostatics:
         n = self.points0.shape[0]
         if u.shape != (n, 3) or not np.all(np.isfinite(u)):
             raise ConfigError("displacement", f"array of shape {u.shape}", f"finite (n, 3) = ({n}, 3) [m]")
-        moved = np.flatnonzero(np.any(np.abs(u - self.displacement) > MOVE_TOL, axis=1))
         self.reassembled = 0
-        if len(moved) == 0:
-            return np.zeros(0, np.int64)
-        mask = np.zeros(n, bool)
-        mask[moved] = True
-        cells = np.flatnonzero(mask[self.stack.mesh.cells].any(axis=1))
-        pts = self.points0 + u
-        k_new, vol = tet_stiffness(pts, self.stack.mesh.cells[cells])
+        mesh_cells = self.stack.mesh.cells
+        cells, moved = moved_cells(np.ascontiguousarray(u), self.displacement, mesh_cells, MOVE_TOL)
+        if len(cells) == 0:
+            return cells
+        # Only the moved nodes take their new position: a node never drifts
+        # more than MOVE_TOL from the geometry its cells were computed with,
+        # however many frames it creeps by less than that.
+        applied = self.displacement.copy()
+        applied[moved] = u[moved]
+        pts = self.points0 + applied
+        k_new, vol = tet_stiffness_nb(pts, mesh_cells, cells)
         if np.any(vol <= 0):
             k = cells[int(np.argmin(vol))]
             raise ConfigError("displacement", f"inverts mesh cell {k}",
                               "a deformation that keeps every cell's orientation (smaller load, or first_air "
                               "larger than the indentation)")
         sys_ = self.system
-        self.displacement = u.copy()
+        self.displacement = applied
         eps_stack = self._stack_eps(cells)
         self._base_eps[cells] = eps_stack
-        eps_new = np.where(np.isin(cells, self._air), self._object_eps[cells], eps_stack)
-        # One bincount over the moved cells' slots (np.add.at is several times slower at this size).
-        vals = EPS0 * (eps_new[:, None, None] * k_new - sys_.eps_r[cells][:, None, None] * sys_.local[cells])
-        sys_.k_data += np.bincount(sys_.pattern.slots[cells].ravel(), weights=vals.ravel(),
-                                   minlength=sys_.pattern.nnz)
-        sys_.local[cells] = k_new
+        eps_new = np.where(self._is_air[cells], self._object_eps[cells], eps_stack)
+        restamp(sys_.k_data, sys_.pattern.slots, sys_.local, cells, k_new, eps_new, sys_.eps_r[cells], EPS0)
         eps = sys_.eps_r.copy()
         eps[cells] = eps_new
         sys_.eps_r = eps

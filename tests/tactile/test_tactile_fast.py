@@ -1,0 +1,62 @@
+"""The compiled re-assembly of moved cells against the NumPy forms and a fresh assembly."""
+
+import numpy as np
+
+from twinsense.capacitive.fem import ElectrostaticSystem
+from twinsense.capacitive.mesh import SimplexMesh, tensor_tet_mesh
+from twinsense.capacitive.solver import SolverConfig
+from twinsense.capacitive.tactile.deformed import MOVE_TOL, DeformedElectrostatics, tet_stiffness
+from twinsense.capacitive.tactile.kernels import moved_cells, tet_stiffness_nb
+from twinsense.capacitive.tactile.stack_mesh import DIELECTRIC, StackMesh
+
+
+def _slab(d=1e-3, side=0.01):
+    g = np.linspace(0.0, side, 5)
+    mesh = tensor_tet_mesh(g, g, np.linspace(0.0, d, 4))
+    z = mesh.points[:, 2]
+    n = mesh.n_cells
+    return StackMesh(mesh, np.full(n, DIELECTRIC), np.full(n, 2.8),
+                     (np.flatnonzero(z < 1e-12), np.flatnonzero(z > d - 1e-12)), np.zeros(0, np.int64),
+                     np.arange(n), np.arange(mesh.n_nodes), None, np.zeros(0, np.int64), d)
+
+
+def test_compiled_element_matrices_equal_the_numpy_form():
+    rng = np.random.default_rng(7)
+    mesh = tensor_tet_mesh(np.linspace(0, 1e-2, 4), np.linspace(0, 1e-2, 4), np.linspace(0, 2e-3, 3))
+    pts = mesh.points + rng.uniform(-3e-4, 3e-4, mesh.points.shape)
+    sel = np.arange(0, mesh.n_cells, 3)
+    k, vol = tet_stiffness_nb(pts, mesh.cells, sel)
+    k_ref, vol_ref = tet_stiffness(pts, mesh.cells[sel])
+    # The same products in another order: equal to rounding (1e-12 of the largest entry).
+    np.testing.assert_allclose(k, k_ref, rtol=0, atol=1e-12 * np.abs(k_ref).max())
+    np.testing.assert_allclose(vol, vol_ref, rtol=1e-12, atol=0)
+
+
+def test_moved_cells_are_exactly_those_with_a_node_past_the_tolerance():
+    mesh = tensor_tet_mesh(np.linspace(0, 1, 4), np.linspace(0, 1, 4), np.linspace(0, 1, 3))
+    u = np.zeros_like(mesh.points)
+    u[5, 1] = 2 * MOVE_TOL
+    u[9, 2] = 0.5 * MOVE_TOL  # below the tolerance: not moved
+    cells, moved = moved_cells(u, np.zeros_like(u), mesh.cells, MOVE_TOL)
+    assert np.flatnonzero(moved).tolist() == [5]
+    np.testing.assert_array_equal(cells, np.flatnonzero((mesh.cells == 5).any(axis=1)))
+
+
+def test_sub_tolerance_creep_never_drifts_from_the_assembled_geometry():
+    # 50 frames each moving every node by 0.6 MOVE_TOL: no single frame passes
+    # the tolerance, but the drift does after two; the assembled stiffness must
+    # then equal a fresh assembly on the applied geometry, and that geometry be
+    # within MOVE_TOL of the target (the bound the tolerance's note derives).
+    stack = _slab()
+    es = DeformedElectrostatics(stack, SolverConfig(rtol=1e-12, energy_tol=0.0), outer_boundary="neumann")
+    p = es.points0
+    step = np.zeros_like(p)
+    step[:, 2] = -0.6 * MOVE_TOL * p[:, 2] / 1e-3
+    for k in range(1, 51):
+        es.set_displacement(k * step)
+    assert np.abs(es.displacement - 50 * step).max() <= MOVE_TOL
+    fresh = ElectrostaticSystem(SimplexMesh(es.points, stack.mesh.cells), stack.terminals,
+                                permittivity=stack.permittivity, outer_boundary="neumann")
+    # Sums of a handful of rounded element entries: equal to ~1e-15 of the largest entry.
+    scale = np.abs(fresh.k_data).max()
+    np.testing.assert_allclose(es.system.k_data, fresh.k_data, rtol=0, atol=1e-12 * scale)
