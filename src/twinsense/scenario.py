@@ -366,6 +366,14 @@ class ScenarioSpec(_Model):
             raise ValueError(f"{what} names must be unique; repeated: {', '.join(dup)}")
         return v
 
+    @model_validator(mode="after")
+    def _bodies_apart(self):
+        # A robot's and a person's links are both "name/link": one name for both would mix two bodies.
+        both = sorted({r.name for r in self.robots} & {p.name for p in self.people})
+        if both:
+            raise ValueError(f"robot and person names must differ; used by both: {', '.join(both)}")
+        return self
+
 
 @dataclass
 class Scenario:
@@ -633,7 +641,7 @@ def _add_people(spec: ScenarioSpec, scene: Scene) -> list:
             Hu.add_person(scene, ps.name, ps.height, tuple(ps.position), ps.heading_deg, walk=walk, turn=turn,
                           reach=reach, sway=ps.sway, clothing=ps.clothing)
         except ConfigError as e:
-            problems.append((f"people[{i}].{e.field}", e.value, e.allowed))
+            problems.append((f"people[{i}].{e.field.removeprefix('person.')}", e.value, e.allowed))
     return problems
 
 
