@@ -6,7 +6,11 @@ noise and 12-bit quantisation) two ways:
 - ``capture`` one update at a time (what ``simulate`` calls per frame);
 - ``capture_many`` over a block of 1000 update times (poses of the 4 moving
   magnets from their motions' closed forms, the fields of all
-  times x magnets x sensors in one vectorised kernel call).
+  times x magnets x sensors in one vectorised kernel call);
+- ``simulate`` over 0.5 s at 10 kHz (5000 updates), the path a user's run
+  takes: frames in memory, and frames to an HDF5 recording. The run loop
+  hands each run of consecutive frames of the sensor to ``capture_frames``
+  in blocks (byte-identical to one capture after another).
 
 The magnets: two axial cylinders (oscillating), one diametric disc
 (turning) and one block (constant velocity), all moving. Same-run anchor:
@@ -18,9 +22,13 @@ Run:  .venv/bin/python benchmarks/bench_magnetic.py
 
 from __future__ import annotations
 
+import tempfile
+from pathlib import Path
+
 import numpy as np
 from _timing import best_and_median, print_load_at_end, print_machine
 
+from twinsense import simulate
 from twinsense.magnetic import MagneticSensor
 from twinsense.magnetic.fields import cylinder_axial
 from twinsense.scene import Box, ConstantVelocity, Magnet, Mount, Oscillation, Pose, Scene
@@ -57,6 +65,16 @@ def main() -> None:
     bestb, medb = best_and_median(lambda: sensor.capture_many(scene, block, rng), repeats=7)
     print(f"  capture_many, {BLOCK} updates           {bestb * 1e3:8.2f} ms best {medb * 1e3:8.2f} ms median"
           f"  -> {BLOCK / medb:8.0f} updates/s")
+    duration = 0.5
+    n_sim = round(duration * sensor.frame_rate)
+    bests, meds = best_and_median(lambda: simulate(scene, [sensor], duration, None, keep_frames=False), repeats=3)
+    print(f"  simulate, {n_sim} updates, in memory     {bests * 1e3:8.1f} ms best {meds * 1e3:8.1f} ms median"
+          f"  -> {n_sim / meds:8.0f} updates/s")
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "run.h5"
+        bestr, medr = best_and_median(lambda: simulate(scene, [sensor], duration, out), repeats=3)
+    print(f"  simulate, {n_sim} updates, to HDF5       {bestr * 1e3:8.1f} ms best {medr * 1e3:8.1f} ms median"
+          f"  -> {n_sim / medr:8.0f} updates/s")
     # Anchor: the bare cel kernel on the same number of points (n sensors x m magnets per update).
     pts1 = np.random.default_rng(1).uniform(-0.02, 0.02, (n * m, 3))
     a1 = best_and_median(lambda: cylinder_axial(pts1, 0.003, 0.003, 1.2), repeats=200)[1]
