@@ -361,3 +361,351 @@ def moving_bounds(n: int) -> list[tuple[int, int]]:
     few thousand movers, but none tiny (each costs n_rx x M NUFFT calls)."""
     parts = max(1, min(max(2, -(-n // CHUNK)), n // 1024))
     return [(int(a), int(b)) for a, b in itertools.pairwise(np.linspace(0, n, parts + 1))]
+
+
+# ---------------------------------------------------------------------------
+# Movers on a 2-D grid: one NUFFT over (slow time, fast time) per block of chirps.
+#
+# The chirps sent by one position of the transmit sequence (m = q + L j) are
+# evenly spaced in time, so per receiver and such a group the phase of every
+# sample (chirp j, sample n) is a smooth function of the time offset
+# Delta = A mu + B nu from the group's centre sample (mu = j - j_c and
+# nu = n - N/2 integers, A = L T_rep, B = 1 / fs). Expanded around that centre,
+#
+#     Phi(mu, nu) = phi0 + w mu + x nu + sum_{i+j>=2} c_ij mu^i nu^j ,
+#
+# the linear part is a 2-D type-1 NUFFT over the scatterers (points (w, x));
+# the rest (range migration mu nu, slow-time curvature mu^2, the in-chirp
+# terms nu^2, nu^3, ...) is a chunk-wide part taken exactly on the grid and a
+# small per-scatterer rest whose exp is a short Taylor series, one more
+# strength vector per monomial (the in-chirp trick of :func:`_moving_rows`
+# in two dimensions). The per-scatterer work is then per group, not per chirp.
+
+
+def _leg_series(d: np.ndarray, vel: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray]:
+    """Taylor coefficients (order + 1, m) of |d + vel t| in t, and |vel| / |d| (m,) [1/s].
+
+    From r^2 = r0^2 + q1 t + q2 t^2 (q1 = 2 d.vel, q2 = |vel|^2):
+    2 r0 r_k = Q_k - sum_{i=1}^{k-1} r_i r_{k-i}. The series converges for
+    |t| < |d| / |vel| (the complex roots of r^2): see :func:`_leg_tail`.
+    """
+    r0 = np.sqrt(np.einsum("ij,ij->i", d, d))
+    q1 = 2.0 * np.einsum("ij,ij->i", d, vel)
+    q2 = np.einsum("ij,ij->i", vel, vel)
+    r = np.zeros((order + 1, len(d)))
+    r[0] = r0
+    half_inv = 0.5 / r0
+    for k in range(1, order + 1):
+        acc = q1.copy() if k == 1 else (q2.copy() if k == 2 else np.zeros(len(d)))
+        for i in range(1, k):
+            acc -= r[i] * r[k - i]
+        r[k] = acc * half_inv
+    return r, np.sqrt(q2) / r0
+
+
+def _leg_tail(r0: np.ndarray, y: np.ndarray, order: int) -> np.ndarray:
+    """Bound (m,) on |sum_{k>order} r_k t^k| for |t| <= T, with y = T |vel| / r0 < 1.
+
+    r(t) = r0 sqrt(1 - t/z) sqrt(1 - t/z*) with |z| = r0 / |vel|; each square
+    root's coefficients are at most |z|^-k (|binom(1/2, k)| <= 1/2), so
+    |r_k| <= (k + 1) r0 |z|^-k and the tail is r0 sum_{k>K} (k + 1) y^k =
+    r0 y^(K+1) ((K + 2) - (K + 1) y) / (1 - y)^2.
+    """
+    k = order
+    return r0 * y ** (k + 1) * ((k + 2) - (k + 1) * y) / (1.0 - y) ** 2
+
+
+_SERIES_TOL = 13.0 / 32.0  # share of eps for the series order, and again for skipped terms
+_Y_MAX = 0.5  # the 2-D expansion is used only well inside the series' radius
+_MAX_ORDER = 16
+
+
+def _monomial_coeffs(tau: np.ndarray, geo: Geometry, a_step: float) -> dict[tuple[int, int], np.ndarray]:
+    """Phase coefficients c_ij (m,) of mu^i nu^j (integer chirp and sample offsets).
+
+    ``tau`` (K + 1, m): the delay's Taylor coefficients in Delta = A mu + B nu
+    (A = ``a_step``, B = 1 / fs). Phi = 2 pi (fc + S s) tau - pi S tau^2 with
+    s = B nu: g_k = 2 pi fc tau_k - pi S (tau * tau)_k for k <= K (the
+    dropped degrees of tau^2 are bounded by the caller) and h_k = 2 pi S tau_k
+    multiplies s Delta^k.
+    """
+    order = tau.shape[0] - 1
+    b = 1.0 / geo.fs
+    out: dict[tuple[int, int], np.ndarray] = {}
+
+    def add(i, j, arr):
+        if (i, j) in out:
+            out[(i, j)] = out[(i, j)] + arr
+        else:
+            out[(i, j)] = arr
+
+    for k in range(order + 1):
+        sq = sum((tau[i] * tau[k - i] for i in range(k + 1)), np.zeros(tau.shape[1]))
+        g = (_TWO_PI * geo.fc) * tau[k] - (math.pi * geo.slope) * sq
+        h = (_TWO_PI * geo.slope) * tau[k]
+        for i in range(k + 1):
+            f = math.comb(k, i) * a_step**i * b ** (k - i)
+            add(i, k - i, g * f)
+            add(i, k - i + 1, h * (f * b))
+    return out
+
+
+def _poly_mul(p: dict, q: dict, keep: set | None = None) -> dict:
+    """Product of two 2-D polynomials {(i, j): coefficient array}; only monomials in ``keep``."""
+    out: dict = {}
+    for (i1, j1), c1 in p.items():
+        for (i2, j2), c2 in q.items():
+            key = (i1 + i2, j1 + j2)
+            if keep is not None and key not in keep:
+                continue
+            prod = c1 * c2
+            if key in out:
+                out[key] += prod
+            else:
+                out[key] = prod
+    return out
+
+
+def _exp_series_2d(bounds: dict[tuple[int, int], float], order: int,
+                   tol: float) -> tuple[set, float]:
+    """Monomials to keep of sum_{k<=order} (j R)^k / k!, R = sum r_ij U^i V^j with |r_ij| <= bounds.
+
+    The majorant series (the same sums with |r_ij| replaced by their bounds)
+    bounds every coefficient; monomials are skipped, smallest first, while
+    their majorants add up to at most ``tol`` (|U|, |V| <= 1, so that is the
+    most any sample changes relative to a scatterer's amplitude). Returns the
+    kept monomials (with (0, 0)) and the skipped total.
+    """
+    maj: dict = {(0, 0): 1.0}
+    term: dict = {(0, 0): 1.0}
+    for k in range(1, order + 1):
+        new: dict = {}
+        for (i1, j1), c1 in term.items():
+            for (i2, j2), c2 in bounds.items():
+                key = (i1 + i2, j1 + j2)
+                new[key] = new.get(key, 0.0) + c1 * c2 / k
+        term = new
+        for key, c in term.items():
+            maj[key] = maj.get(key, 0.0) + c
+    skipped = 0.0
+    keep = {(0, 0)}
+    for key, c in sorted(maj.items(), key=lambda kv: kv[1]):
+        if key != (0, 0) and skipped + c <= tol:
+            skipped += c
+        else:
+            keep.add(key)
+    return keep, skipped
+
+
+class _Block2D:
+    """The 2-D expansion of one chunk of movers over one block of chirps and one receiver."""
+
+    def __init__(self, chirps, mu_scale, nu_scale, phi0, w, x, common, resid, keep, order):
+        self.chirps = chirps      # (J,) chirp indices of the block, evenly spaced
+        self.mu_scale = mu_scale  # U = mu / mu_scale
+        self.nu_scale = nu_scale  # V = nu / nu_scale
+        self.phi0, self.w, self.x = phi0, w, x  # (m,) reduced phases and NUFFT frequencies
+        self.common = common      # {(i, j): float} chunk-wide coefficients (normalised)
+        self.resid = resid        # {(i, j): (m,)} per-scatterer rests (normalised)
+        self.keep = keep          # monomials of the series kept
+        self.order = order        # order of the exp series
+
+    @property
+    def n_trans(self) -> int:
+        return len(self.keep)
+
+
+def _plan_block(p, v, pr, vr, tx, rx, chirps, t_mid, a_step, geo: Geometry,
+                eps: float) -> _Block2D | None:
+    """Expansion of movers (p, v; pr, vr) for one receiver ``rx`` and the chirps ``chirps``
+    (sent by ``tx``, evenly ``a_step`` seconds apart; ``t_mid`` [s]: the time of the
+    block's centre sample from the frame start). None when the delay's Taylor
+    series converges too slowly over the block (then the per-chirp path is used).
+
+    Error budget per scatterer, relative to its amplitude at any sample (a
+    phase error delta moves a sample by at most |delta|): delay truncation
+    and dropped degrees of tau^2 eps / 16 each, dropped monomials eps / 16,
+    exp-series order and skipped series terms 13/32 eps each: together eps,
+    the per-chirp path's budget (its series order and skipped terms, eps / 2
+    each).
+    """
+    n_samp = geo.n_samp
+    jb = len(chirps)
+    mu_half = jb // 2
+    t_span = a_step * mu_half + (n_samp // 2) / geo.fs  # max |Delta| [s]
+    d_tx = p + v * t_mid - tx
+    d_rx = pr + vr * t_mid - rx
+    r0_tx = np.sqrt(np.einsum("ij,ij->i", d_tx, d_tx))
+    r0_rx = np.sqrt(np.einsum("ij,ij->i", d_rx, d_rx))
+    y_tx = t_span * np.linalg.norm(v, axis=1) / r0_tx
+    y_rx = t_span * np.linalg.norm(vr, axis=1) / r0_rx
+    if max(float(y_tx.max()), float(y_rx.max())) > _Y_MAX:
+        return None
+    # |d Phi / d tau| <= 2 pi (|fc| + |S| (N/2 / fs + tau)): the tail of the delay moves
+    # the phase by at most that times the tail.
+    tau_max = float((r0_tx + r0_rx).max()) * 2.0 / SPEED_OF_LIGHT
+    f_top = abs(geo.fc) + abs(geo.slope) * ((n_samp // 2) / geo.fs + tau_max)
+    phase_per_m = _TWO_PI * f_top / SPEED_OF_LIGHT
+    order = 1
+    while True:
+        tail = float(np.max(_leg_tail(r0_tx, y_tx, order) + _leg_tail(r0_rx, y_rx, order)))
+        if phase_per_m * tail <= eps / 16 or order >= _MAX_ORDER:
+            break
+        order += 1
+    if phase_per_m * tail > eps / 16:
+        return None
+    r_tx, _ = _leg_series(d_tx, v, order)
+    r_rx, _ = _leg_series(d_rx, vr, order)
+    tau = (r_tx + r_rx) * (1.0 / SPEED_OF_LIGHT)
+    # Degrees of tau^2 above the order are dropped: at most pi S (sum_{k>=1} |tau_k| T^k)^2.
+    span = t_span ** np.arange(order + 1)
+    dmax = float(np.max(np.abs(tau[1:]).T @ span[1:]))
+    if math.pi * abs(geo.slope) * dmax**2 > eps / 16:
+        return None
+    coeffs = _monomial_coeffs(tau, geo, a_step)
+    mu_s, nu_s = max(mu_half, 1), n_samp // 2
+    phi0 = _reduce(coeffs.pop((0, 0)))
+    w = _reduce(coeffs.pop((1, 0)))
+    x = _reduce(coeffs.pop((0, 1)))
+    common: dict = {}
+    resid: dict = {}
+    bounds: dict = {}
+    for (i, j), c in coeffs.items():
+        if i > 0 and mu_half == 0:
+            continue  # a single chirp: mu = 0
+        c = c * (float(mu_s) ** i * float(nu_s) ** j)
+        mid = 0.5 * (float(c.max()) + float(c.min()))
+        common[(i, j)] = mid
+        r = c - mid
+        resid[(i, j)] = r
+        bounds[(i, j)] = float(np.max(np.abs(r)))
+    # Drop the per-scatterer rest of the smallest monomials within eps / 8.
+    dropped = 0.0
+    for key, b in sorted(bounds.items(), key=lambda kv: kv[1]):
+        if dropped + b <= eps / 16:
+            dropped += b
+            del resid[key]
+    bounds = {k: bounds[k] for k in resid}
+    pmax = float(np.max(sum((np.abs(r) for r in resid.values()), np.zeros(len(p))))) if resid else 0.0
+    exp_order = _taylor_order(pmax, _SERIES_TOL * eps)
+    keep, _ = _exp_series_2d(bounds, exp_order, _SERIES_TOL * eps)
+    return _Block2D(chirps, mu_s, nu_s, phi0, w, x, common, resid, keep, exp_order)
+
+
+def _run_block(blk: _Block2D, wt: np.ndarray, geo: Geometry, eps: float) -> np.ndarray:
+    """(J, N) IF rows of one planned block (weights ``wt`` (m,))."""
+    n_samp = geo.n_samp
+    jb = len(blk.chirps)
+    strength = np.empty(len(wt), dtype=complex)
+    ph32 = blk.phi0.astype(np.float32)
+    strength.real = np.cos(ph32)
+    strength.imag = np.sin(ph32)
+    strength *= wt
+    # exp(j R) as a polynomial in (U, V), only the kept monomials.
+    series = {(0, 0): np.ones(len(wt), dtype=complex)}
+    term = dict(series)
+    r_poly = {k: 1j * r for k, r in blk.resid.items()}
+    # R's monomials have non-negative degrees, so a term only feeds monomials
+    # at least as large in both: the others are never formed.
+    needed = {(i, j) for i in range(max(k[0] for k in blk.keep) + 1)
+              for j in range(max(k[1] for k in blk.keep) + 1)
+              if any(i <= ki and j <= kj for ki, kj in blk.keep)}
+    for k in range(1, blk.order + 1):
+        term = _poly_mul(term, r_poly, needed)
+        for key in term:
+            term[key] *= 1.0 / k
+        for key, c in term.items():
+            if key in blk.keep:
+                series[key] = series[key] + c if key in series else c.copy()
+    keys = sorted(series)
+    strengths = np.empty((len(keys), len(wt)), dtype=complex)
+    for d, key in enumerate(keys):
+        np.multiply(series[key], strength, out=strengths[d])
+    plan = finufft.Plan(1, (jb, n_samp), n_trans=len(keys), eps=eps, isign=1, nthreads=1,
+                        modeord=0)
+    plan.setpts(blk.w, blk.x)
+    out = plan.execute(strengths)  # (D, J, N)
+    uu = (np.arange(jb) - jb // 2) / blk.mu_scale
+    vv = (np.arange(n_samp) - n_samp // 2) / blk.nu_scale
+    rows = np.zeros((jb, n_samp), dtype=complex)
+    for d, (i, j) in enumerate(keys):
+        rows += out[d] * np.outer(uu**i, vv**j)
+    common = np.zeros((jb, n_samp))
+    for (i, j), c in blk.common.items():
+        if c != 0.0:
+            common += c * np.outer(uu**i, vv**j)
+    rows *= np.exp(1j * common)
+    return rows
+
+
+def _tx_period(tx_of: np.ndarray) -> int:
+    """Smallest L with tx_of[m] == tx_of[m % L] for every chirp (1 for a single transmitter)."""
+    n = len(tx_of)
+    for period in range(1, n + 1):
+        if np.array_equal(tx_of[period:], tx_of[:n - period]):
+            return period
+    return n
+
+
+# Cost model of the two mover paths [ns], measured on one core (16k movers,
+# 512 samples, eps = 1e-6): the per-chirp path spends ~90 ns per (receiver,
+# chirp, mover) on its phase terms and strengths plus ~70 ns per strength
+# vector in its 1-D NUFFT (counted here with one vector, its least); the 2-D
+# path ~400 ns per (block, receiver, mover) on its expansion, ~130 ns per
+# strength vector and mover in the 2-D NUFFT (kernel width ~7 x 7) and ~5 ns
+# per fine-grid point and vector in the FFT and the monomial sums.
+_NS_1D_TERMS, _NS_1D_VECTOR = 90.0, 70.0
+_NS_2D_PLAN, _NS_2D_VECTOR, _NS_2D_GRID = 400.0, 130.0, 5.0
+
+
+def moving_chunk_2d(p, v, pr, vr, w, geo: Geometry, chirp_centre: np.ndarray,
+                    eps: float, force: bool = False) -> np.ndarray | None:
+    """(n_rx, M, N) cube of moving scatterers by 2-D NUFFTs, or None if the per-chirp path
+    (:func:`moving_chunk`) is estimated cheaper or the expansion does not apply.
+
+    Chirps are grouped by their position in the transmit sequence (evenly spaced
+    in time, one transmitter each) and each group is cut into 1, 2, 4, ... blocks
+    of consecutive chirps: fewer blocks mean less per-scatterer work and fewer
+    transforms, more blocks a smaller slow-time span and so shorter series. The
+    first split whose operation count beats the per-chirp path's (counted with a
+    single strength vector per chirp, its least) is used; ``force``: the first
+    split that applies, whatever its cost (for tests).
+    """
+    pr = p if pr is None else pr
+    vr = v if vr is None else vr
+    n_rx, n_chirps, n_samp = len(geo.rx), len(chirp_centre), geo.n_samp
+    m = len(p)
+    one_d = math.inf if force else n_rx * n_chirps * m * (_NS_1D_TERMS + _NS_1D_VECTOR)
+    period = _tx_period(geo.tx_of)
+    groups = [np.arange(q, n_chirps, period) for q in range(min(period, n_chirps))]
+    longest = max(len(g) for g in groups)
+    splits = 1
+    while True:
+        blocks = []
+        cost = 0.0
+        for g in groups:
+            for part in np.array_split(g, min(splits, len(g))):
+                t_mid = float(chirp_centre[part[len(part) // 2]])
+                a_step = float(chirp_centre[part[1]] - chirp_centre[part[0]]) if len(part) > 1 else 0.0
+                tx = geo.tx_per_chirp[part[0]]
+                for a in range(n_rx):
+                    blk = _plan_block(p, v, pr, vr, tx, geo.rx[a], part, t_mid, a_step, geo, eps)
+                    if blk is None:
+                        cost = math.inf
+                        break
+                    d = blk.n_trans
+                    cost += m * (_NS_2D_PLAN + d * _NS_2D_VECTOR) + d * _NS_2D_GRID * 5 * len(part) * n_samp
+                    blocks.append((a, blk))
+                if cost == math.inf:
+                    break
+            if cost == math.inf or cost > one_d:
+                break
+        if cost < math.inf and cost <= one_d:
+            break
+        splits *= 2
+        if longest // splits < 2:
+            return None
+    cube = np.zeros((n_rx, n_chirps, n_samp), dtype=complex)
+    for a, blk in blocks:
+        cube[a, blk.chirps] += _run_block(blk, w, geo, eps)
+    return cube

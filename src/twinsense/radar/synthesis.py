@@ -55,7 +55,14 @@ import numpy as np
 
 from twinsense.constants import SPEED_OF_LIGHT
 from twinsense.radar.config import RadarConfig
-from twinsense.radar.nufft import CHUNK, Geometry, moving_bounds, moving_chunk, static_chunk
+from twinsense.radar.nufft import (
+    CHUNK,
+    Geometry,
+    moving_bounds,
+    moving_chunk,
+    moving_chunk_2d,
+    static_chunk,
+)
 from twinsense.render.parallel import map_ordered
 
 _TWO_PI = 2.0 * math.pi
@@ -235,8 +242,11 @@ def synthesize(points: np.ndarray, velocities: np.ndarray | None, weights: np.nd
         kind, lo, hi = task
         if kind == "static":
             return static_chunk(p[lo:hi], pr[lo:hi], w_static[lo:hi], geo, eps)
-        return moving_chunk(pm[lo:hi], vm[lo:hi], None if prm is None else prm[lo:hi],
-                             None if vrm is None else vrm[lo:hi], wm[lo:hi], geo, centres, eps)
+        args = (pm[lo:hi], vm[lo:hi], None if prm is None else prm[lo:hi],
+                None if vrm is None else vrm[lo:hi], wm[lo:hi], geo, centres, eps)
+        # The 2-D path when its operation count is lower, else one NUFFT per chirp.
+        part = moving_chunk_2d(*args)
+        return moving_chunk(*args) if part is None else part
 
     static_rows = None
     for (kind, _, _), part in zip(tasks, map_ordered(run, tasks, workers)):
