@@ -56,7 +56,7 @@ def test_demo_writes_its_outputs(tmp_path):
 
 def test_spectrogram_torso_line_follows_the_true_radial_speed():
     # The demo's own cell and radar: 20 frames/s while the person walks away from the side wall
-    # (0.45-0.95 s). Per frame, the strongest moving Doppler bin over the
+    # (0.45-0.95 s, thorax at 0.9-1.8 m/s radial). Per frame, the strongest moving Doppler bin over the
     # person's range bins (the torso, the largest reflector) lies within one Doppler bin (lambda / (2 N
     # T_rep) = 0.41 m/s at 64 chirps of 100 us) of the thorax's true radial velocity (see below).
     scene = build_arm_cell_scene()
@@ -70,9 +70,6 @@ def test_spectrogram_torso_line_follows_the_true_radial_speed():
     assert bin_width == pytest.approx(wavelength / (2 * 64 * 1e-4), rel=1e-9, abs=0)
     line = torso_line(vel, power)
     assert truth.min() > 2 * bin_width  # walking away (0.9-1.8 m/s), clear of the zero bin
-    err = np.abs(line - truth)
-    # Measured: 10 of 11 frames within one bin, the worst 1.18 bins (the thorax origin is not the trunk's
-    # reflectivity centre, and the trunk sways within a frame). Required: all but one frame within one
-    # bin, none beyond 1.5 bins.
-    assert np.count_nonzero(err <= bin_width) >= len(err) - 1
-    assert err.max() < 1.5 * bin_width
+    # Measured: at most 0.40 bins off (thorax 0.92-1.75 m/s); the peak bin alone quantises by up to half
+    # a bin, and the trunk's reflection centre sways about the thorax origin within a frame.
+    np.testing.assert_array_less(np.abs(line - truth), bin_width)
