@@ -458,6 +458,7 @@ class WalkCycle:
         self._height = None
         self._warp = None
         self._cache = {}
+        self._memo = {}
         self.swing_lift = 0.0
         self._shift = 0.0
         if self.body == "smooth":
@@ -572,10 +573,20 @@ class WalkCycle:
         phase = np.asarray(phase, float)
         if self._warp is None:
             return phase, np.ones_like(phase)
+        # A person asks for one time at a time, once per leg curve: the last scalar phases are kept
+        # (a dict replaced whole when full, so threads never see a half-written entry).
+        key = float(phase) if phase.ndim == 0 else None
+        if key is not None and key in self._memo:
+            return self._memo[key]
         n = np.floor(phase)
         f = phase - n
         spline, deriv = self._warp
-        return n + spline(f), deriv(f)
+        out = (n + spline(f), deriv(f))
+        if key is not None:
+            memo = self._memo if len(self._memo) < 16 else {}
+            memo[key] = out
+            self._memo = memo
+        return out
 
     # --------------------------------------------------------------- smooth body
     def _init_smooth(self) -> None:
@@ -725,19 +736,24 @@ class WalkCycle:
         left toe; x forward and z up [m], in the walking direction's frame
         (without the pelvis list); xd, zd their time derivatives [m/s].
         """
+        return self._sole_points(t, hip_scale, lift)[:4]
+
+    def _sole_points(self, t, hip_scale=None, lift=None):
+        """:meth:`sole_points` plus the model phases psi of the right and left leg."""
         k = self.hip_scale if hip_scale is None else hip_scale
         b = self.swing_lift if lift is None else lift
         hw = self.leg.hip_half_width
         Dc = self.timing.cycle_duration
         t = np.atleast_1d(np.asarray(t, float))
         yaw, yawd = self.gait.curve("pelvis_torsion", t)
-        out = []
+        out, psis = [], []
         for off, s in _SIDES:
             psi, wd = self.warp(t / Dc + off)
             x, z, xd, zd = self._leg(psi, k, b)
             rate = wd / Dc
             out.append((x - s * hw * np.sin(yaw), z, xd * rate - s * hw * np.cos(yaw) * yawd, zd * rate))
-        return tuple(np.concatenate([r[i] for r in out]) for i in range(4))
+            psis.append(psi)
+        return (*(np.concatenate([r[i] for r in out]) for i in range(4)), *psis)
 
     def _contact_pieces(self, k):
         """Where the right foot's touching point rolls between heel and toe in its stance.
@@ -811,9 +827,9 @@ class WalkCycle:
             return np.stack([px, -ly, pz], axis=1), np.stack([pxd, -lyd, pzd], axis=1)
         n = np.floor(t / Dc)
         f = t / Dc - n
-        x, z, xd, zd = self.sole_points(t)
-        rpsi = self.warp(f)[0]
-        lpsi = self.warp(np.mod(f - 0.5, 1.0))[0]
+        # The legs' model phases (mod 1: the contact pieces span one stance).
+        x, z, xd, zd, rpsi, lpsi = self._sole_points(t)
+        rpsi, lpsi = np.mod(rpsi, 1.0), np.mod(lpsi, 1.0)
         rc, rz, rcd, rzd = self._contact(x, z, xd, zd, (0, 1), rpsi, self._pieces)
         lc, lz, lcd, lzd = self._contact(x, z, xd, zd, (2, 3), lpsi, self._pieces)
         # World x of each foot's first contact: right lands at n strides,
