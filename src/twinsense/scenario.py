@@ -259,7 +259,7 @@ class RobotSpec(_Model):
     base: PoseSpec = PoseSpec()
     joints: dict[str, Any] | None = None  # see twinsense.robots.spec.joint_motion_from_dict
     materials: dict[str, str] = {}
-    shapes: Literal["visual", "collision"] = "visual"  # the link meshes: URDF visuals / MJCF display geoms, or collision
+    shapes: Literal["visual", "collision"] = "visual"  # link meshes: visuals (MJCF display geoms) or collision
 
 
 class PersonWalkSpec(_Model):
@@ -365,14 +365,6 @@ class ScenarioSpec(_Model):
             what = info.field_name.rstrip("s")
             raise ValueError(f"{what} names must be unique; repeated: {', '.join(dup)}")
         return v
-
-    @model_validator(mode="after")
-    def _bodies_apart(self):
-        # A robot's and a person's links are both "name/link": one name for both would mix two bodies.
-        both = sorted({r.name for r in self.robots} & {p.name for p in self.people})
-        if both:
-            raise ValueError(f"robot and person names must differ; used by both: {', '.join(both)}")
-        return self
 
 
 @dataclass
@@ -626,7 +618,11 @@ def _add_people(spec: ScenarioSpec, scene: Scene) -> list:
     from twinsense.scene import human as Hu
 
     problems = []
+    robots = {r.name for r in spec.robots}
     for i, ps in enumerate(spec.people):
+        if ps.name in robots:  # a robot's and a person's links are both "name/link": they would mix
+            problems.append((f"people[{i}].name", ps.name, "a name no robot of this scenario uses"))
+            continue
         try:
             walk = turn = reach = None
             if ps.walk is not None:
