@@ -15,6 +15,7 @@ from twinsense.demos.robot_cell import (
     run_robot_cell_demo,
     torso_line,
 )
+from twinsense.errors import ConfigError
 from twinsense.io.recording import open_recording
 from twinsense.scenario import load_scenario
 
@@ -73,3 +74,9 @@ def test_spectrogram_torso_line_follows_the_true_radial_speed():
     # Measured: at most 0.40 bins off (thorax 0.92-1.75 m/s); the peak bin alone quantises by up to half
     # a bin, and the trunk's reflection centre sways about the thorax origin within a frame.
     np.testing.assert_array_less(np.abs(line - truth), bin_width)
+
+
+def test_bad_duration_names_the_field_and_writes_nothing(tmp_path):
+    with pytest.raises(ConfigError, match="duration = -1.0"):
+        run_robot_cell_demo(tmp_path / "out", duration=-1.0)
+    assert not (tmp_path / "out").exists()

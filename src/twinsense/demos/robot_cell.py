@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
+from twinsense import validation as V
 from twinsense.errors import ConfigError
 from twinsense.plotting import pyplot, save_figure
 from twinsense.presets import make_sensor
@@ -238,6 +239,7 @@ def run_robot_cell_demo(out_dir, duration: float = CYCLE, progress: bool = False
     with the thorax's true radial speed), ``separation.png`` and
     ``robot_cell.h5`` (every sensor's frames). ``fast``: see :func:`build_arm_cell_sensors`.
     """
+    V.positive("duration", duration, "s")  # before the cell is built or any file written
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     scene, sensors = build_arm_cell(tof_rate=tof_rate, radar_rate=radar_rate, skin_rate=skin_rate, fast=fast)
