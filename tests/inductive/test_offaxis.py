@@ -64,3 +64,11 @@ def test_scene_model_against_the_reference_off_axis_and_tilted(field):
     # the model's half disc (the currents must close inside the plate): the model overstates it x4-5.
     over = abs(cases[("aluminium-like", 1.0, 0.0)].model) / abs(cases[("aluminium-like", 1.0, 0.0)].reference)
     assert 3.5 < over < 6.0, over
+
+
+def test_a_plate_reaching_behind_the_face_is_refused(field):
+    from twinsense.errors import ConfigError
+    from twinsense.inductive.thin_sheet import plate_delta_z
+
+    with pytest.raises(ConfigError, match="plate"):
+        plate_delta_z(field, (0.0, 0.0, 1e-3), 0.5, 0.018, 1e-6, 0.0, 100.0, cells=4)

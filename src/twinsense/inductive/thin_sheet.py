@@ -48,6 +48,7 @@ import numpy as np
 from scipy.interpolate import RectBivariateSpline
 
 from twinsense.constants import MU0
+from twinsense.errors import ConfigError
 from twinsense.inductive.fem import Coil, Region, _p1_matrices, build_grid
 
 
@@ -170,7 +171,8 @@ def plate_delta_z(field: HeadField, centre, tilt: float, side: float, thickness:
     shape = q[0].shape
     pts = c + q[0].reshape(-1, 1) * u_ax + q[1].reshape(-1, 1) * v_ax
     if np.any(pts[:, 2] <= 0):
-        raise ValueError("the plate reaches behind the sensing face")
+        raise ConfigError("plate", f"centre {tuple(c)} m, tilt {np.rad2deg(tilt):g} deg, side {side} m",
+                          "a plate wholly in front of the sensing face (z > 0)")
     A, B = field.at(pts)
     a_u, a_v = (A @ u_ax).reshape(shape), (A @ v_ax).reshape(shape)
     dx = basis.dx  # (elements, quadrature points) weights [m^2]
