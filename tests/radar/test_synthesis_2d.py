@@ -1,0 +1,221 @@
+"""Movers on the 2-D (slow time x fast time) NUFFT path against the exact IF sum."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from twinsense.radar import (
+    AntennaArray,
+    ChirpConfig,
+    IFChain,
+    RadarConfig,
+    synthesize,
+    synthesize_exact,
+    ula_positions,
+)
+from twinsense.radar.nufft import (
+    Geometry,
+    _exp_series_2d,
+    _leg_series,
+    _leg_tail,
+    _plan_block,
+    _tx_period,
+    moving_chunk,
+    moving_chunk_2d,
+)
+
+# Requirement, as for the per-chirp path (tests/radar/test_synthesis.py): relative
+# error of the whole cube <= 1e-5. At eps = 1e-6 the 2-D NUFFTs are accurate to
+# ~eps of the summed strengths and the expansion (delay truncation, dropped
+# monomials, exp-series order and skipped terms) to eps of every scatterer's
+# amplitude at every sample, so ~2e-6 at most: a 5x margin.
+REL = 1e-5
+
+
+def _config(num_chirps=16, num_samples=128, tx=None, seq=None, n_rx=2, complex_if=True):
+    chirp = ChirpConfig.from_frequencies(58e9, 62e9, 2e6, num_samples, num_chirps, 150e-6, 0.05)
+    tx = np.array([[-0.01, 0.0, 0.0]]) if tx is None else tx
+    return RadarConfig(chirp, AntennaArray(tx, ula_positions(n_rx, 2.5e-3), tx_sequence=seq),
+                       IFChain(complex_if=complex_if))
+
+
+def _geometry(cfg):
+    c = cfg.chirp
+    centres = c.chirp_times() + c.adc_start_time + (c.num_samples // 2) / c.sample_rate
+    return Geometry(cfg, c.num_chirps), centres
+
+
+def _rel(a, b):
+    return np.linalg.norm(a - b) / np.linalg.norm(b)
+
+
+def _weights(rng, n):
+    return rng.lognormal(0, 1, n) * np.exp(1j * rng.uniform(0, 2 * np.pi, n))
+
+
+def _wrist_scene(rng, n=300):
+    """A small static scene seen from a radar that translates and turns (a robot wrist):
+    in the sensor frame every point moves with v = -(v_s + omega x p)."""
+    p = rng.uniform([-0.4, -0.3, 0.25], [0.4, 0.3, 1.2], (n, 3))
+    v_s = np.array([0.4, -0.2, 0.6])   # m/s
+    omega = np.array([0.8, 1.5, -0.6])  # rad/s
+    v = -(v_s + np.cross(omega, p))
+    return p, v, _weights(rng, n)
+
+
+def _two_d(p, v, w, cfg, pr=None, vr=None, force=True):
+    geo, centres = _geometry(cfg)
+    return moving_chunk_2d(p, v, pr, vr, w, geo, centres, 1e-6, force=force)
+
+
+def test_moving_radar_in_a_static_scene_matches_exact():
+    cfg = _config()
+    rng = np.random.default_rng(11)
+    p, v, w = _wrist_scene(rng, 200)
+    exact = synthesize_exact(p, v, w, cfg)
+    cube = _two_d(p, v, w, cfg)
+    assert cube is not None
+    assert _rel(cube, exact) <= REL
+    # Through the public entry, real IF (either path, the same contract).
+    real = _config(complex_if=False)
+    assert _rel(synthesize(p, v, w, real), synthesize_exact(p, v, w, real)) <= REL
+
+
+def test_movers_with_a_spread_of_range_rates_match_exact():
+    # Range rates from -5 to +5 m/s over 0.3-4 m: a large range migration
+    # (mu nu) and slow-time curvature rest per scatterer.
+    cfg = _config(num_chirps=24)
+    rng = np.random.default_rng(5)
+    n = 250
+    p = rng.uniform([-1.5, -1.0, 0.3], [1.5, 1.0, 4.0], (n, 3))
+    v = rng.uniform(-5.0, 5.0, (n, 3))
+    w = _weights(rng, n)
+    cube = _two_d(p, v, w, cfg)
+    assert cube is not None
+    assert _rel(cube, synthesize_exact(p, v, w, cfg)) <= REL
+
+
+def test_fast_close_rotating_targets_split_the_chirps_and_match_exact():
+    # A propeller 0.2 m away turning at 250 rad/s (~2400 rpm, tips at up to 25 m/s
+    # across the line of sight): the range curvature |v|^2 / r over the frame
+    # is too large for one block, so the chirps are split into shorter blocks.
+    cfg = _config(num_chirps=32)
+    rng = np.random.default_rng(2)
+    n = 120
+    ang = rng.uniform(0, 2 * np.pi, n)
+    rad = rng.uniform(0.02, 0.1, n)
+    p = np.column_stack([rad * np.cos(ang), rad * np.sin(ang), np.full(n, 0.2)])
+    omega = np.array([0.0, 0.0, 250.0])
+    v = np.cross(omega, p) + np.array([0.0, 0.0, -0.5])
+    w = _weights(rng, n)
+    geo, centres = _geometry(cfg)
+    whole = np.arange(cfg.chirp.num_chirps)
+    t_mid = float(centres[len(whole) // 2])
+    step = float(centres[1] - centres[0])
+    assert _plan_block(p, v, p, v, geo.tx_per_chirp[0], geo.rx[0], whole, t_mid, step, geo,
+                       1e-6) is None
+    cube = _two_d(p, v, w, cfg)
+    assert cube is not None
+    assert _rel(cube, synthesize_exact(p, v, w, cfg)) <= REL
+
+
+def test_tdm_mimo_groups_match_exact():
+    # 3 Tx in the sequence (0, 2, 1): each sequence position is its own evenly
+    # spaced group of chirps with its own transmitter.
+    tx = np.array([[0.0, 0.0, 0.0], [0.005, -0.0025, 0.0], [0.01, 0.0, 0.0]])
+    cfg = _config(num_chirps=24, tx=tx, seq=(0, 2, 1), n_rx=4)
+    assert _tx_period(cfg.antennas.chirp_tx(24)) == 3
+    rng = np.random.default_rng(8)
+    p, v, w = _wrist_scene(rng, 200)
+    assert _rel(_two_d(p, v, w, cfg), synthesize_exact(p, v, w, cfg)) <= REL
+
+
+def test_bistatic_paths_match_exact():
+    # Multipath: the receive leg closes at a mirror image with its own velocity.
+    cfg = _config()
+    rng = np.random.default_rng(4)
+    p, v, w = _wrist_scene(rng, 200)
+    pr = p * np.array([1.0, -1.0, 1.0]) + np.array([0.0, 0.6, 0.0])
+    vr = v * np.array([1.0, -1.0, 1.0])
+    exact = synthesize_exact(p, v, w, cfg, points_rx=pr, velocities_rx=vr)
+    assert _rel(_two_d(p, v, w, cfg, pr, vr), exact) <= REL
+
+
+def test_cost_model_picks_2d_for_many_chirps_and_per_chirp_for_few_movers():
+    # Many movers and 64 chirps: the 2-D path's count is lower, and its cube is
+    # the per-chirp path's within both paths' accuracy (2 x 2e-6).
+    cfg = _config(num_chirps=64, num_samples=64)
+    rng = np.random.default_rng(9)
+    p, v, w = _wrist_scene(rng, 6000)
+    geo, centres = _geometry(cfg)
+    auto = moving_chunk_2d(p, v, None, None, w, geo, centres, 1e-6)
+    assert auto is not None
+    assert _rel(auto, moving_chunk(p, v, None, None, w, geo, centres, 1e-6)) <= REL
+    # A few movers: the 2-D grid's transforms outweigh them.
+    assert moving_chunk_2d(p[:20], v[:20], None, None, w[:20], geo, centres, 1e-6) is None
+
+
+def test_leg_series_and_its_tail_bound():
+    # Against the distance itself: |d + v t| - sum_k<=K r_k t^k within the
+    # closed-form tail bound (plus 1e-15 m of rounding) for |t| <= T.
+    rng = np.random.default_rng(0)
+    d = rng.uniform(-1, 1, (50, 3)) + np.array([0.0, 0.0, 1.5])
+    vel = rng.uniform(-3, 3, (50, 3))
+    r0 = np.linalg.norm(d, axis=1)
+    t_max = 0.3 * np.min(r0 / np.linalg.norm(vel, axis=1))
+    for order in (1, 3, 6):
+        r, _ = _leg_series(d, vel, order)
+        tail = _leg_tail(r0, t_max * np.linalg.norm(vel, axis=1) / r0, order)
+        for t in np.linspace(-t_max, t_max, 9):
+            true = np.linalg.norm(d + vel * t, axis=1)
+            series = sum(r[k] * t**k for k in range(order + 1))
+            assert np.all(np.abs(true - series) <= tail + 1e-15)
+    # First derivatives in closed form: r1 = d.v / r0.
+    r, _ = _leg_series(d, vel, 2)
+    assert np.allclose(r[1], np.einsum("ij,ij->i", d, vel) / r0, rtol=1e-14, atol=0.0)
+
+
+def test_exp_series_2d_skips_within_its_tolerance():
+    # exp(j R) on a grid of |U|, |V| <= 1 against the kept series: the error is
+    # at most the order's remainder plus the skipped majorants.
+    rng = np.random.default_rng(1)
+    bounds = {(1, 1): 0.02, (2, 0): 0.005, (0, 2): 1e-3, (0, 3): 1e-6}
+    coef = {k: b * rng.uniform(-1, 1, 40) for k, b in bounds.items()}
+    order, tol = 3, 1e-7
+    keep, skipped = _exp_series_2d(bounds, order, tol)
+    assert skipped <= tol and len(keep) < 20
+    uu, vv = np.meshgrid(np.linspace(-1, 1, 7), np.linspace(-1, 1, 7))
+    for i in range(40):
+        r = sum(c[i] * uu**a * vv**b for (a, b), c in coef.items())
+        series = np.zeros_like(uu, dtype=complex)
+        term = {(0, 0): 1.0 + 0j}
+        total = dict(term)
+        for k in range(1, order + 1):
+            new = {}
+            for (a1, b1), c1 in term.items():
+                for (a2, b2), c2 in coef.items():
+                    key = (a1 + a2, b1 + b2)
+                    new[key] = new.get(key, 0) + c1 * 1j * c2[i] / k
+            term = new
+            for key, c in term.items():
+                total[key] = total.get(key, 0) + c
+        for (a, b), c in total.items():
+            if (a, b) in keep:
+                series += c * uu**a * vv**b
+        pmax = sum(bounds.values())
+        remainder = pmax ** (order + 1) / math.factorial(order + 1) * math.exp(pmax)
+        assert np.max(np.abs(np.exp(1j * r) - series)) <= remainder + skipped + 1e-15
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_synthesize_with_the_2d_path_does_not_depend_on_workers(workers):
+    cfg = _config(num_chirps=32, num_samples=64)
+    rng = np.random.default_rng(3)
+    p, v, w = _wrist_scene(rng, 3000)
+    # Two chunks of 1500 movers; the 2-D path is the cheaper one for them.
+    assert _two_d(p[:1500], v[:1500], w[:1500], cfg, force=False) is not None
+    ref = synthesize(p, v, w, cfg, workers=1)
+    assert np.array_equal(synthesize(p, v, w, cfg, workers=workers), ref)
