@@ -22,7 +22,7 @@ timing, with one right-hand side.
 The electrical part of the tactile frame (electrostatics on the deformed
 stack) is timed by ``electrical_section`` when present.
 
-Run:  .venv/bin/python benchmarks/bench_tactile.py
+Run:  .venv/bin/python benchmarks/bench_tactile.py [--electrical]   (--electrical: whole frames only)
 """
 
 from __future__ import annotations
@@ -100,13 +100,18 @@ def electrical_section() -> None:
     stack = skin.stack
     top = lay.total_thickness
 
+    # One geometry per finger, shared by every frame's scene as in a run (a
+    # new Sphere per frame would re-tessellate it for its bounds, ~16 ms a
+    # frame under load, which is the scene's cost, not the skin's).
+    index_tip, thumb_tip = Sphere(9e-3), Sphere(9e-3)
+
     def scene(k: int) -> Scene:
         # Two grounded fingertips (R = 9 mm) pressing 0.10-0.15 mm, moving 0.1 mm per frame.
         sc = Scene()
         dx = 0.1e-3 * (k % 20)
         d1 = 0.10e-3 + 0.05e-3 * (k % 2)
-        sc.add_object("index", Sphere(9e-3), "human_skin", pose=Pose((-6e-3 + dx, -6e-3, top + 9e-3 - d1)))
-        sc.add_object("thumb", Sphere(9e-3), "human_skin", pose=Pose((6e-3 - dx, 6e-3, top + 9e-3 - 0.12e-3)))
+        sc.add_object("index", index_tip, "human_skin", pose=Pose((-6e-3 + dx, -6e-3, top + 9e-3 - d1)))
+        sc.add_object("thumb", thumb_tip, "human_skin", pose=Pose((6e-3 - dx, 6e-3, top + 9e-3 - 0.12e-3)))
         return sc
 
     t0 = time.perf_counter()
@@ -120,6 +125,7 @@ def electrical_section() -> None:
     still = scenes[5]
     skin.capture(still, 0.0)
     s_best, s_med = best_and_median(lambda: skin.capture(still, 0.0), repeats=20)
+    stages = np.median([_frame_stages(skin, scenes[k % 60]) for k in range(20)], axis=0)
     es = skin.electrostatics
     u = confined_compression(es.points0, lay.z_tx, lay.z_rx, top, 0.05)
     toggle = iter(range(10**6))
@@ -137,14 +143,39 @@ def electrical_section() -> None:
           f"  -> {1 / med:5.1f} frames/s")
     print(f"  whole frame, contacts still    {s_best * 1e3:7.1f} ms best {s_med * 1e3:7.1f} ms median"
           f"  -> {1 / s_med:5.1f} frames/s (contact and Maxwell matrix reused)")
+    names = ("contact (objects -> heights -> active set -> node displacement)", "re-assembly of moved cells",
+             "scene objects on the air cells", "Maxwell solve (warm AMG-PCG, 16 columns)")
+    for name, sec in zip(names, stages):
+        print(f"    {name:<66s} {sec * 1e3:7.1f} ms median")
     print(f"  electrostatics only, every soft cell moved {e_best * 1e3:7.1f} ms best {e_med * 1e3:7.1f} ms median")
     anchor = skfem_pyamg_anchor(m.points, m.cells, stack.terminals, stack.ground, stack.permittivity)
     print_anchor("scikit-fem + pyamg cold solve, same mesh", anchor, med)
 
 
+def _frame_stages(skin, scene) -> list[float]:
+    """Seconds of the stages of one moving frame, in the order :meth:`TactileSensor.solve_at` runs them."""
+    from twinsense.capacitive.coupling import inclusions_from_scene
+
+    es = skin.electrostatics
+    pose = skin.mount.pose_at(scene, 0.0)
+    t0 = time.perf_counter()
+    u, _, _ = skin._contact(scene, 0.0, pose)
+    t1 = time.perf_counter()
+    es.set_displacement(u)
+    t2 = time.perf_counter()
+    es.set_objects(inclusions_from_scene(scene, 0.0, skin.kind), skin_to_world=pose)
+    t3 = time.perf_counter()
+    skin._last_result = es.solve()
+    t4 = time.perf_counter()
+    return [t1 - t0, t2 - t1, t3 - t2, t4 - t3]
+
+
 def main() -> None:
+    import sys
+
     print_machine()
-    mechanics_section()
+    if "--electrical" not in sys.argv[1:]:
+        mechanics_section()
     electrical_section()
     print_load_at_end()
 
