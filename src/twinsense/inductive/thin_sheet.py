@@ -167,7 +167,7 @@ def plate_delta_z(field: HeadField, centre, tilt: float, side: float, thickness:
     c = np.asarray(centre, float)
     s = np.linspace(-0.5 * side, 0.5 * side, cells + 1)
     basis = Basis(MeshTri.init_tensor(s, s), ElementTriP1(), intorder=4)
-    q = basis.global_coordinates().value  # (2, elements, quadrature points): plate coordinates (u, v)
+    q = np.asarray(basis.global_coordinates())  # (2, elements, quadrature points): plate coordinates (u, v)
     shape = q[0].shape
     pts = c + q[0].reshape(-1, 1) * u_ax + q[1].reshape(-1, 1) * v_ax
     if np.any(pts[:, 2] <= 0):
