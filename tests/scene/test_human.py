@@ -259,7 +259,7 @@ def test_add_person_puts_links_in_the_scene():
     ({"sway": -0.1}, "person.sway"),
     ({"walk": "fast"}, "person.walk"),
     ({"clothing": 3}, "person.clothing"),
-    ({"clothing": "velvet"}, "material"),
+    ({"clothing": "velvet"}, "person.clothing"),  # an unknown material, named by its field
 ])
 def test_bad_person_inputs(kwargs, field):
     with pytest.raises(ConfigError, match=field.replace(".", r"\.")):
