@@ -38,10 +38,11 @@ import numpy as np
 from scipy.interpolate import CubicHermiteSpline
 
 from twinsense import validation as V
-from twinsense.errors import ConfigError
+from twinsense.errors import ConfigError, UnknownNameError
 from twinsense.scene.articulated import ArticulatedBody, Joint, JointMotion, KinematicTree, Link
 from twinsense.scene.gait import BODY_MODES, GaitTiming, LegGeometry, WalkCycle, smoothstep
 from twinsense.scene.geometry import Box, Capsule
+from twinsense.scene.materials import material_names
 from twinsense.scene.motion import Motion, MotionState, check_time
 from twinsense.scene.pose import Pose
 
@@ -134,6 +135,8 @@ def human_tree(height: float = 1.75, *, clothing: str | None = None, clothing_th
     H = check_height(height)
     if clothing is not None and not isinstance(clothing, str):
         raise ConfigError("person.clothing", clothing, "a material name (e.g. 'fabric') or None")
+    if clothing is not None and clothing not in material_names():
+        raise UnknownNameError("person.clothing", clothing, material_names())
     V.number("person.clothing_thickness", clothing_thickness, lo=0.0005, hi=0.05, unit="m")
     links: list[Link] = []
     joints: list[Joint] = []
