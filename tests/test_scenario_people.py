@@ -30,7 +30,7 @@ def test_people_entry_builds_the_python_api_person():
     ({"walk": {"speed": 1.0}}, "people[0].walk.path"),
     ({"walk": {"speed": 1.0, "heading_deg": 0.0, "body": "float"}}, "people[0].walk.body"),
     ({"reach": {"target": [1, 2]}}, "people[0].reach.target"),
-    ({"clothing": "velvet"}, "people[0].material"),
+    ({"clothing": "velvet"}, "people[0].clothing"),
     ({"position": [1.0]}, "people[0].position"),
     ({"walk": {"speed": 2.9, "heading_deg": 0.0}}, "people[0].walk.speed"),
     ({"name": "a/b"}, "people[0].name"),
