@@ -180,6 +180,8 @@ def _convert(src: Path, dest: Path) -> None:
     from twinsense.io.mcap import convert as to_mcap
     from twinsense.scenario import scenario_from_dict
 
+    if dest.suffix not in (".mcap", ".rrd"):
+        _fail(ValueError(f"out = '{dest}': expected a file name ending in .mcap (ROS 2) or .rrd (Rerun)"))
     if dest.suffix == ".rrd":
         from twinsense.stream.rerun import convert as to_rrd
 
