@@ -48,12 +48,17 @@ def _shape_parts(link, source: str, base_dir: Path, field: str) -> list:
             v, f = read_mesh(path, f"{where}.mesh", link.name, g.mesh.filename)
             scale = np.ones(3) if g.mesh.scale is None else np.broadcast_to(np.asarray(g.mesh.scale, float), (3,))
             parts.append((v * scale, f, origin))
-        elif g.box is not None:
-            parts.append((*primitive_mesh(Box(tuple(float(x) for x in g.box.size))), origin))
-        elif g.cylinder is not None:
-            parts.append((*primitive_mesh(Cylinder(float(g.cylinder.radius), float(g.cylinder.length))), origin))
-        elif g.sphere is not None:
-            parts.append((*primitive_mesh(Sphere(float(g.sphere.radius))), origin))
+        else:
+            try:  # name the link and element of a bad primitive, not only "box.size"
+                if g.box is not None:
+                    parts.append((*primitive_mesh(Box(tuple(float(x) for x in g.box.size))), origin))
+                elif g.cylinder is not None:
+                    parts.append((*primitive_mesh(Cylinder(float(g.cylinder.radius), float(g.cylinder.length))),
+                                  origin))
+                elif g.sphere is not None:
+                    parts.append((*primitive_mesh(Sphere(float(g.sphere.radius))), origin))
+            except ConfigError as e:
+                raise ConfigError(f"{where}.{e.field}", e.value, e.allowed) from None
     return parts
 
 
