@@ -278,6 +278,8 @@ class ExternalImages:
         path = Path(path)
         if not path.is_file() or path.suffix != ".npz":
             raise ConfigError("path", str(path), "an existing .npz file of external images")
+        if not zipfile.is_zipfile(path):  # numpy would read anything else as a pickle and say so
+            raise ConfigError("path", str(path), "an .npz (zip) file of external images, as ExternalImages.save writes")
         try:
             with np.load(path, allow_pickle=False) as z:
                 d = {k: z[k] for k in z.files}
@@ -290,8 +292,8 @@ class ExternalImages:
         t = np.asarray(d.get("t", 0.0))
         try:
             return cls(d["depth"], d["intensity"], tuple(np.ravel(d["intrinsics"]).tolist()),
-                       Pose.from_matrix(d["pose"]), t.item() if t.size == 1 else t.tolist(), str(d.get("depth_kind", "range")),
-                       d.get("normals"), d.get("velocity"), d.get("material_id"))
+                       Pose.from_matrix(d["pose"]), t.item() if t.size == 1 else t.tolist(),
+                       str(d.get("depth_kind", "range")), d.get("normals"), d.get("velocity"), d.get("material_id"))
         except ConfigError as e:  # name the file as well as the array in it
             raise ConfigError(f"{path.name}: {e.field}", e.value, e.allowed) from None
 
@@ -303,6 +305,9 @@ def read_image(path: str | Path) -> np.ndarray:
         raise ConfigError("path", str(path), "an existing .npy or .tif/.tiff file")
     suffix = path.suffix.lower()
     if suffix == ".npy":
+        with open(path, "rb") as fh:
+            if fh.read(6) != b"\x93NUMPY":  # numpy would read anything else as a pickle and say so
+                raise ConfigError("path", str(path), "a .npy file (np.save format)")
         try:
             return np.load(path, allow_pickle=False).astype(np.float64)
         except (OSError, ValueError) as exc:
