@@ -474,7 +474,7 @@ def _exp_series_2d(bounds: dict[tuple[int, int], float], order: int,
     bounds every coefficient; monomials are skipped, smallest first, while
     their majorants add up to at most ``tol`` (|U|, |V| <= 1, so that is the
     most any sample changes relative to a scatterer's amplitude). Returns the
-    kept monomials (with (0, 0)) and the skipped total.
+    kept monomials (with (0, 0)) with their majorants, and the skipped total.
     """
     maj: dict = {(0, 0): 1.0}
     term: dict = {(0, 0): 1.0}
@@ -488,12 +488,12 @@ def _exp_series_2d(bounds: dict[tuple[int, int], float], order: int,
         for key, c in term.items():
             maj[key] = maj.get(key, 0.0) + c
     skipped = 0.0
-    keep = {(0, 0)}
+    keep = {(0, 0): 1.0}
     for key, c in sorted(maj.items(), key=lambda kv: kv[1]):
         if key != (0, 0) and skipped + c <= tol:
             skipped += c
         else:
-            keep.add(key)
+            keep[key] = c
     return keep, skipped
 
 
@@ -617,14 +617,31 @@ def _run_block(blk: _Block2D, wt: np.ndarray, geo: Geometry, eps: float) -> np.n
         for key, c in term.items():
             if key in blk.keep:
                 series[key] = series[key] + c if key in series else c.copy()
-    keys = sorted(series)
-    strengths = np.empty((len(keys), len(wt)), dtype=complex)
-    for d, key in enumerate(keys):
-        np.multiply(series[key], strength, out=strengths[d])
-    plan = finufft.Plan(1, (jb, n_samp), n_trans=len(keys), eps=eps, isign=1, nthreads=1,
-                        modeord=0)
-    plan.setpts(blk.w, blk.x)
-    out = plan.execute(strengths)  # (D, J, N)
+    # Each vector's NUFFT at its own tolerance: vector d has strengths of at
+    # most beta_d |w| (its majorant), so at tolerance eps_d its error is about
+    # eps_d beta_d sum |w|. The constant term (beta = 1) gets eps, the others
+    # eps_d <= eps / (n_others beta_d) in decades up to 1e-2: together at most
+    # eps sum |w| more, the per-chirp path's form (eps times the sum of all
+    # strengths, whose other vectors add beta_d each). Smaller tolerances need
+    # narrower kernels (finufft spreads ~(digits + 1)^2 grid points per point).
+    others = max(len(series) - 1, 1)
+    levels: dict[float, list] = {}
+    for key in sorted(series):
+        tol = eps
+        while key != (0, 0) and tol * 10.0 <= 1e-2 and tol * 10.0 * blk.keep[key] * others <= eps:
+            tol *= 10.0
+        levels.setdefault(tol, []).append(key)
+    keys, outs = [], []
+    for tol, group in sorted(levels.items()):
+        strengths = np.empty((len(group), len(wt)), dtype=complex)
+        for d, key in enumerate(group):
+            np.multiply(series[key], strength, out=strengths[d])
+        plan = finufft.Plan(1, (jb, n_samp), n_trans=len(group), eps=tol, isign=1, nthreads=1,
+                            modeord=0)
+        plan.setpts(blk.w, blk.x)
+        outs.append(plan.execute(strengths).reshape(len(group), jb, n_samp))
+        keys += group
+    out = np.concatenate(outs)  # (D, J, N)
     uu = (np.arange(jb) - jb // 2) / blk.mu_scale
     vv = (np.arange(n_samp) - n_samp // 2) / blk.nu_scale
     rows = np.zeros((jb, n_samp), dtype=complex)
