@@ -17,7 +17,7 @@ from twinsense.demos.robot_cell import (
 )
 from twinsense.errors import ConfigError
 from twinsense.io.recording import open_recording
-from twinsense.scenario import load_scenario
+from twinsense.scenario import ScenarioError, load_scenario
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "robot_cell.yaml"
 
@@ -29,6 +29,8 @@ def test_example_file_describes_the_demo_cell():
     scene, sensors = build_arm_cell()
     a, b = sc.scene.to_dict(), scene.to_dict()
     assert a == b
+    # shapes: collision in the file, as in Python (to_dict does not show which meshes a link has).
+    assert [len(o.geometry.mesh.faces) for o in sc.scene.objects] == [len(o.geometry.mesh.faces) for o in scene.objects]
     for t in (0.0, 1.1, 2.9, 3.4):
         for obj in scene.objects:
             np.testing.assert_array_equal(sc.scene.object(obj.name).pose_at(t).matrix, obj.pose_at(t).matrix)
@@ -80,3 +82,10 @@ def test_bad_duration_names_the_field_and_writes_nothing(tmp_path):
     with pytest.raises(ConfigError, match="duration = -1.0"):
         run_robot_cell_demo(tmp_path / "out", duration=-1.0)
     assert not (tmp_path / "out").exists()
+
+
+def test_unknown_robot_shapes_name_the_field(tmp_path):
+    p = tmp_path / "cell.yaml"
+    p.write_text(EXAMPLE.read_text().replace("shapes: collision", "shapes: hulls"))
+    with pytest.raises(ScenarioError, match=r"robots\[0\]\.shapes.*hulls.*'visual' or 'collision'"):
+        load_scenario(p)
