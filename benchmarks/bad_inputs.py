@@ -524,9 +524,550 @@ def _recording_cases() -> list[Case]:
     ]
 
 
+# --- robots, people, tactile skins, external images, radar replay, streams and point clouds -------------
+
+_URDF = """<?xml version="1.0"?>
+<robot name="arm">
+  <link name="base_link"><visual><geometry><box size="0.2 0.2 0.1"/></geometry></visual></link>
+  <link name="link1"><visual><geometry>{shape}</geometry></visual></link>
+  <joint name="j1" type="revolute">
+    <parent link="base_link"/><child link="link1"/><origin xyz="0 0 0.1"/><axis xyz="0 0 1"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/>
+  </joint>
+</robot>
+"""
+_BOX = '<box size="0.05 0.05 0.3"/>'
+_MJCF = """<mujoco><worldbody><body name="b"><joint name="h" type="hinge"/>{geom}</body></worldbody></mujoco>"""
+
+
+def _urdf(tmp: Path, shape: str = _BOX, name: str = "arm.urdf") -> Path:
+    return _write(name, _URDF.format(shape=shape))(tmp)
+
+
+def _arm(tmp: Path, **kw):
+    from twinsense.robots import load_urdf
+
+    return load_urdf(_urdf(tmp), **kw)
+
+
+def _arm_scene(tmp: Path) -> Scene:
+    scene = Scene()
+    _arm(tmp).add_to(scene)
+    return scene
+
+
+def _tree():
+    from twinsense.scene.articulated import Joint, KinematicTree, Link
+
+    return KinematicTree("t", [Link("a", Box()), Link("b", Box())], [Joint("j", "revolute", "a", "b", Pose(),
+                                                                           (0, 0, 1), -1.0, 1.0)])
+
+
+def _robot_scenario(robot: dict | None = None, sensor_parent: str | None = None, people: list | None = None,
+                    ) -> Callable[[Path], object]:
+    """The example scenario with a ``robots:`` entry (a small URDF written beside it) and/or ``people:``."""
+
+    def call(tmp: Path):
+        _urdf(tmp)
+        d = _base()
+        if robot is not None:
+            d["robots"] = [{"name": "arm", "description": "arm.urdf", **copy.deepcopy(robot)}]
+        if people is not None:
+            d["people"] = copy.deepcopy(people)
+        if sensor_parent is not None:
+            d["sensors"][0]["mount"]["parent"] = sensor_parent
+        return scenario_from_dict(d, source="case.yaml", base_dir=tmp)
+
+    return call
+
+
+def _robot_cases() -> list[Case]:
+    from twinsense.robots import MujocoCosim, load_mjcf, load_robot, load_urdf
+    from twinsense.scene.articulated import (
+        ArticulatedBody,
+        Joint,
+        JointConstantVelocity,
+        JointKeyframes,
+        JointSetpoints,
+        KinematicTree,
+        Link,
+    )
+
+    def cosim(tmp):
+        return MujocoCosim(_write("m.xml", _MJCF.format(geom='<geom type="box" size="0.1 0.1 0.1"/>'))(tmp))
+
+    def setpoints_backwards(tmp):
+        s = JointSetpoints([0.0])
+        s.set(1.0, [0.1])
+        s.set(0.5, [0.2])
+
+    rs = _robot_scenario
+    return [
+        Case("load_robot unknown name", "ur6", lambda tmp: load_robot("ur6")),
+        Case("load_robot not a name", "robot", lambda tmp: load_robot(3)),
+        Case("load_robot unhashable", "robot", lambda tmp: load_robot(["ur5"])),
+        Case("load_urdf missing file", "urdf.path", lambda tmp: load_urdf(tmp / "none.urdf")),
+        Case("load_urdf malformed XML", "urdf.path",
+             lambda tmp: load_urdf(_write("bad.urdf", "<robot name='x'><link name='a'>")(tmp))),
+        Case("load_urdf not XML", "urdf.path", lambda tmp: load_urdf(_write("bin.urdf", bytes(range(256)))(tmp))),
+        Case("load_urdf missing mesh", "missing.stl",
+             lambda tmp: load_urdf(_urdf(tmp, '<mesh filename="missing.stl"/>'))),
+        Case("load_urdf broken mesh", "broken.stl", lambda tmp: (
+            _write("broken.stl", b"\x00garbage")(tmp), load_urdf(_urdf(tmp, '<mesh filename="broken.stl"/>')))),
+        Case("load_urdf package:// mesh", "package://nothing",
+             lambda tmp: load_urdf(_urdf(tmp, '<mesh filename="package://nothing/m.stl"/>'))),
+        Case("load_urdf box NaN size", "links[link1].visual[0].box.size",
+             lambda tmp: load_urdf(_urdf(tmp, '<box size="0.1 nan 0.1"/>'))),
+        Case("load_urdf negative sphere", "links[link1].visual[0].sphere.radius",
+             lambda tmp: load_urdf(_urdf(tmp, '<sphere radius="-1"/>'))),
+        Case("load_urdf joint to unknown link", "nolink", lambda tmp: load_urdf(_write("u.urdf", _URDF.format(
+            shape=_BOX).replace('<child link="link1"/>', '<child link="nolink"/>'))(tmp))),
+        Case("load_urdf lower > upper", "lower", lambda tmp: load_urdf(_write("l.urdf", _URDF.format(
+            shape=_BOX).replace('lower="-1"', 'lower="2"'))(tmp))),
+        Case("load_urdf shapes", "shapes", lambda tmp: _arm(tmp, shapes="both")),
+        Case("load_urdf materials unknown link", "nolink", lambda tmp: _arm(tmp, materials={"nolink": "wood"})),
+        Case("load_urdf materials unknown material", "unobtainium",
+             lambda tmp: _arm(tmp, materials={"link1": "unobtainium"})),
+        Case("load_urdf joints wrong columns", "arm.joints",
+             lambda tmp: _arm(tmp, joints=JointConstantVelocity([0.0, 0.0], [0.0, 0.0]))),
+        Case("load_urdf joints unknown name", "j9",
+             lambda tmp: _arm(tmp, joints=JointConstantVelocity([0.0], [0.0], ["j9"]))),
+        Case("load_urdf keyframes beyond limit", "arm.joints",
+             lambda tmp: _arm(tmp, joints=JointKeyframes([0.0, 1.0], [[0.0], [3.0]]))),
+        Case("load_urdf base not a pose", "arm.base", lambda tmp: _arm(tmp, base=(0, 0, 1))),
+        Case("load_urdf name with slash", "robot.name", lambda tmp: _arm(tmp, name="a/b")),
+        Case("load_mjcf missing file", "mjcf.path", lambda tmp: load_mjcf(tmp / "none.xml")),
+        Case("load_mjcf malformed XML", "mjcf.path",
+             lambda tmp: load_mjcf(_write("bad.xml", "<mujoco><worldbody>")(tmp))),
+        Case("load_mjcf does not compile", "mjcf.path", lambda tmp: load_mjcf(_write("m.xml", _MJCF.format(
+            geom='<geom type="mesh" mesh="nothing"/>'))(tmp))),
+        Case("load_mjcf URDF robot name", "ur5", lambda tmp: load_mjcf("ur5")),
+        Case("load_mjcf geoms", "mjcf.geoms", lambda tmp: load_mjcf(_write("m.xml", _MJCF.format(
+            geom='<geom type="box" size="0.1 0.1 0.1"/>'))(tmp), geoms="some")),
+        Case("load_mjcf not a path", "mjcf", lambda tmp: load_mjcf(3.5)),
+        Case("MujocoCosim missing file", "mjcf.path", lambda tmp: MujocoCosim(tmp / "none.xml")),
+        Case("MujocoCosim control", "cosim.control", lambda tmp: MujocoCosim(_write("m.xml", _MJCF.format(
+            geom='<geom type="box" size="0.1 0.1 0.1"/>'))(tmp), control="pid")),
+        Case("MujocoCosim history", "cosim.history", lambda tmp: MujocoCosim(_write("m.xml", _MJCF.format(
+            geom='<geom type="box" size="0.1 0.1 0.1"/>'))(tmp), history=NAN)),
+        Case("MujocoCosim step_to NaN", "t = nan", lambda tmp: cosim(tmp).step_to(NAN)),
+        Case("MujocoCosim unknown body", "nobody", lambda tmp: cosim(tmp).body_state("nobody", 0.0)),
+        Case("MujocoCosim unknown joint", "nojoint", lambda tmp: cosim(tmp).joint_setpoints({"h": "nojoint"})),
+        Case("Joint kind", "joints[j].kind", lambda tmp: Joint("j", "ball", "a", "b")),
+        Case("Joint axis zero", "joints[j].axis", lambda tmp: Joint("j", "revolute", "a", "b", Pose(), (0, 0, 0))),
+        Case("Joint axis NaN", "joints[j].axis", lambda tmp: Joint("j", "revolute", "a", "b", Pose(), (0, NAN, 1))),
+        Case("Joint lower > upper", "joints[j].lower", lambda tmp: Joint("j", "revolute", "a", "b", Pose(),
+                                                                         (0, 0, 1), 1.0, -1.0)),
+        Case("Joint limit NaN", "joints[j].upper", lambda tmp: Joint("j", "revolute", "a", "b", Pose(),
+                                                                     (0, 0, 1), -1.0, NAN)),
+        Case("Joint parent is child", "joints[j].child", lambda tmp: Joint("j", "revolute", "a", "a")),
+        Case("Joint origin", "joints[j].origin", lambda tmp: Joint("j", "fixed", "a", "b", (0, 0, 0))),
+        Case("Link material", "unobtainium", lambda tmp: Link("a", Box(), "unobtainium")),
+        Case("Link layers", "links[a].layers", lambda tmp: Link("a", Box(), layers=["sonar"])),
+        Case("Link geometry", "links[a].geometry", lambda tmp: Link("a", "box")),
+        Case("KinematicTree unknown child", "joints[j].child", lambda tmp: KinematicTree(
+            "t", [Link("a")], [Joint("j", "fixed", "a", "b")])),
+        Case("KinematicTree two roots", "t.joints", lambda tmp: KinematicTree("t", [Link("a"), Link("b")], [])),
+        Case("KinematicTree duplicate link", "t.links[1].name", lambda tmp: KinematicTree(
+            "t", [Link("a"), Link("a")], [])),
+        Case("KinematicTree cycle", "t.joints", lambda tmp: KinematicTree("t", [Link("r"), Link("a"), Link("b")], [
+            Joint("j1", "fixed", "a", "b"), Joint("j2", "fixed", "b", "a")])),
+        Case("KinematicTree no links", "t.links", lambda tmp: KinematicTree("t", [], [])),
+        Case("KinematicTree unknown link", "nolink", lambda tmp: _tree().link("nolink")),
+        Case("KinematicTree unknown joint", "nojoint", lambda tmp: _tree().joint("nojoint")),
+        Case("KinematicTree forward wrong q", "q", lambda tmp: _tree().forward([0.0, 0.0])),
+        Case("JointKeyframes decreasing", "joints.keyframes.times",
+             lambda tmp: JointKeyframes([1.0, 0.0], [[0.0], [0.0]])),
+        Case("JointKeyframes NaN", "joints.keyframes.values", lambda tmp: JointKeyframes([0.0, 1.0], [[0.0], [NAN]])),
+        Case("JointKeyframes ragged", "joints.keyframes.values",
+             lambda tmp: JointKeyframes([0.0, 1.0], [[0.0], [0.0, 1.0]])),
+        Case("JointKeyframes row count", "joints.keyframes.values",
+             lambda tmp: JointKeyframes([0.0, 1.0, 2.0], [[0.0], [1.0]])),
+        Case("JointConstantVelocity lengths", "joints", lambda tmp: JointConstantVelocity([0.0, 0.0], [0.0])),
+        Case("JointConstantVelocity inf", "joints", lambda tmp: JointConstantVelocity([0.0], [INF])),
+        Case("JointSetpoints empty", "joints.setpoints.q0", lambda tmp: JointSetpoints([])),
+        Case("JointSetpoints set NaN time", "t = nan", lambda tmp: JointSetpoints([0.0]).set(NAN, [0.0])),
+        Case("JointSetpoints set wrong length", "setpoints.q", lambda tmp: JointSetpoints([0.0]).set(0.0, [0.0, 1.0])),
+        Case("JointSetpoints set backwards", "setpoints.t", setpoints_backwards),
+        Case("ArticulatedBody tree", "b.tree", lambda tmp: ArticulatedBody("b", "tree")),
+        Case("ArticulatedBody state NaN", "t = nan", lambda tmp: ArticulatedBody("b", _tree()).state(NAN)),
+        Case("Mount unknown robot link", "arm/link1", lambda tmp: Mount(Pose(), "arm/nolink").state_at(
+            _arm_scene(tmp), 0.0)),
+        Case("scenario robot unknown description", "robots[0].description", rs({"description": "ur6"})),
+        Case("scenario robot missing file", "robots[0].description", rs({"description": "none.urdf"})),
+        Case("scenario robot name with slash", "robots[0].name", rs({"name": "a/b"})),
+        Case("scenario robot shapes", "robots[0].shapes", rs({"shapes": "both"})),
+        Case("scenario robot two joint motions", "robots[0].joints",
+             rs({"joints": {"fixed": [0.0], "setpoints": [0.0]}})),
+        Case("scenario robot keyframes malformed", "robots[0].joints.keyframes",
+             rs({"joints": {"keyframes": {"times": [0, 1]}}})),
+        Case("scenario robot keyframes NaN", "robots[0].joints.keyframes.values",
+             rs({"joints": {"keyframes": {"times": [0, 1], "values": [[0.0], [NAN]]}}})),
+        Case("scenario robot keyframes beyond limit", "robots[0].joints",
+             rs({"joints": {"keyframes": {"times": [0, 1], "values": [[0.0], [3.0]]}}})),
+        Case("scenario robot unknown joint name", "robots[0].joints.joint_names",
+             rs({"joints": {"fixed": {"j9": 0.0}}})),
+        Case("scenario robot fixed text", "robots[0].joints.fixed", rs({"joints": {"fixed": "home"}})),
+        Case("scenario robot materials unknown link", "robots[0].urdf[arm.urdf].materials",
+             rs({"materials": {"nolink": "wood"}})),
+        Case("scenario robot base NaN", "robots[0].base.position", rs({"base": {"position": [0, 0, NAN]}})),
+        Case("scenario mount unknown robot link", "sensors[0].mount.parent", rs({}, "arm/nolink")),
+        Case("scenario mount unknown robot", "sensors[0].mount.parent", rs({}, "nobody/link1")),
+        Case("scenario robot name clashes with person", "people[0].name", rs({}, people=[{"name": "arm"}])),
+    ]
+
+
+def _people_cases() -> list[Case]:
+    from twinsense.scene.human import Reach, Turn, Walk, Walker, add_person, human_tree
+
+    def twice(tmp):
+        s = Scene()
+        add_person(s, "p")
+        add_person(s, "p")
+
+    ps = _robot_scenario
+    return [
+        Case("Walker height 5 m", "person.height", lambda tmp: Walker(height=5.0)),
+        Case("Walker height text", "person.height", lambda tmp: Walker(height="tall")),
+        Case("Walker speed -1", "walk.speed", lambda tmp: Walker(speed=-1.0)),
+        Case("Walker speed NaN", "walk.speed", lambda tmp: Walker(speed=NAN)),
+        Case("Walker path one point", "walk.path", lambda tmp: Walker(path=[[0.0, 0.0]])),
+        Case("Walker path NaN", "walk.path", lambda tmp: Walker(path=[[0.0, 0.0], [1.0, NAN]])),
+        Case("Walker path text", "walk.path", lambda tmp: Walker(path="kitchen")),
+        Case("Walker start 3 numbers", "position", lambda tmp: Walker(start=(0.0, 0.0, 0.0, 1.0))),
+        Case("Walker start_time inf", "walk.start_time", lambda tmp: Walker(start_time=INF)),
+        Case("Walk neither path nor heading", "walk.path", lambda tmp: Walk(heading_deg=None)),
+        Case("Walk body", "walk.body", lambda tmp: Walk(body="limp")),
+        Case("Reach target 2 numbers", "reach.target", lambda tmp: Reach((1.0, 0.0))),
+        Case("Reach side", "reach.side", lambda tmp: Reach(side="middle")),
+        Case("Reach hold -1", "reach.hold", lambda tmp: Reach(hold=-1.0)),
+        Case("Reach duration 0", "reach.duration", lambda tmp: Reach(duration=0.0)),
+        Case("Turn duration 100 s", "turn.duration", lambda tmp: Turn(duration=100.0)),
+        Case("Turn heading NaN", "turn.heading_deg", lambda tmp: Turn(heading_deg=NAN)),
+        Case("human_tree clothing", "person.clothing", lambda tmp: human_tree(clothing="unobtainium")),
+        Case("human_tree clothing thickness", "person.clothing_thickness",
+             lambda tmp: human_tree(clothing="fabric", clothing_thickness=1.0)),
+        Case("add_person not a scene", "scene", lambda tmp: add_person("scene")),
+        Case("add_person twice", "p/", twice),
+        Case("add_person sway NaN", "sway", lambda tmp: add_person(Scene(), sway=NAN)),
+        Case("add_person reach not a Reach", "reach", lambda tmp: add_person(Scene(), reach=(1.0, 0.0, 1.0))),
+        Case("scenario person height", "people[0].height", ps(people=[{"name": "p", "height": -1}])),
+        Case("scenario person 8 m", "people[0]", ps(people=[{"name": "p", "height": 8.0}])),
+        Case("scenario person walk speed 0", "people[0].walk.speed",
+             ps(people=[{"name": "p", "walk": {"speed": 0, "heading_deg": 0}}])),
+        Case("scenario person walk no path", "people[0].walk", ps(people=[{"name": "p", "walk": {"speed": 1}}])),
+        Case("scenario person path back to the start", "people[0].walk.path",
+             ps(people=[{"name": "p", "walk": {"path": [[0, 0]]}}])),
+        Case("scenario person reach side", "people[0].reach.side",
+             ps(people=[{"name": "p", "reach": {"target": [1, 0, 1], "side": "middle"}}])),
+        Case("scenario person clothing", "people[0].clothing", ps(people=[{"name": "p", "clothing": "unobtainium"}])),
+        Case("scenario person name with slash", "people[0].name", ps(people=[{"name": "a/b"}])),
+        Case("scenario person position 4 numbers", "people[0].position",
+             ps(people=[{"name": "p", "position": [0, 0, 0, 0]}])),
+        Case("scenario people twice the same name", "repeated: p", ps(people=[{"name": "p"}, {"name": "p"}])),
+        Case("scenario person unknown key", "people[0].age", ps(people=[{"name": "p", "age": 40}])),
+        Case("scenario mount on unknown person link", "sensors[0].mount.parent",
+             ps(people=[{"name": "p"}], sensor_parent="p/tail")),
+    ]
+
+
+def _tactile_cases() -> list[Case]:
+    from twinsense.capacitive.mechanics.indenter import Indenter
+    from twinsense.capacitive.mechanics.materials import ElasticMaterial, elastic_material, gent_young_from_shore_a
+    from twinsense.capacitive.tactile import TactileSensor, make_tactile
+    from twinsense.presets import make_sensor
+
+    pad = "tactile_pad_4x4"
+    return [
+        Case("tactile preset unknown", "nope", lambda tmp: make_tactile("nope")),
+        Case("tactile preset unhashable", "tactile preset", lambda tmp: make_tactile(["pad"])),
+        Case("tactile override unknown", "zoom", lambda tmp: make_tactile(pad, zoom=2)),
+        Case("tactile frame_rate -1", "sample_rate", lambda tmp: make_tactile(pad, frame_rate=-1.0)),
+        Case("tactile frame_rate text", "sample_rate", lambda tmp: make_tactile(pad, frame_rate="fast")),
+        Case("tactile max_contacts 0", "TactileConfig.max_contacts", lambda tmp: make_tactile(pad, max_contacts=0)),
+        Case("tactile pressure_threshold NaN", "TactileConfig.pressure_threshold",
+             lambda tmp: make_tactile(pad, pressure_threshold=NAN)),
+        Case("tactile calibration_strain 0.5", "TactileConfig.calibration_strain",
+             lambda tmp: make_tactile(pad, calibration_strain=0.5)),
+        Case("tactile layout text", "TactileConfig.layout", lambda tmp: make_tactile(pad, layout="4x4")),
+        Case("tactile mount", "TactileSensor.mount", lambda tmp: make_tactile(pad, mount=(0, 0, 0))),
+        Case("TactileSensor config", "TactileSensor.config", lambda tmp: TactileSensor({"rows": 4})),
+        Case("tactile capture t=NaN", "t = nan", lambda tmp: make_tactile(pad).capture(Scene(), NAN)),
+        Case("make_sensor tactile unknown", "nope", lambda tmp: make_sensor("tactile", "nope")),
+        Case("ElasticMaterial name", "ElasticMaterial.name", lambda tmp: ElasticMaterial("", 1e5, 0.3)),
+        Case("ElasticMaterial young -1", "young", lambda tmp: ElasticMaterial("m", -1.0, 0.3)),
+        Case("ElasticMaterial poisson 0.5", "poisson", lambda tmp: ElasticMaterial("m", 1e5, 0.5)),
+        Case("ElasticMaterial poisson NaN", "poisson", lambda tmp: ElasticMaterial("m", 1e5, NAN)),
+        Case("elastic_material unknown", "rubber", lambda tmp: elastic_material("rubber")),
+        Case("gent Shore A 100", "shore_a", lambda tmp: gent_young_from_shore_a(100.0)),
+        Case("Indenter height not callable", "Indenter.height", lambda tmp: Indenter(3.0)),
+        Case("Indenter sphere radius 0", "Indenter(sphere).radius", lambda tmp: Indenter.sphere((0, 0, 1e-3), 0.0)),
+        Case("Indenter sphere centre 2 numbers", "Indenter(sphere).center",
+             lambda tmp: Indenter.sphere((0, 0), 1e-3)),
+        Case("Indenter heightfield not increasing", "heightfield", lambda tmp: Indenter.from_heightfield(
+            [0.0, 0.0, 1.0], [0.0, 1.0], np.zeros((3, 2)))),
+        Case("Indenter heightfield shape", "heightfield", lambda tmp: Indenter.from_heightfield(
+            [0.0, 1.0], [0.0, 1.0], np.zeros((3, 2)))),
+        Case("scenario tactile preset unknown", "sensors[0].preset",
+             _edit(("sensors", 0), {"name": "skin", "kind": "tactile", "preset": "nope"})),
+        Case("scenario tactile override unknown", "sensors[0].overrides.zoom",
+             _edit(("sensors", 0), {"name": "skin", "kind": "tactile", "preset": pad, "overrides": {"zoom": 2}})),
+        Case("scenario capacitive override unknown", "sensors[0].overrides.zoom",
+             _edit(("sensors", 0), {"name": "pads", "kind": "capacitive", "preset": "pad-grid",
+                                    "overrides": {"zoom": 2}})),
+        Case("scenario tactile override text", "sensors[0].overrides.max_contacts",
+             _edit(("sensors", 0), {"name": "skin", "kind": "tactile", "preset": pad,
+                                    "overrides": {"max_contacts": "many"}})),
+    ]
+
+
+def _images(**kw):
+    from twinsense.render.external import ExternalImages
+
+    args = {"depth": np.full((4, 6), 2.0), "intensity": np.full((4, 6), 0.5), "intrinsics": (5.0, 5.0, 2.5, 1.5),
+            "pose": Pose()}
+    args.update(kw)
+    return ExternalImages(**args)
+
+
+def _npz(tmp: Path, name: str = "img.npz", **arrays) -> Path:
+    p = tmp / name
+    np.savez(p, **arrays)
+    return p
+
+
+def _external_cases() -> list[Case]:
+    from twinsense.presets import make_sensor
+    from twinsense.radar.external import capture_from_images as radar_from_images
+    from twinsense.radar.replay import ReplayRadar, replay_radar
+    from twinsense.render.external import ExternalImages, images_to_hits, read_image
+    from twinsense.tof.external import capture_from_images as tof_from_images
+
+    def truncated(tmp):
+        p = _images().save(tmp / "full.npz")
+        p.write_bytes(p.read_bytes()[:200])
+        return ExternalImages.load(p)
+
+    def two_bins(tmp):
+        for n in ("a.bin", "b.bin", "c.cfg"):
+            (tmp / n).write_bytes(b"\x00" * 64)
+        return ReplayRadar(tmp)
+
+    def garbage_bin(tmp):
+        (tmp / "a.bin").write_bytes(b"\x00" * 64)
+        (tmp / "c.cfg").write_text("garbage\n")
+        return ReplayRadar(tmp)
+
+    def rays():
+        from twinsense.render.rays import PinholeCamera
+
+        return PinholeCamera(4, 3, 3.0, 3.0, 1.5, 1.0).rays(Pose())
+
+    return [
+        Case("images depth NaN", "images.depth", lambda tmp: _images(depth=np.full((4, 6), NAN))),
+        Case("images depth zero", "images.depth", lambda tmp: _images(depth=np.zeros((4, 6)))),
+        Case("images depth 1-D", "images.depth", lambda tmp: _images(depth=np.ones(6))),
+        Case("images depth text", "images.depth", lambda tmp: _images(depth="depth.png")),
+        Case("images intensity shape", "images.intensity", lambda tmp: _images(intensity=np.ones((3, 6)))),
+        Case("images intensity negative", "images.intensity", lambda tmp: _images(intensity=-np.ones((4, 6)))),
+        Case("images intrinsics 3 numbers", "images.intrinsics", lambda tmp: _images(intrinsics=(5.0, 5.0, 2.5))),
+        Case("images intrinsics fx -5", "images.intrinsics", lambda tmp: _images(intrinsics=(-5.0, 5.0, 2.5, 1.5))),
+        Case("images intrinsics not numbers", "images.intrinsics", lambda tmp: _images(intrinsics=5.0)),
+        Case("images pose", "images.pose", lambda tmp: _images(pose=np.eye(4))),
+        Case("images depth_kind", "images.depth_kind", lambda tmp: _images(depth_kind="w")),
+        Case("images t NaN", "images.t", lambda tmp: _images(t=NAN)),
+        Case("images normals not unit", "images.normals", lambda tmp: _images(normals=np.ones((4, 6, 3)))),
+        Case("images velocity shape", "images.velocity", lambda tmp: _images(velocity=np.zeros((4, 6)))),
+        Case("images material_id float", "images.material_id", lambda tmp: _images(material_id=np.zeros((4, 6)))),
+        Case("images save not .npz", "path", lambda tmp: _images().save(tmp / "img.png")),
+        Case("images save unwritable", "path", lambda tmp: _images().save(tmp / "no" / "img.npz")),
+        Case("images load missing", "path", lambda tmp: ExternalImages.load(tmp / "none.npz")),
+        Case("images load truncated", "path", truncated),
+        Case("images load text", "an .npz (zip) file",
+             lambda tmp: ExternalImages.load(_write("t.npz", "not a zip\n")(tmp))),
+        Case("images load missing arrays", "missing: intensity, intrinsics, pose",
+             lambda tmp: ExternalImages.load(_npz(tmp, depth=np.ones((2, 2))))),
+        Case("images load pickled array", "path", lambda tmp: ExternalImages.load(_npz(
+            tmp, depth=np.array([{"a": 1}], dtype=object), intensity=np.ones(1), intrinsics=np.ones(4),
+            pose=np.eye(4)))),
+        Case("images load pose 3x3", "img.npz: Pose.matrix", lambda tmp: ExternalImages.load(_npz(
+            tmp, depth=np.ones((2, 2)), intensity=np.ones((2, 2)), intrinsics=np.ones(4), pose=np.eye(3)))),
+        Case("read_image missing", "path", lambda tmp: read_image(tmp / "none.npy")),
+        Case("read_image garbage", "a .npy file (np.save format)",
+             lambda tmp: read_image(_write("g.npy", b"garbage")(tmp))),
+        Case("images_to_hits rays", "rays", lambda tmp: images_to_hits(_images(), "rays")),
+        Case("images_to_hits sampling", "sampling", lambda tmp: images_to_hits(_images(), rays(), "cubic")),
+        Case("images_to_hits edge_tolerance NaN", "edge_tolerance",
+             lambda tmp: images_to_hits(_images(), rays(), edge_tolerance=NAN)),
+        Case("images_to_hits not images", "images", lambda tmp: images_to_hits("img.npz", rays())),
+        Case("ToF from images not a camera", "camera", lambda tmp: tof_from_images(_radar(), _images())),
+        Case("ToF from images t NaN", "t = nan", lambda tmp: tof_from_images(
+            make_sensor("tof", "generic"), _images(), NAN)),
+        Case("ToF from images not images", "images", lambda tmp: tof_from_images(
+            make_sensor("tof", "generic"), np.ones((4, 6)))),
+        Case("radar from images reflectivity", "reflectivity",
+             lambda tmp: radar_from_images(_radar(), _images(), reflectivity=-1.0)),
+        Case("radar from images not a radar", "radar", lambda tmp: radar_from_images("radar", _images())),
+        Case("replay missing recording", "replay", lambda tmp: ReplayRadar(tmp / "none")),
+        Case("replay not a path", "replay", lambda tmp: ReplayRadar(3.5)),
+        Case("replay unknown name", "replay", lambda tmp: ReplayRadar("napas")),
+        Case("replay two .bin files", "found 2 .bin", two_bins),
+        Case("replay garbage .cfg", "c.cfg", garbage_bin),
+        Case("replay empty folder", "no radar.npy", lambda tmp: ReplayRadar(tmp)),
+        Case("replay loop text", "replay.loop", lambda tmp: ReplayRadar("bgt60tr13c_napas", loop="yes")),
+        Case("replay unknown override", "overrides", lambda tmp: replay_radar("bgt60tr13c_napas", speed=2)),
+        Case("replay processing field", "overrides.processing",
+             lambda tmp: replay_radar("bgt60tr13c_napas", processing={"zoom": 2})),
+        Case("replay capture beyond the end", "t", lambda tmp: ReplayRadar("bgt60tr13c_napas").capture(None, 1e6)),
+        Case("replay capture NaN", "t = nan", lambda tmp: ReplayRadar("bgt60tr13c_napas").capture(None, NAN)),
+        Case("scenario replay missing", "sensors[0].replay",
+             _edit(("sensors", 0), {"name": "r", "kind": "radar", "replay": "none"})),
+        Case("scenario replay with preset", "sensors[0].replay", _edit(("sensors", 0), {
+            "name": "r", "kind": "radar", "preset": "infineon_bgt60tr13c", "replay": "bgt60tr13c_napas"})),
+        Case("scenario replay on ToF", "sensors[0].replay",
+             _edit(("sensors", 0), {"name": "r", "kind": "tof", "replay": "bgt60tr13c_napas"})),
+        Case("scenario replay override", "sensors[0].overrides",
+             _edit(("sensors", 0), {"name": "r", "kind": "radar", "replay": "bgt60tr13c_napas",
+                                    "overrides": {"speed": 2}})),
+    ]
+
+
+def _cli(args: Callable[[Path], list]) -> Callable[[Path], object]:
+    """The command line with ``args``: a clean exit 2 with the error printed counts as the twinsense error
+    (its output is the message); an exception other than SystemExit is raised as the foreign one."""
+
+    def call(tmp: Path):
+        from typer.testing import CliRunner
+
+        from twinsense.cli import app
+
+        res = CliRunner().invoke(app, [str(a) for a in args(tmp)])
+        if res.exception is not None and not isinstance(res.exception, SystemExit):
+            raise res.exception
+        if res.exit_code == 0:
+            return res.output
+        if res.exit_code == 2 and "Traceback" not in res.output:
+            raise TwinsenseError(res.output)
+        raise RuntimeError(f"exit {res.exit_code}: {res.output}")
+
+    return call
+
+
+def _busy_port():
+    import socket
+
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    s.listen(1)
+    return s
+
+
+def _on_busy_port(make_sink) -> Callable[[Path], object]:
+    def call(tmp: Path):
+        s = _busy_port()
+        try:
+            sink = make_sink(s.getsockname()[1])
+            try:
+                sink.open(Scene(), [])
+            finally:
+                sink.close()
+        finally:
+            s.close()
+
+    return call
+
+
+def _small_scenario(tmp: Path) -> Path:
+    d = _base()
+    d["duration"] = 0.1
+    return _write("s.yaml", yaml.safe_dump(d))(tmp)
+
+
+def _stream_cases() -> list[Case]:
+    from twinsense.io.pointcloud import export, read_pcd, write_pcd, write_ply
+    from twinsense.io.recording import open_xarray
+    from twinsense.stream.foxglove_ws import FoxgloveSink
+    from twinsense.stream.rerun import RerunSink, write_rrd
+    from twinsense.stream.serve import serve
+    from twinsense.stream.zeromq import Subscriber, ZmqSink
+
+    xyz = {"x": np.zeros(3), "y": np.zeros(3), "z": np.zeros(3)}
+
+    def exported(out_name: str, sensor: str = "depth", frame: int = 0, coords: str = "world"):
+        def call(tmp):
+            with open_recording(_recording(tmp)) as rec:
+                return export(rec[sensor], frame, tmp / out_name, coords)
+        return call
+
+    return [
+        Case("ZmqSink address", "ZmqSink.address", lambda tmp: ZmqSink("localhost:5555")),
+        Case("ZmqSink hwm 0", "ZmqSink.hwm", lambda tmp: ZmqSink(hwm=0)),
+        Case("ZmqSink port in use", "ZmqSink.address", _on_busy_port(lambda p: ZmqSink(f"tcp://127.0.0.1:{p}"))),
+        Case("ZmqSink port 70000", "ZmqSink.address", _on_busy_port(lambda p: ZmqSink("tcp://127.0.0.1:70000"))),
+        Case("ZmqSink unknown host", "ZmqSink.address", _on_busy_port(lambda p: ZmqSink("tcp://no.such.host:5"))),
+        Case("Subscriber address", "Subscriber.address", lambda tmp: Subscriber(5555)),
+        Case("Subscriber timeout 0", "Subscriber.timeout", lambda tmp: Subscriber("tcp://127.0.0.1:5", timeout=0)),
+        Case("Subscriber topics", "Subscriber.topics", lambda tmp: Subscriber("tcp://127.0.0.1:5", topics="cam")),
+        Case("Subscriber bad endpoint", "Subscriber.address", lambda tmp: Subscriber("tcp://127.0.0.1:port")),
+        Case("FoxgloveSink port 70000", "FoxgloveSink.port", lambda tmp: FoxgloveSink(70000)),
+        Case("FoxgloveSink port text", "FoxgloveSink.port", lambda tmp: FoxgloveSink("8765")),
+        Case("FoxgloveSink port in use", "port", _on_busy_port(lambda p: FoxgloveSink(p))),
+        Case("FoxgloveSink host", "FoxgloveSink.host", lambda tmp: FoxgloveSink(host="")),
+        Case("RerunSink nothing", "RerunSink", lambda tmp: RerunSink()),
+        Case("RerunSink grpc_port 0", "RerunSink.grpc_port", lambda tmp: RerunSink(serve=True, grpc_port=0)),
+        Case("RerunSink path suffix", "out", lambda tmp: RerunSink(tmp / "x.txt")),
+        Case("RerunSink unwritable path", "out", lambda tmp: RerunSink(tmp / "no" / "x.rrd")),
+        Case("RerunSink connect", "RerunSink.connect", lambda tmp: RerunSink(connect="http://x")),
+        Case("write_rrd missing recording", "none.h5", lambda tmp: write_rrd(tmp / "none.h5", tmp / "o.rrd")),
+        Case("write_rrd not a recording", "text.h5",
+             lambda tmp: write_rrd(_write("text.h5", "x\n")(tmp), tmp / "o.rrd")),
+        Case("serve rate -1", "rate", lambda tmp: serve(Scene(), [], 1.0, [], rate=-1.0)),
+        Case("serve sink", "sinks[0]", lambda tmp: serve(Scene(), [], 1.0, ["zmq"])),
+        Case("write_pcd suffix", "path", lambda tmp: write_pcd(tmp / "a.txt", xyz)),
+        Case("write_pcd no z", "fields", lambda tmp: write_pcd(tmp / "a.pcd", {"x": np.zeros(3), "y": np.zeros(3)})),
+        Case("write_pcd lengths", "fields", lambda tmp: write_pcd(tmp / "a.pcd", {**xyz, "i": np.zeros(2)})),
+        Case("write_pcd complex", "fields", lambda tmp: write_pcd(tmp / "a.pcd", {**xyz, "i": np.zeros(3, complex)})),
+        Case("write_pcd viewpoint", "viewpoint", lambda tmp: write_pcd(tmp / "a.pcd", xyz, viewpoint=(0, 0, 0))),
+        Case("write_pcd unwritable", "a.pcd", lambda tmp: write_pcd(tmp / "no" / "a.pcd", xyz)),
+        Case("write_pcd onto a folder", "d.pcd", lambda tmp: ((tmp / "d.pcd").mkdir(), write_pcd(tmp / "d.pcd", xyz))),
+        Case("write_pcd field name", "fields", lambda tmp: write_pcd(tmp / "a.pcd", {**xyz, "a b": np.zeros(3)})),
+        Case("write_ply suffix", "path", lambda tmp: write_ply(tmp / "a.pcd", xyz)),
+        Case("write_ply unwritable", "a.ply", lambda tmp: write_ply(tmp / "no" / "a.ply", xyz)),
+        Case("read_pcd missing", "path", lambda tmp: read_pcd(tmp / "none.pcd")),
+        Case("read_pcd garbage", "g.pcd", lambda tmp: read_pcd(_write("g.pcd", bytes(range(256)))(tmp))),
+        Case("read_pcd truncated", "t.pcd", lambda tmp: read_pcd(_write("t.pcd", write_pcd(
+            tmp / "full.pcd", xyz).read_bytes()[:-5])(tmp))),
+        Case("read_pcd bad header", "h.pcd", lambda tmp: read_pcd(_write(
+            "h.pcd", "VERSION 0.7\nFIELDS x\nSIZE 4\nTYPE F\nCOUNT 1\nWIDTH 2\nPOINTS two\nDATA ascii\n1\n2\n")(tmp))),
+        Case("export suffix", "out", exported("a.xyz")),
+        Case("export camera sensor", "depth", exported("a.pcd")),
+        Case("export unknown sensor", "tof", exported("a.pcd", sensor="tof")),
+        Case("open_xarray missing", "none.h5", lambda tmp: open_xarray(tmp / "none.h5")),
+        Case("open_xarray not a recording", "text.h5", lambda tmp: open_xarray(_write("text.h5", "x\n")(tmp))),
+        Case("cli run --format csv", "--format", _cli(lambda tmp: ["run", _small_scenario(tmp), "-o", tmp,
+                                                                 "--format", "csv"])),
+        Case("cli convert suffix", ".mcap (ROS 2) or .rrd (Rerun)",
+             _cli(lambda tmp: ["convert", _recording(tmp), tmp / "out.txt"])),
+        Case("cli convert missing recording", "none.h5",
+             _cli(lambda tmp: ["convert", tmp / "none.h5", tmp / "o.mcap"])),
+        Case("cli convert rrd missing recording", "none.h5",
+             _cli(lambda tmp: ["convert", tmp / "none.h5", tmp / "o.rrd"])),
+        Case("cli export unknown sensor", "tof",
+             _cli(lambda tmp: ["export", _recording(tmp), tmp / "a.pcd", "--sensor", "tof"])),
+        Case("cli serve foxglove port 70000", "FoxgloveSink.port",
+             _cli(lambda tmp: ["serve", _small_scenario(tmp), "--foxglove-port", 70000])),
+        Case("cli serve zmq address", "ZmqSink.address",
+             _cli(lambda tmp: ["serve", _small_scenario(tmp), "--no-foxglove", "--zmq", "localhost"])),
+        Case("cli serve viewer", "--viewer", _cli(lambda tmp: ["serve", _small_scenario(tmp), "--viewer", "vlc"])),
+        Case("cli serve rate -1", "rate",
+             _cli(lambda tmp: ["serve", _small_scenario(tmp), "--no-foxglove", "--rate", -1])),
+    ]
+
+
 def catalogue() -> list[Case]:
     """Every malformed input, in a stable order."""
-    return _scenario_cases() + _file_cases() + _mesh_cases() + _api_cases() + _recording_cases()
+    return (_scenario_cases() + _file_cases() + _mesh_cases() + _api_cases() + _recording_cases()
+            + _robot_cases() + _people_cases() + _tactile_cases() + _external_cases() + _stream_cases())
 
 
 def run_case(case: Case, tmp: Path) -> tuple[str, str]:
