@@ -176,6 +176,10 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
     scene : Scene
     sensors : sensor or sequence of sensors
         Each needs ``name``, ``kind``, ``frame_rate`` [Hz] and ``capture``.
+        A sensor that also has ``capture_frames(scene, times, rng) -> frames``
+        gets each run of its consecutive frames (no other sensor's frame in
+        between, at most 1024) in one call; it must give the frames and
+        random draws that ``capture`` would one time after another.
     duration : float
         [s], > 0.
     out : path-like, optional
