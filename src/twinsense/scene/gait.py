@@ -395,7 +395,7 @@ class WalkCycle:
 
     ``body="planted"`` (default): the standing foot does not slide and the
     pelvis moves forward as the model publishes (v t plus the forward sway
-    a_a H_t sin 2 pi (2u + 2 phi_a), so the torso's speed varies by +-14-19 %
+    a_a H_t sin 2 pi (2u + 2 phi_a), so the torso's speed varies by +-13-22 %
     of v within a step, as measured in gait). Both at once come from a
     monotone time-warp of each leg's hip, knee and ankle curves over its
     stance (the curves keep their shapes and values; only the rate at which
