@@ -163,6 +163,8 @@ class RecordingWriter:
             self.path = self.path.with_suffix(".h5")
         if flush_interval is not None and not (isinstance(flush_interval, (int, float)) and flush_interval > 0):
             raise ConfigError("flush_interval", flush_interval, "a number of seconds > 0, or None")
+        if self.path.parent.exists() and not self.path.parent.is_dir():  # h5py would say only "errno = 20"
+            raise RecordingError(f"cannot write {str(self.path)!r}: {str(self.path.parent)!r} is a file, not a folder")
         if not self.path.parent.exists():
             try:
                 self.path.parent.mkdir(parents=True, exist_ok=True)
