@@ -908,6 +908,14 @@ def _external_cases() -> list[Case]:
         Case("radar from images reflectivity", "reflectivity",
              lambda tmp: radar_from_images(_radar(), _images(), reflectivity=-1.0)),
         Case("radar from images not a radar", "radar", lambda tmp: radar_from_images("radar", _images())),
+        Case("ToF from images pose", "pose", lambda tmp: tof_from_images(
+            make_sensor("tof", "generic"), _images(), pose=(0, 0, 0))),
+        Case("radar from images sensor_velocity NaN", "sensor_velocity",
+             lambda tmp: radar_from_images(_radar(), _images(), sensor_velocity=(NAN, 0, 0))),
+        Case("images velocity NaN", "images.velocity",
+             lambda tmp: _images(velocity=np.full((4, 6, 3), NAN))),
+        Case("replay config not a RadarConfig", "replay.config",
+             lambda tmp: ReplayRadar("bgt60tr13c_napas", config={"chirps": 8})),
         Case("replay missing recording", "replay", lambda tmp: ReplayRadar(tmp / "none")),
         Case("replay not a path", "replay", lambda tmp: ReplayRadar(3.5)),
         Case("replay unknown name", "replay", lambda tmp: ReplayRadar("napas")),
@@ -983,6 +991,12 @@ def _small_scenario(tmp: Path) -> Path:
     return _write("s.yaml", yaml.safe_dump(d))(tmp)
 
 
+def _cut_recording(tmp: Path) -> Path:
+    path = _recording(tmp, "cut.h5")
+    path.write_bytes(path.read_bytes()[:2000])
+    return path
+
+
 def _stream_cases() -> list[Case]:
     from twinsense.io.pointcloud import export, read_pcd, write_pcd, write_ply
     from twinsense.io.recording import open_xarray
@@ -1042,6 +1056,11 @@ def _stream_cases() -> list[Case]:
         Case("export suffix", "out", exported("a.xyz")),
         Case("export camera sensor", "depth", exported("a.pcd")),
         Case("export unknown sensor", "tof", exported("a.pcd", sensor="tof")),
+        Case("open_xarray truncated", "cut.h5", lambda tmp: open_xarray(_cut_recording(tmp))),
+        Case("cli run --format mcap bad scenario", "duration", _cli(lambda tmp: [
+            "run", _write("bad.yaml", "duration: -1\n")(tmp), "-o", tmp, "--format", "mcap"])),
+        Case("cli run --format rrd output folder is a file", "is a file, not a folder", _cli(lambda tmp: [
+            "run", _small_scenario(tmp), "-o", _write("file", "x")(tmp), "--format", "rrd"])),
         Case("open_xarray missing", "none.h5", lambda tmp: open_xarray(tmp / "none.h5")),
         Case("open_xarray not a recording", "text.h5", lambda tmp: open_xarray(_write("text.h5", "x\n")(tmp))),
         Case("cli run --format csv", "--format", _cli(lambda tmp: ["run", _small_scenario(tmp), "-o", tmp,
