@@ -24,7 +24,7 @@ from twinsense.scenario import load_scenario
 from twinsense.scene import Mount, Pose
 from twinsense.scene.motion import ConstantVelocity
 
-CELL = Path(__file__).resolve().parents[1] / "examples" / "robot_cell.yaml"
+CELL = Path(__file__).resolve().parents[1] / "examples" / "cylinder_cell.yaml"
 EYE, TARGET = (-0.8, 0.0, 1.6), (2.0, 0.0, 1.0)
 
 

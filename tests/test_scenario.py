@@ -257,10 +257,10 @@ def test_yaml_numbers_without_exponent_sign_and_booleans(tmp_path):
 def test_robot_cell_example_and_demo_scene_agree():
     # The demos build the robot cell in Python (a pip install has no examples/);
     # the example file must describe the very same scene.
-    from twinsense.demos.robot_cell import build_robot_cell_scene
+    from twinsense.demos.robot_cell import build_cylinder_cell_scene
 
     sc = load_scenario(EXAMPLE.parent / "cylinder_cell.yaml")
-    ref = build_robot_cell_scene()
+    ref = build_cylinder_cell_scene()
     a, b = sc.scene.to_dict(), ref.to_dict()
     a.pop("name", None), b.pop("name", None)
     assert a == b

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from twinsense.demos.robot_cell import build_robot_cell_scene
+from twinsense.demos.robot_cell import build_cylinder_cell_scene
 from twinsense.errors import ConfigError
 from twinsense.lidar import Lidar
 from twinsense.plotting import pyplot, save_figure
@@ -26,13 +26,13 @@ def run_lidar_demo(out_dir, duration: float = 0.3, progress: bool = False, scena
     frame, coloured by intensity, with the person's true position),
     ``lidar_range_image.png`` (ring x azimuth image of intensity and range)
     and ``lidar_recording.h5``. ``scenario``: another scenario file with a
-    ``person`` object (default: the robot cell of examples/robot_cell.yaml,
-    built by :func:`twinsense.demos.robot_cell.build_robot_cell_scene`).
+    ``person`` object (default: the cylinder cell of examples/cylinder_cell.yaml,
+    built by :func:`twinsense.demos.robot_cell.build_cylinder_cell_scene`).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     if scenario is None:
-        scene = build_robot_cell_scene()
+        scene = build_cylinder_cell_scene()
     else:
         path = Path(scenario)
         if not path.is_file():

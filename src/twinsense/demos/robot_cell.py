@@ -12,7 +12,7 @@ capacitive proximity skin on the forearm: the ``pad-grid`` preset, a flat
 patches too; a flat patch on a 58 mm radius link leaves up to 25 mm of air
 under its long edges).
 
-``build_robot_cell_scene`` is the simple cell of ``examples/cylinder_cell.yaml``
+``build_cylinder_cell_scene`` is the simple cell of ``examples/cylinder_cell.yaml``
 (a cylinder link, a capsule person), which the LiDAR and ultrasonic demos use.
 
 ``run_robot_cell_demo`` (``twinsense demo robot-cell``) writes the depth
@@ -71,7 +71,7 @@ RADAR_OVERRIDES = {"num_samples": 64, "num_chirps": 64, "chirp_repetition_time":
 SKIN_POSE = Pose.from_euler_deg((0.0, -0.062, 0.2), (90, -90, 0))
 
 
-def build_robot_cell_scene() -> Scene:
+def build_cylinder_cell_scene() -> Scene:
     """The simple cylinder cell of ``examples/cylinder_cell.yaml`` (world frame, z up, sizes in metres)."""
     s = Scene(name="cylinder_cell")
     s.add_object("floor", Plane((6.0, 6.0)), "concrete")

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from twinsense.demos.robot_cell import build_robot_cell_scene
+from twinsense.demos.robot_cell import build_cylinder_cell_scene
 from twinsense.io.recording import open_recording
 from twinsense.scenario import load_scenario
 from twinsense.scene import Box, Mount, Pose
@@ -40,7 +40,7 @@ def _plt():
 
 def build_cell(scenario=None):
     """The robot cell's scene with a 0.2 m pillar, and the ring sensor on it (facing +x first)."""
-    scene = load_scenario(Path(scenario)).scene if scenario else build_robot_cell_scene()
+    scene = load_scenario(Path(scenario)).scene if scenario else build_cylinder_cell_scene()
     scene.add_object("ring_pillar", Box((0.2, 0.2, RING_HEIGHT - 0.05)), "plastic",
                      pose=Pose((*PILLAR_XY, 0.5 * (RING_HEIGHT - 0.05))))
     eye = np.array([*PILLAR_XY, RING_HEIGHT])
