@@ -41,6 +41,17 @@ Two implementations:
   one more NUFFT strength vector on the same points. Nothing is merged or
   binned, so accuracy does not depend on the scene.
 
+  When many scatterers move (a radar on a robot arm), a chunk of movers can
+  instead take one 2-D NUFFT over (slow time, fast time) per receiver and
+  group of chirps (those of one position in the transmit sequence, evenly
+  spaced): the path length is expanded around the group's centre sample, its
+  linear part gives the 2-D frequencies and the rest (range migration over the
+  chirps, slow-time curvature, the in-chirp terms) is a chunk-wide factor
+  applied exactly on the grid times a per-scatterer Taylor series of extra
+  strength vectors (:func:`twinsense.radar.nufft.moving_chunk_2d`). Its
+  truncation orders follow ``eps`` with the same error form; each chunk takes
+  the path with the lower estimated cost.
+
 Precision: path lengths and phases are float64; phases are reduced to
 [-pi, pi] in float64 before cos/sin, which are then evaluated in float32
 (error ~1e-7 rad, far inside the budget). Work is split into chunks of
