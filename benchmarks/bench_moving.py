@@ -125,37 +125,43 @@ def wrist_synthesis(radar: FMCWRadar, scene, t: float, anchor: float) -> None:
     """The wrist radar's IF synthesis alone (every scatterer moves): the per-chirp path
     only (before) against the per-chunk choice with the 2-D path (after), anchored
     to the static-scene synthesis of the same scatterers (velocities dropped)
-    and to the bare embreex cast."""
+    and to the bare embreex cast; the preset's 16 chirps and the same frame
+    with 64 chirps (where the 2-D path's share of the work grows)."""
+    import dataclasses
+
     import twinsense.radar.synthesis as synthesis_module
 
-    cfg = radar.config
     scat = radar._renderer.render(scene, radar.mount.state_at(scene, t), t)
     w = radar._weights(scat)
     p, v = scat.points, scat.velocities
     workers = radar.workers
+    for num_chirps in (radar.config.chirp.num_chirps, 64):
+        cfg = dataclasses.replace(radar.config,
+                                  chirp=dataclasses.replace(radar.config.chirp, num_chirps=num_chirps))
+        repeats = 3 if num_chirps <= 16 else 2
 
-    def run(*_):
-        return synthesis_module.synthesize(p, v, w, cfg, eps=radar.eps, workers=workers)
+        def run(*_, cfg=cfg):
+            return synthesis_module.synthesize(p, v, w, cfg, eps=radar.eps, workers=workers)
 
-    after = timed(run, 3)
-    two_d = synthesis_module.moving_chunk_2d
-    synthesis_module.moving_chunk_2d = lambda *a, **k: None  # the per-chirp path everywhere
-    try:
-        ref = run()
-        before = timed(run, 3)
-    finally:
-        synthesis_module.moving_chunk_2d = two_d
-    err = np.linalg.norm(run() - ref) / np.linalg.norm(ref)
-    static = timed(lambda *_: synthesis_module.synthesize(p, None, w, cfg, eps=radar.eps,
-                                                          workers=workers), 3)
-    print(f"  wrist radar synthesis alone, {len(p)} scatterers, all moving "
-          f"(workers={workers}); after vs before: relative difference {err:.1e}")
-    for label, (best, median, cpu) in (("per-chirp path only (before)", before),
-                                       ("2-D path where cheaper (after)", after),
-                                       ("anchor: same scatterers static", static)):
-        print(f"    {label:<36s} {best * 1e3:8.1f} ms best {median * 1e3:8.1f} ms median; "
-              f"CPU {cpu * 1e3:8.1f} ms/frame; {cpu / static[2]:5.1f} x static CPU")
-        print_anchor("      bare embreex cast, same rays", anchor, median)
+        after = timed(run, repeats)
+        two_d = synthesis_module.moving_chunk_2d
+        synthesis_module.moving_chunk_2d = lambda *a, **k: None  # the per-chirp path everywhere
+        try:
+            ref = run()
+            before = timed(run, repeats)
+        finally:
+            synthesis_module.moving_chunk_2d = two_d
+        err = np.linalg.norm(run() - ref) / np.linalg.norm(ref)
+        static = timed(lambda *_, cfg=cfg: synthesis_module.synthesize(
+            p, None, w, cfg, eps=radar.eps, workers=workers), repeats)
+        print(f"  wrist radar synthesis alone, {len(p)} scatterers, all moving, {num_chirps} chirps "
+              f"(workers={workers}); after vs before: relative difference {err:.1e}")
+        for label, (best, median, cpu) in (("per-chirp path only (before)", before),
+                                           ("2-D path where cheaper (after)", after),
+                                           ("anchor: same scatterers static", static)):
+            print(f"    {label:<36s} {best * 1e3:8.1f} ms best {median * 1e3:8.1f} ms median; "
+                  f"CPU {cpu * 1e3:8.1f} ms/frame; {cpu / static[2]:5.1f} x static CPU")
+        print_anchor("bare embreex cast, same rays", anchor, after[1])
 
 
 def compile_times() -> None:
