@@ -5,8 +5,10 @@ over the scatterers (:func:`static_chunk`). Moving scatterers: the path
 length expanded around each chirp's centre, the quadratic and cubic phase
 terms as a short Taylor series of extra NUFFT strength vectors
 (:func:`moving_chunk`, its per-scatterer terms compiled in
-:mod:`twinsense.radar.kernels`). The model and the exact reference are in
-:mod:`twinsense.radar.synthesis`.
+:mod:`twinsense.radar.kernels`), or, where its estimated cost is lower, one
+2-D NUFFT over (slow time, fast time) per receiver and chirp group with the
+cross and curvature terms as Taylor strength vectors (:func:`moving_chunk_2d`).
+The model and the exact reference are in :mod:`twinsense.radar.synthesis`.
 """
 
 from __future__ import annotations
