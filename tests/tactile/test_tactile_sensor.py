@@ -163,9 +163,11 @@ def test_indenter_height_fields_match_the_objects_inside_tests(geom, pose):
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-7)
 
 
-def test_records_and_reads_back(tmp_path):
-    s = _sensor()
-    s.name = "skin"
+def test_records_and_reads_back(sensor, tmp_path):
+    # The module's sensor (mesh, AMG and baseline already built): the
+    # recording must hold whatever the frames carry, whatever came before.
+    s = sensor
+    assert s.name == "skin"
     scene = _scene(_hand(2e-3))
     res = simulate(scene, [s], duration=2.0 / s.frame_rate, out=tmp_path / "t.h5", seed=3, keep_frames=True)
     frames = res.frames["skin"]
