@@ -4,7 +4,8 @@ Every case feeds one bad input to the public API (a scenario dict or file, a
 constructor or call, a mesh file, a recording) and expects a twinsense error
 (:class:`~twinsense.errors.TwinsenseError`) whose message names the field:
 the scenario path (``objects[2].motion.speed``), the API field
-(``sphere.radius``) or the file.
+(``sphere.radius``) or the file. A case that leaves a temporary or partial
+file (``.name.<pid>.tmp``, ``name.part.npz``) in its folder does not count as clear.
 
 Run::
 
@@ -17,6 +18,7 @@ clear. ``tests/test_bad_inputs.py`` runs the same catalogue as a test.
 from __future__ import annotations
 
 import copy
+import re
 import sys
 import tempfile
 from collections.abc import Callable
@@ -1089,12 +1091,25 @@ def catalogue() -> list[Case]:
             + _robot_cases() + _people_cases() + _tactile_cases() + _external_cases() + _stream_cases())
 
 
+# Names of temporary or partial files a failed write may leave: ".name.<pid>.tmp", "name.part.npz", ...
+_PARTIAL = re.compile(r"^\.|\.tmp$|\.part(\.|$)|\.partial\.")
+
+
+def _partial_files(tmp: Path) -> list[str]:
+    return sorted(str(p.relative_to(tmp)) for p in tmp.rglob("*") if _PARTIAL.search(p.name))
+
+
 def run_case(case: Case, tmp: Path) -> tuple[str, str]:
-    """("clear" | "unclear" | "foreign" | "accepted", message) for one case."""
+    """("clear" | "unclear" | "foreign" | "accepted" | "partial", message) for one case.
+
+    "partial": the error was clear, but a temporary or partial file was left in ``tmp``."""
     try:
         case.call(tmp)
     except TwinsenseError as e:
         msg = str(e)
+        left = _partial_files(tmp)
+        if left and case.field in msg:
+            return "partial", f"left {left} after: {msg}"
         return ("clear" if case.field in msg else "unclear"), msg
     except Exception as e:  # anything else is what the catalogue looks for
         return "foreign", f"{type(e).__name__}: {e}"
@@ -1103,7 +1118,7 @@ def run_case(case: Case, tmp: Path) -> tuple[str, str]:
 
 def main() -> int:
     cases = catalogue()
-    counts = {"clear": 0, "unclear": 0, "foreign": 0, "accepted": 0}
+    counts = {"clear": 0, "unclear": 0, "foreign": 0, "accepted": 0, "partial": 0}
     bad = []
     with tempfile.TemporaryDirectory() as d:
         for k, case in enumerate(cases):
@@ -1116,7 +1131,8 @@ def main() -> int:
     for cid, outcome, msg in bad:
         print(f"  {outcome:8s} {cid}: {msg[:160]!r}")
     print(f"{len(cases)} tried / {counts['clear']} clear errors / {counts['foreign']} foreign"
-          f" ({counts['unclear']} twinsense errors not naming the field, {counts['accepted']} accepted)")
+          f" ({counts['unclear']} twinsense errors not naming the field, {counts['accepted']} accepted,"
+          f" {counts['partial']} leaving a partial file)")
     return 0 if counts["clear"] == len(cases) else 1
 
 
