@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import heapq
 import math
+import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -250,18 +251,33 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
             # capture_frames (the same frames and random draws as one capture after another).
             block = s.capture_frames(scene, times, rngs[i]) if len(times) > 1 else [s.capture(scene, times[0],
                                                                                               rngs[i])]
-            for k, (t, frame) in enumerate(zip(times, block)):
-                if k and stop is not None and (reason := stop()) is not None:
-                    raise reason
-                if writer is not None:
-                    writer.append(s.name, t, frame.streams())
-                if keep:
-                    frames[s.name].append(frame)
-                if on_frame is not None:
-                    on_frame(s, frame)
-                counts[s.name] += 1
-                if bar is not None:
-                    bar.advance()
+            # A block goes to the recording in writes of whole runs of frames (one HDF5 write per stream),
+            # at the latest _WRITE_AFTER after its first unwritten frame was handed on (a run paced to
+            # wall time keeps the recovery bound) and before an error or stop leaves the loop.
+            pending: list = []
+            since = time.monotonic()
+            try:
+                for k, (t, frame) in enumerate(zip(times, block)):
+                    if k and stop is not None and (reason := stop()) is not None:
+                        raise reason
+                    if writer is not None:
+                        if len(block) == 1:
+                            writer.append(s.name, t, frame.streams())
+                        else:
+                            pending.append((t, frame.streams()))
+                    if keep:
+                        frames[s.name].append(frame)
+                    if on_frame is not None:
+                        on_frame(s, frame)
+                    counts[s.name] += 1
+                    if bar is not None:
+                        bar.advance()
+                    if pending and time.monotonic() - since > _WRITE_AFTER:
+                        _write(writer, s.name, pending)
+                        since = time.monotonic()
+            finally:
+                if pending:
+                    _write(writer, s.name, pending)
     except BaseException as exc:
         if bar is not None:
             bar.stop()
@@ -281,6 +297,18 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
 # Longest block of consecutive frames captured at once: bounds the memory a block holds (a 64-element
 # 3-axis magnetic array: 1024 x 64 x 3 x 8 B x 3 streams = 4.7 MB).
 _BLOCK = 1024
+
+
+# [s] Longest a captured frame of a block waits before it is written (a fraction of the recording's
+# 0.5 s flush interval, so a hard kill loses no more than with one write per frame plus this).
+_WRITE_AFTER = 0.1
+
+
+def _write(writer: RecordingWriter, name: str, pending: list) -> None:
+    """Append the ``(t, streams)`` frames of ``pending`` in one block write and empty it."""
+    times, streams = zip(*pending)
+    pending.clear()
+    writer.append_many(name, times, streams)
 
 
 def _runs(events, blockable: list[bool]) -> Iterator[tuple[int, list[float]]]:

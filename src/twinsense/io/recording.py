@@ -238,33 +238,103 @@ class RecordingWriter:
         if name not in self._counts:
             raise UnknownNameError("recording sensor", name, list(self._counts))
         with self._lock:
+            self._append_locked(name, t, streams)
+
+    def append_many(self, name: str, times, streams_list) -> None:
+        """Append consecutive frames of sensor ``name`` at ``times`` (T,) [s]: one write per stream.
+
+        ``streams_list`` holds one ``{stream: array}`` mapping per time. The file
+        holds the same datasets, bit for bit, as T calls of :meth:`append`; the
+        block is written under one lock, so a flush sees all of it or none. Frames
+        that do not stack (a stream missing, another shape or dtype) go one by one,
+        so the error names the frame, as :meth:`append` does, after the frames before it.
+        """
+        if name not in self._counts:
+            raise UnknownNameError("recording sensor", name, list(self._counts))
+        frames = list(streams_list)
+        ts_new = np.asarray(times, dtype=float).reshape(-1)
+        if len(ts_new) != len(frames):
+            raise ConfigError("append_many.times", f"{len(ts_new)} times",
+                              f"one time per frame ({len(frames)} frames)")
+        if not frames:
+            return
+        with self._lock:
             ts, dsets = self._datasets[name]
+            first = 0
+            if not dsets:  # the first frame creates the streams
+                self._append_locked(name, float(ts_new[0]), frames[0])
+                first = 1
+                if len(frames) == 1:
+                    return
+            # No streams yet (a first frame without any): one by one, so a stream that appears is refused.
+            stacked = self._stack(dsets, frames[first:]) if dsets else None
+            if stacked is None:
+                for t, streams in zip(ts_new[first:], frames[first:]):
+                    self._append_locked(name, float(t), streams)
+                return
+            n = len(frames) - first
             k = self._counts[name]
-            arrays = {}
-            for key, value in streams.items():
-                arr = np.asarray(value)
-                if key == "timestamps":
-                    raise RecordingError(f"{name}: 'timestamps' is reserved and cannot be a stream name")
-                ds = dsets.get(key)
-                if ds is None:
-                    if k:
-                        raise RecordingError(f"{name}: stream {key!r} appeared after {k} frames without it")
-                    dsets[key] = self._create_stream(self._f[name], key, arr)
-                elif ds.shape[1:] != arr.shape:
-                    raise RecordingError(f"{name}/{key}: frame shape {arr.shape} differs from earlier "
-                                         f"{ds.shape[1:]}")
-                arrays[key] = arr
-            if len(arrays) != len(dsets):
-                missing = sorted(set(dsets) - set(arrays))
-                raise RecordingError(f"{name}: frame {k} lacks stream(s) {', '.join(map(repr, missing))}")
-            for key, arr in arrays.items():
+            for key, arr in stacked.items():
                 ds = dsets[key]
-                ds.resize(k + 1, axis=0)
-                ds[k] = arr
-            ts.resize(k + 1, axis=0)
-            ts[k] = float(t)
-            self._counts[name] = k + 1
+                ds.resize(k + n, axis=0)
+                ds[k:k + n] = arr
+            ts.resize(k + n, axis=0)
+            ts[k:k + n] = ts_new[first:]
+            self._counts[name] = k + n
             self._dirty = True
+
+    @staticmethod
+    def _stack(dsets: dict[str, h5py.Dataset], frames: list) -> dict[str, np.ndarray] | None:
+        """Each stream of ``frames`` stacked (T, ...), or None when a frame differs from the datasets.
+
+        Every frame must have exactly the datasets' streams, in their shape, all in one dtype per
+        stream: h5py then converts the stack element by element as it would each frame.
+        """
+        out = {}
+        for key, ds in dsets.items():
+            shape = ds.shape[1:]
+            arrays = []
+            for streams in frames:
+                if len(streams) != len(dsets) or key not in streams:
+                    return None
+                arr = np.asarray(streams[key])
+                if arr.shape != shape:
+                    return None
+                arrays.append(arr)
+            dtype = arrays[0].dtype
+            if any(a.dtype != dtype for a in arrays):
+                return None
+            out[key] = np.stack(arrays)
+        return out
+
+    def _append_locked(self, name: str, t: float, streams: Mapping[str, np.ndarray]) -> None:
+        ts, dsets = self._datasets[name]
+        k = self._counts[name]
+        arrays = {}
+        for key, value in streams.items():
+            arr = np.asarray(value)
+            if key == "timestamps":
+                raise RecordingError(f"{name}: 'timestamps' is reserved and cannot be a stream name")
+            ds = dsets.get(key)
+            if ds is None:
+                if k:
+                    raise RecordingError(f"{name}: stream {key!r} appeared after {k} frames without it")
+                dsets[key] = self._create_stream(self._f[name], key, arr)
+            elif ds.shape[1:] != arr.shape:
+                raise RecordingError(f"{name}/{key}: frame shape {arr.shape} differs from earlier "
+                                     f"{ds.shape[1:]}")
+            arrays[key] = arr
+        if len(arrays) != len(dsets):
+            missing = sorted(set(dsets) - set(arrays))
+            raise RecordingError(f"{name}: frame {k} lacks stream(s) {', '.join(map(repr, missing))}")
+        for key, arr in arrays.items():
+            ds = dsets[key]
+            ds.resize(k + 1, axis=0)
+            ds[k] = arr
+        ts.resize(k + 1, axis=0)
+        ts[k] = float(t)
+        self._counts[name] = k + 1
+        self._dirty = True
 
     def _create_stream(self, g: h5py.Group, key: str, arr: np.ndarray) -> h5py.Dataset:
         if arr.nbytes > SMALL_FRAME_BYTES:
