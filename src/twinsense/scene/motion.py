@@ -127,7 +127,8 @@ class ConstantVelocity(Motion):
         rot = rotvec_matrix("motion.angular_velocity * t", self.angular_velocity * t) @ self.pose0.rotation
         # |velocity * t| <= c * TIME_MAX = 3e18 m: far below one ulp of any position near the
         # float limit, so the sum never overflows.
-        return MotionState(Pose(self.pose0.position + self.velocity * t, rot), self.velocity, self.angular_velocity)
+        return MotionState(Pose._trusted(self.pose0.position + self.velocity * t, rot), self.velocity,
+                           self.angular_velocity)
 
     def to_dict(self):
         return {"type": "constant_velocity", "pose": self.pose0.to_dict(),
@@ -205,7 +206,7 @@ class Waypoints(Motion):
         a, b = self._path[i], self._path[i + 1]
         d = (b - a) / (self._cum[i + 1] - self._cum[i])
         pos = a + d * (s - self._cum[i])
-        return MotionState(Pose(pos, self._rot), sign * self.speed * d, _ZERO)
+        return MotionState(Pose._trusted(pos, self._rot), sign * self.speed * d, _ZERO)
 
     def to_dict(self):
         return {"type": "waypoints", "points": np.asarray(self.points).tolist(), "speed": self.speed,
@@ -270,7 +271,7 @@ class Keyframes(Motion):
         # expressed in the world frame.
         rel = (self._rots[i].inv() * self._rots[i + 1]).as_rotvec()
         omega = self._rots[i].apply(rel) / dt
-        return MotionState(Pose(pos, rot), vel, omega)
+        return MotionState(Pose._trusted(pos, rot), vel, omega)
 
     def to_dict(self):
         return {"type": "keyframes", "times": self.times.tolist(), "poses": [p.to_dict() for p in self.poses]}
@@ -312,7 +313,7 @@ class Oscillation(Motion):
         # omega = n * dtheta/dt (the axis does not change, so this is exact).
         rot = rotvec_matrix("motion.angular_amplitude", self.angular_amplitude * s) @ self.pose0.rotation
         omega = self.angular_amplitude * w * c
-        return MotionState(Pose(pos, rot), vel, omega)
+        return MotionState(Pose._trusted(pos, rot), vel, omega)
 
     def to_dict(self):
         return {"type": "oscillation", "pose": self.pose0.to_dict(), "amplitude": self.amplitude.tolist(),
