@@ -220,5 +220,33 @@ class InductiveSensor:
         return InductiveFrame(float(t), np.array([int(self._output)], dtype=np.uint8), np.array([q]),
                               np.array([dz.real]), np.array([dl]), np.array([f]))
 
+    def capture_frames(self, scene: Scene, times, rng: np.random.Generator | None = None) -> list[InductiveFrame]:
+        """Frames at each of ``times`` (T,) [s], in time order: ``capture`` at each time in turn, bit for bit.
+
+        The impedance changes are found time by time (one cast each); the tank, the noise and the
+        output follow in one vectorised pass. The noise of all frames is one
+        ``normal`` call of size T, which a numpy Generator fills draw by draw as T scalar calls would;
+        the switching output runs through the qualities in order from the held state and is held
+        after the last. ``simulate`` uses it for runs of consecutive frames of this sensor.
+        """
+        self.prepare()
+        t = [float(x) for x in np.asarray(times, dtype=float).reshape(-1)]
+        dz = np.array([self.delta_z(scene, tk) for tk in t], dtype=complex)
+        q = self.quality(dz)
+        if rng is not None and self.quality_noise > 0:
+            q = q + rng.normal(0.0, self.quality_noise, len(t))
+        out = np.empty(len(t), np.uint8)
+        state = self._output
+        for k, qk in enumerate(q.tolist()):
+            state = switch(state, qk, self.a_on, self.a_off)
+            out[k] = state
+        self._output = state
+        # The scalar path's operations, element by element: dL = Im dZ / (2 pi f), then the tank.
+        dl = dz.imag / (2 * np.pi * self.config.frequency)
+        f = tank_frequency(self.l0, self.config.frequency, dl)
+        dr = dz.real.copy()
+        return [InductiveFrame(tk, out[k:k + 1], q[k:k + 1], dr[k:k + 1], dl[k:k + 1], f[k:k + 1])
+                for k, tk in enumerate(t)]
+
     def config_dict(self) -> dict:
         return {"kind": self.kind, "config": self.config.to_dict(), "mount": self.mount.to_dict()}
