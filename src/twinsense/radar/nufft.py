@@ -548,9 +548,13 @@ def _plan_block(p, v, pr, vr, tx, rx, chirps, t_mid, a_step, geo: Geometry,
     tau_max = float((r0_tx + r0_rx).max()) * 2.0 / SPEED_OF_LIGHT
     f_top = abs(geo.fc) + abs(geo.slope) * ((n_samp // 2) / geo.fs + tau_max)
     phase_per_m = _TWO_PI * f_top / SPEED_OF_LIGHT
+    # The tail grows with y (< 1) and r0, so the largest of each bounds every
+    # scatterer's: a scalar search for the order.
+    r_big = np.array([r0_tx.max(), r0_rx.max()])
+    y_big = np.array([y_tx.max(), y_rx.max()])
     order = 1
     while True:
-        tail = float(np.max(_leg_tail(r0_tx, y_tx, order) + _leg_tail(r0_rx, y_rx, order)))
+        tail = float(np.sum(_leg_tail(r_big, y_big, order)))
         if phase_per_m * tail <= eps / 16 or order >= _MAX_ORDER:
             break
         order += 1
