@@ -8,7 +8,13 @@ the cell's relative permittivity; conductors make all nodes of their cells
 one conductor: grounded (0 V) or floating (one unknown potential, zero net
 charge). Later objects override earlier dielectrics; a grounded node stays
 grounded. Only cells whose bounds meet the object's bounding box are tested,
-so a small object in a large mesh costs little.
+so a small object in a large mesh costs little, and an object whose box
+misses the meshed domain (seen from either side: the object's box in the mesh
+frame against the domain, the domain's box in the object frame against the
+object's own box) costs no per-cell test at all. An :class:`InclusionCache`
+keeps each object's inside cells with its pose relative to the mesh: a link
+carried rigidly with the sensor (or any object at rest relative to it) is
+mapped once.
 """
 
 from __future__ import annotations
@@ -22,14 +28,25 @@ from twinsense.capacitive.mesh import SimplexMesh
 from twinsense.errors import ConfigError
 from twinsense.scene.materials import CONDUCTOR_KINDS
 
+POSE_TOLERANCE = 1e-9
+"""Largest change of a relative pose (translation [m], rotation matrix entries) that
+reuses cached inside cells. A centroid at distance r from the object's origin moves
+by at most about 1e-9 * (1 + 3 r) m (< 2 nm within 0.3 m), far below any cell; only a
+centroid closer than that to the object's surface could be classified otherwise,
+and there the exact test is itself decided by rounding."""
+
 __all__ = [
     "CONDUCTOR_KINDS",
+    "POSE_TOLERANCE",
     "Inclusion",
+    "InclusionCache",
     "MaterialMap",
     "bounds_in_mesh_frame",
     "electrically_relevant",
     "inclusions_from_scene",
     "map_inclusions",
+    "meets_domain",
+    "object_box_at_pose",
     "object_box_in_mesh_frame",
     "resolution_boxes",
     "resolving_cell_sizes",
@@ -49,6 +66,13 @@ class Inclusion:
     permittivity : float
         Relative permittivity (> 0); unused for conductors.
     conductor : {"none", "grounded", "floating"}
+    pose : Pose or None
+        Object -> world at this instant (None: unknown; then no culling in
+        the object frame and no caching).
+    local_bounds : (2, 3) float or None
+        The object's own box in its frame [m] (with ``pose``).
+    shape : object or None
+        The geometry (its identity keys the cache: a new shape maps anew).
     """
 
     name: str
@@ -56,6 +80,9 @@ class Inclusion:
     bounds: np.ndarray
     permittivity: float = 1.0
     conductor: str = "none"
+    pose: object = None
+    local_bounds: np.ndarray | None = None
+    shape: object = None
 
     def __post_init__(self) -> None:
         if self.conductor not in CONDUCTOR_KINDS:
@@ -67,6 +94,34 @@ class Inclusion:
         if b.shape != (2, 3) or not np.all(b[1] >= b[0]):
             raise ConfigError(f"{self.name}.bounds", self.bounds, "(2, 3) min/max corners [m]")
         object.__setattr__(self, "bounds", b)
+        if self.local_bounds is not None:
+            object.__setattr__(self, "local_bounds", np.asarray(self.local_bounds, float))
+
+
+class InclusionCache:
+    """Inside cells of each object, kept with the object's pose relative to the mesh.
+
+    One cache belongs to one mesh (the sensor drops it with its mesh). An
+    entry is reused when the same shape sits at the same relative pose within
+    :data:`POSE_TOLERANCE`; otherwise the object is mapped anew and the entry
+    replaced. ``hits`` and ``misses`` count the per-cell tests saved and done.
+    """
+
+    def __init__(self) -> None:
+        self._entries: dict[str, tuple] = {}
+        self.hits = 0
+        self.misses = 0
+
+    def lookup(self, name: str, shape, rel: np.ndarray) -> np.ndarray | None:
+        e = self._entries.get(name)
+        if e is None or e[0] is not shape or np.max(np.abs(e[1] - rel)) > POSE_TOLERANCE:
+            self.misses += 1
+            return None
+        self.hits += 1
+        return e[2]
+
+    def store(self, name: str, shape, rel: np.ndarray, inside: np.ndarray) -> None:
+        self._entries[name] = (shape, rel.copy(), inside)
 
 
 @dataclass(frozen=True, eq=False)
@@ -91,12 +146,57 @@ def _box_corners(b: np.ndarray) -> np.ndarray:
     return np.array([[b[i, 0], b[j, 1], b[k, 2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
 
 
+def _relative(inc: Inclusion, mesh_to_world) -> np.ndarray | None:
+    """(3, 4) [R | p] of the object in the mesh frame (None without a pose)."""
+    if inc.pose is None or inc.local_bounds is None:
+        return None
+    ro, po = np.asarray(inc.pose.rotation), np.asarray(inc.pose.position)
+    if mesh_to_world is None:
+        return np.column_stack([ro, po])
+    rm, pm = np.asarray(mesh_to_world.rotation), np.asarray(mesh_to_world.position)
+    return np.column_stack([rm.T @ ro, rm.T @ (po - pm)])
+
+
+def _transformed_box(box: np.ndarray, rot: np.ndarray, pos: np.ndarray) -> np.ndarray:
+    c = _box_corners(box) @ rot.T + pos
+    return np.vstack([c.min(axis=0), c.max(axis=0)])
+
+
+def _overlap(a: np.ndarray, b: np.ndarray) -> bool:
+    return bool(np.all(a[1] >= b[0]) and np.all(a[0] <= b[1]))
+
+
 def bounds_in_mesh_frame(inc: Inclusion, mesh_to_world=None) -> np.ndarray:
-    """(2, 3) axis-aligned bounds [m] of ``inc`` in the mesh frame (the box whose cells are tested)."""
+    """(2, 3) axis-aligned bounds [m] of ``inc`` in the mesh frame (the box whose cells are tested).
+
+    With the inclusion's pose, the box of its own local box (tighter than the
+    box of its world box); every point inside the object lies in it either way.
+    """
+    rel = _relative(inc, mesh_to_world)
+    if rel is not None:
+        return _transformed_box(inc.local_bounds, rel[:, :3], rel[:, 3])
     if mesh_to_world is None:
         return inc.bounds
     c = mesh_to_world.inverse().apply(_box_corners(inc.bounds))
     return np.vstack([c.min(axis=0), c.max(axis=0)])
+
+
+def meets_domain(inc: Inclusion, domain: np.ndarray, mesh_to_world=None) -> bool:
+    """False when ``inc`` cannot hold a point of the mesh domain box ``domain`` (2, 3) [m].
+
+    Both boxes are tested from both sides (a separating-axis test on the two
+    frames' axes): the object's box in the mesh frame against the domain, and
+    the domain's box in the object frame against the object's own box. A thin
+    plane tilted against the mesh has a large mesh-frame box but is culled by
+    the second test.
+    """
+    if not _overlap(bounds_in_mesh_frame(inc, mesh_to_world), domain):
+        return False
+    rel = _relative(inc, mesh_to_world)
+    if rel is None:
+        return True
+    rt = rel[:, :3].T
+    return _overlap(_transformed_box(domain, rt, -rt @ rel[:, 3]), inc.local_bounds)
 
 
 def inclusions_from_scene(scene, t: float, kind: str = "capacitive") -> list[Inclusion]:
@@ -115,7 +215,8 @@ def inclusions_from_scene(scene, t: float, kind: str = "capacitive") -> list[Inc
             return np.asarray(geom.contains(inv.apply(p)), bool)
 
         mat = obj.material
-        out.append(Inclusion(obj.name, contains, bounds, float(mat.permittivity), mat.conductor))
+        out.append(Inclusion(obj.name, contains, bounds, float(mat.permittivity), mat.conductor,
+                             pose=pose, local_bounds=np.asarray(geom.bounds, float), shape=geom))
     return out
 
 
@@ -124,6 +225,7 @@ def map_inclusions(
     base_permittivity: np.ndarray,
     inclusions: Sequence[Inclusion],
     mesh_to_world=None,
+    cache: InclusionCache | None = None,
 ) -> MaterialMap:
     """Map inclusions onto the cells of ``mesh``.
 
@@ -133,6 +235,9 @@ def map_inclusions(
     base_permittivity : (m,) float, relative permittivity with no object.
     inclusions : sequence of Inclusion, world frame.
     mesh_to_world : Pose or None, mesh frame -> world (None: identity).
+    cache : InclusionCache or None
+        Inside cells of earlier frames on this mesh, reused for an object at
+        the same relative pose (within :data:`POSE_TOLERANCE`).
 
     Returns
     -------
@@ -141,16 +246,24 @@ def map_inclusions(
     eps = np.array(base_permittivity, float, copy=True)
     grounded = np.zeros(mesh.n_nodes, bool)
     floating, names = [], []
-    cmin, cmax = mesh.cell_bounds
+    domain = mesh.bounds
     for inc in inclusions:
-        b = bounds_in_mesh_frame(inc, mesh_to_world)
-        cand = np.flatnonzero(np.all(cmax >= b[0], axis=1) & np.all(cmin <= b[1], axis=1))
-        if len(cand) == 0:
+        # Culling first: most objects of a cell are far from a small skin.
+        if not meets_domain(inc, domain, mesh_to_world):
             continue
-        cen = mesh.centroids[cand]
-        if mesh_to_world is not None:
-            cen = mesh_to_world.apply(cen)
-        inside = cand[np.asarray(inc.contains(cen), bool)]
+        rel = _relative(inc, mesh_to_world) if cache is not None else None
+        inside = None if rel is None else cache.lookup(inc.name, inc.shape, rel)
+        if inside is None:
+            cand = mesh.cells_meeting_box(bounds_in_mesh_frame(inc, mesh_to_world))
+            if len(cand) == 0:
+                inside = cand
+            else:
+                cen = mesh.centroids[cand]
+                if mesh_to_world is not None:
+                    cen = mesh_to_world.apply(cen)
+                inside = cand[np.asarray(inc.contains(cen), bool)]
+            if rel is not None:
+                cache.store(inc.name, inc.shape, rel, inside)
         if len(inside) == 0:
             continue
         if inc.conductor == "none":
@@ -187,12 +300,18 @@ def object_box_in_mesh_frame(obj, t: float, mesh_to_world=None) -> tuple[np.ndar
     rotation : (3, 3) float
         Object axes (columns) in the mesh frame.
     """
-    pose = obj.pose_at(t)
+    return object_box_at_pose(obj.pose_at(t), obj.geometry.bounds, mesh_to_world)
+
+
+def object_box_at_pose(pose, local_bounds, mesh_to_world=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`object_box_in_mesh_frame` of an object at ``pose`` (object -> world) whose own box
+    is ``local_bounds`` (2, 3) [m]: (bounds (2, 3) [m], extent (3,) [m], rotation (3, 3))."""
+    local = np.asarray(local_bounds, float)
+    rot, pos = np.asarray(pose.rotation), np.asarray(pose.position)
     if mesh_to_world is not None:
-        pose = mesh_to_world.inverse() @ pose
-    local = np.asarray(obj.geometry.bounds, float)
-    corners = pose.apply(_box_corners(local))
-    return np.vstack([corners.min(axis=0), corners.max(axis=0)]), local[1] - local[0], np.asarray(pose.rotation)
+        rm = np.asarray(mesh_to_world.rotation)
+        rot, pos = rm.T @ rot, rm.T @ (pos - np.asarray(mesh_to_world.position))
+    return _transformed_box(local, rot, pos), local[1] - local[0], rot
 
 
 def resolving_cell_sizes(extent: np.ndarray, rotation: np.ndarray, cells: float) -> np.ndarray:

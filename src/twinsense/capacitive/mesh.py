@@ -112,6 +112,32 @@ class SimplexMesh:
         p = self.points[self.cells]
         return p.min(axis=1), p.max(axis=1)
 
+    @cached_property
+    def bounds(self) -> np.ndarray:
+        """(2, d) axis-aligned bounds of the whole mesh (min, max) [m]."""
+        return np.vstack([self.points.min(axis=0), self.points.max(axis=0)])
+
+    @cached_property
+    def _bounds_columns(self) -> tuple[np.ndarray, ...]:
+        # One contiguous array per axis and side: six 1-D comparisons are several
+        # times faster than a reduction over the (m, d) rows.
+        cmin, cmax = self.cell_bounds
+        return tuple(np.ascontiguousarray(c[:, k]) for k in range(self.dim) for c in (cmin, cmax))
+
+    def cells_meeting_box(self, box) -> np.ndarray:
+        """(c,) int64 indices of the cells whose bounds meet ``box`` ((2, d) min/max corners [m]).
+
+        Closed boxes: a cell touching the box counts.
+        """
+        b = np.asarray(box, float)
+        cols = self._bounds_columns
+        hit = cols[1] >= b[0, 0]
+        hit &= cols[0] <= b[1, 0]
+        for k in range(1, self.dim):
+            hit &= cols[2 * k + 1] >= b[0, k]
+            hit &= cols[2 * k] <= b[1, k]
+        return np.flatnonzero(hit)
+
     def digest(self) -> str:
         """A hash of the node coordinates and connectivity (for caches)."""
         h = hashlib.sha256()

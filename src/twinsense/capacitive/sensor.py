@@ -18,11 +18,14 @@ import numpy as np
 from twinsense.capacitive.condensation import active_cells_in_boxes
 from twinsense.capacitive.config import MODES, CapacitiveConfig
 from twinsense.capacitive.coupling import (
+    POSE_TOLERANCE,
+    InclusionCache,
     bounds_in_mesh_frame,
     electrically_relevant,
     inclusions_from_scene,
     map_inclusions,
-    object_box_in_mesh_frame,
+    meets_domain,
+    object_box_at_pose,
     resolution_boxes,
     resolving_cell_sizes,
 )
@@ -154,6 +157,10 @@ class CapacitiveSensor:
         self._prepared_times: frozenset = frozenset()
         self._warned: set[str] = set()
         self._cell_extent: np.ndarray | None = None
+        # Inside cells per object by relative pose, and the relative poses already
+        # checked for resolution: both belong to the mesh and go with it.
+        self._inclusion_cache = InclusionCache()
+        self._resolution_checked: dict[str, tuple] = {}
         self._mesh: LayoutMesh | None = None
         self._system: ElectrostaticSystem | None = None
         self._solver: MaxwellSolver | None = None
@@ -261,15 +268,16 @@ class CapacitiveSensor:
         if settings != self._settings:
             self._settings = settings
             self._mesh = self._system = self._solver = self._baseline = self._cell_extent = None
+            self._inclusion_cache = InclusionCache()
+            self._resolution_checked = {}
         self._prepared_times = frozenset(float(t) for t in times)
         mesh = self.layout_mesh.mesh
         active = active_cells_in_boxes(mesh, self.config.active_boxes)
-        cmin, cmax = mesh.cell_bounds
         for t in times:
             pose = self.mount.pose_at(scene, t)
             for inc in self._inclusions(scene, t):
-                b = bounds_in_mesh_frame(inc, pose)
-                active |= np.all(cmax >= b[0], axis=1) & np.all(cmin <= b[1], axis=1)
+                if meets_domain(inc, mesh.bounds, pose):
+                    active[mesh.cells_meeting_box(bounds_in_mesh_frame(inc, pose))] = True
         _ = self.system
         self._solver.set_active_cells(active)
         return active
@@ -302,14 +310,18 @@ class CapacitiveSensor:
         system = self.system
         incs = self._inclusions(scene, t)
         if float(t) not in self._prepared_times:
-            self._check_resolution(scene, t, pose)
-        mm = map_inclusions(self.layout_mesh.mesh, self.layout_mesh.permittivity, incs, mesh_to_world=pose)
+            self._check_resolution(scene, t, pose, incs)
+        mm = map_inclusions(self.layout_mesh.mesh, self.layout_mesh.permittivity, incs, mesh_to_world=pose,
+                            cache=self._inclusion_cache)
         system.set_permittivity(mm.permittivity)
         system.set_conductors(mm.grounded, mm.floating)
         return self._solver.solve()
 
-    def _check_resolution(self, scene, t: float, pose) -> None:
-        """Warn once per object that sits in cells coarser than its resolving size."""
+    def _check_resolution(self, scene, t: float, pose, incs) -> None:
+        """Warn once per object that sits in cells coarser than its resolving size.
+
+        ``incs``: this frame's inclusions, whose poses are reused (an articulated
+        link's pose is not cheap)."""
         cells = self.config.mesh.object_cells
         if cells == 0:
             return
@@ -317,13 +329,26 @@ class CapacitiveSensor:
         cmin, cmax = mesh.cell_bounds
         if self._cell_extent is None:
             self._cell_extent = cmax - cmin
+        poses = {inc.name: inc.pose for inc in incs}
         for obj in scene.objects:
             if obj.name in self._warned or obj.name == self.mount.parent or not electrically_relevant(obj, self.kind):
                 continue
-            b, extent, rot = object_box_in_mesh_frame(obj, t, pose)
+            obj_pose = poses.get(obj.name)
+            if obj_pose is None:
+                obj_pose = obj.pose_at(t)
+            b, extent, rot = object_box_at_pose(obj_pose, obj.geometry.bounds, pose)
+            if not (np.all(b[1] >= mesh.bounds[0]) and np.all(b[0] <= mesh.bounds[1])):
+                continue  # outside the meshed domain: no per-cell test
+            # The verdict depends on the shape and its pose relative to the mesh only:
+            # an object checked at this relative pose before is not checked again.
+            key = np.column_stack([rot, b[0]])
+            seen = self._resolution_checked.get(obj.name)
+            if seen is not None and seen[0] is obj.geometry and np.max(np.abs(seen[1] - key)) <= POSE_TOLERANCE:
+                continue
+            self._resolution_checked[obj.name] = (obj.geometry, key)
             h = np.minimum(resolving_cell_sizes(extent, rot, cells), self._settings.h_max)
-            meet = np.all(cmax >= b[0], axis=1) & np.all(cmin <= b[1], axis=1)
-            if not np.any(meet):
+            meet = mesh.cells_meeting_box(b)
+            if len(meet) == 0:
                 continue
             coarsest = self._cell_extent[meet].max(axis=0)
             if np.any(coarsest > RESOLUTION_SLACK * h):
