@@ -219,3 +219,13 @@ def test_synthesize_with_the_2d_path_does_not_depend_on_workers(workers):
     assert _two_d(p[:1500], v[:1500], w[:1500], cfg, force=False) is not None
     ref = synthesize(p, v, w, cfg, workers=1)
     assert np.array_equal(synthesize(p, v, w, cfg, workers=workers), ref)
+
+
+def test_a_point_on_an_antenna_element_leaves_the_2d_path():
+    # r0 = 0: the delay series has no radius of convergence; None (the per-chirp
+    # path decides), without a division warning.
+    cfg = _config()
+    p = np.array([[-0.01, 0.0, 0.0], [0.0, 0.0, 1.0]])  # the first on the transmitter
+    v = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    with np.errstate(all="raise"):
+        assert _two_d(p, v, np.ones(2, complex), cfg) is None

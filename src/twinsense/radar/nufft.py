@@ -539,9 +539,10 @@ def _plan_block(p, v, pr, vr, tx, rx, chirps, t_mid, a_step, geo: Geometry,
     d_rx = pr + vr * t_mid - rx
     r0_tx = np.sqrt(np.einsum("ij,ij->i", d_tx, d_tx))
     r0_rx = np.sqrt(np.einsum("ij,ij->i", d_rx, d_rx))
-    y_tx = t_span * np.linalg.norm(v, axis=1) / r0_tx
-    y_rx = t_span * np.linalg.norm(vr, axis=1) / r0_rx
-    if max(float(y_tx.max()), float(y_rx.max())) > _Y_MAX:
+    with np.errstate(divide="ignore", invalid="ignore"):  # a point on an element: not 2-D
+        y_tx = t_span * np.linalg.norm(v, axis=1) / r0_tx
+        y_rx = t_span * np.linalg.norm(vr, axis=1) / r0_rx
+    if not max(float(y_tx.max()), float(y_rx.max())) <= _Y_MAX:
         return None
     # |d Phi / d tau| <= 2 pi (|fc| + |S| (N/2 / fs + tau)): the tail of the delay moves
     # the phase by at most that times the tail.
