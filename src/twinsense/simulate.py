@@ -252,8 +252,9 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
             block = s.capture_frames(scene, times, rngs[i]) if len(times) > 1 else [s.capture(scene, times[0],
                                                                                               rngs[i])]
             # A block goes to the recording in writes of whole runs of frames (one HDF5 write per stream),
-            # at the latest _WRITE_AFTER after its first unwritten frame was handed on (a run paced to
-            # wall time keeps the recovery bound) and before an error or stop leaves the loop.
+            # at the latest _WRITE_AFTER after the last write and before an error or stop leaves the loop.
+            # With on_frame (live sinks, a run paced to wall time) the callback may block, so each frame
+            # is written before it is handed on, which keeps the recovery bound.
             pending: list = []
             since = time.monotonic()
             try:
@@ -261,7 +262,7 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
                     if k and stop is not None and (reason := stop()) is not None:
                         raise reason
                     if writer is not None:
-                        if len(block) == 1:
+                        if len(block) == 1 or on_frame is not None:
                             writer.append(s.name, t, frame.streams())
                         else:
                             pending.append((t, frame.streams()))

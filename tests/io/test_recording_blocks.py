@@ -135,3 +135,30 @@ def test_a_killed_block_writer_keeps_its_frames_up_to_the_recovery_bound(tmp_pat
         field = rec["hall"]["field"][()]
         np.testing.assert_array_equal(field[:, 0, 0], np.arange(counts["hall"], dtype=float))
         np.testing.assert_array_equal(rec["hall"].timestamps, np.arange(counts["hall"]) / 1e4)
+
+
+def test_simulate_writes_the_same_datasets_whatever_the_write_split(tmp_path, monkeypatch):
+    # The block path (one write per block), writes split after every frame (_WRITE_AFTER = 0: the
+    # bound on how long a frame waits hit every time) and a run with on_frame (frame by frame
+    # before the callback) must all store the same datasets.
+    from twinsense.magnetic import MagneticSensor
+    from twinsense.scene import Box, Magnet, Mount, Oscillation, Pose, Scene
+    from twinsense.simulate import simulate
+
+    def run(path, **kw):
+        s = Scene(name="split")
+        s.add_object("m", Box((0.01, 0.01, 0.01)), motion=Oscillation(Pose((0.01, 0.0, 0.01)), (0.02, 0, 0), 20.0),
+                     magnet=Magnet("cylinder", (0.006, 0.003), 1.2, (0, 0, 1)))
+        sensor = MagneticSensor.preset("hall_array8", name="array", mount=Mount(Pose()), frame_rate=10_000.0)
+        return datasets(simulate(s, [sensor], 0.01, path, seed=2, **kw).path)
+
+    whole = run(tmp_path / "whole.h5")
+    seen = []
+    called = run(tmp_path / "called.h5", on_frame=lambda s, f: seen.append(f.t))
+    monkeypatch.setattr(sys.modules["twinsense.simulate"], "_WRITE_AFTER", 0.0)
+    split = run(tmp_path / "split.h5")
+    assert len(seen) == 100 and len(whole["array/timestamps"][3]) == 100
+    for other in (called, split):
+        assert sorted(other) == sorted(whole)
+        for key in whole:
+            assert other[key][3].tobytes() == whole[key][3].tobytes(), key
