@@ -8,13 +8,18 @@ the face, and the real-time factor against the preset's switching frequency
 same table (the interpolation a naive model would run per update), and one
 sparse factorisation + solve of the FEM on a table grid (what a run without
 tables would pay per update, at least). Also ``simulate`` over 1 s of the
-same scene (1000 updates at the preset's 1 kHz, frames in memory): the path
-a user's run takes.
+same scene (1000 updates at the preset's 1 kHz, frames in memory, and to
+an HDF5 recording): the path a user's run takes, where the run loop hands
+the sensor's consecutive frames to ``capture_frames`` in blocks; and
+``capture_frames`` alone over the same 400 update times.
 
 Run:  .venv/bin/python benchmarks/bench_inductive.py
 """
 
 from __future__ import annotations
+
+import tempfile
+from pathlib import Path
 
 import numpy as np
 from _timing import best_and_median, print_anchor, print_load_at_end, print_machine
@@ -52,6 +57,11 @@ def main() -> None:
     print(f"m18_flush capture: {per * 1e6:7.1f} us median per update ({best / n * 1e6:.1f} us best) -> "
           f"{1 / per:,.0f} updates/s; real time at {cfg.switching_frequency:g} Hz: x{rt:.1f}")
 
+    bestb, medb = best_and_median(lambda: sensor.capture_frames(scene, times, rng), repeats=5)
+    print(f"m18_flush capture_frames, {n} updates: {medb / n * 1e6:7.1f} us median per update "
+          f"({bestb / n * 1e6:.1f} us best) -> {n / medb:,.0f} updates/s; real time x"
+          f"{n / medb / cfg.switching_frequency:.1f}")
+
     # simulate: the same plate crossing the face at 0.04 m/s, over the face (|x| < 18 mm) for 0.9 of the 1 s.
     slow = Scene()
     slow.add_object("plate", Box((0.018, 0.018, 0.001)), "mild_steel",
@@ -60,6 +70,12 @@ def main() -> None:
     bests, meds = best_and_median(lambda: simulate(slow, [sensor], 1.0, None, keep_frames=False), repeats=3)
     print(f"simulate, 1 s ({n_sim} updates), in memory: {meds / n_sim * 1e6:7.1f} us median per update "
           f"({bests / n_sim * 1e6:.1f} us best) -> {n_sim / meds:,.0f} updates/s; real time x{1.0 / meds:.1f}")
+
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "run.h5"
+        bestr, medr = best_and_median(lambda: simulate(slow, [sensor], 1.0, out), repeats=3)
+    print(f"simulate, 1 s ({n_sim} updates), to HDF5: {medr / n_sim * 1e6:7.1f} us median per update "
+          f"({bestr / n_sim * 1e6:.1f} us best) -> {n_sim / medr:,.0f} updates/s; real time x{1.0 / medr:.1f}")
 
     spec = cfg.table_spec()
     table, _ = load_or_compute(spec)
