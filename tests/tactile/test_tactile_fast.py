@@ -1,6 +1,7 @@
 """The compiled re-assembly of moved cells against the NumPy forms and a fresh assembly."""
 
 import numpy as np
+import pytest
 
 from twinsense.capacitive.fem import ElectrostaticSystem
 from twinsense.capacitive.mesh import SimplexMesh, tensor_tet_mesh
@@ -60,3 +61,46 @@ def test_sub_tolerance_creep_never_drifts_from_the_assembled_geometry():
     # Sums of a handful of rounded element entries: equal to ~1e-15 of the largest entry.
     scale = np.abs(fresh.k_data).max()
     np.testing.assert_allclose(es.system.k_data, fresh.k_data, rtol=0, atol=1e-12 * scale)
+
+
+def _small_skin():
+    from twinsense.capacitive.readout import ReadoutConfig
+    from twinsense.capacitive.tactile import StackLayer, StackMeshSettings, TactileConfig, TactileLayout, TactileSensor
+
+    lay = TactileLayout("t4", "crossing", 4, 4, 4e-3, 2e-3, 1e-3, dielectric=StackLayer(1.5e-3, 2.8, "ecoflex_0030"),
+                        cover=StackLayer(0.5e-3, 2.72, "pdms_sylgard184"), edge=1e-3)
+    mesh = StackMeshSettings(h_xy=1e-3, dielectric_cells=2, air_height=0.01, margin=4e-3, h_max=5e-3)
+    quiet = ReadoutConfig(sample_rate=30.0)
+    return TactileSensor(TactileConfig(lay, mesh, quiet, quiet), name="skin")
+
+
+def _press(lay):
+    from twinsense.capacitive.mechanics import Indenter
+
+    x0, y0, r, d = lay.x_centers[2], lay.y_centers[2], 0.01, lay.dielectric.thickness / 15.0
+    return Indenter.sphere((x0, y0, lay.total_thickness + r - d), r, "press"), (x0, y0), np.sqrt(2 * r * d)
+
+
+def test_reference_press_on_a_few_contact_nodes_equals_the_whole_body():
+    skin = _small_skin()
+    ind, apex, overlap = _press(skin.config.layout)
+    few = skin._reference_contact(ind, apex, 3.0 * overlap)
+    assert skin._body is None  # solved on the candidates near the apex only
+    full = skin.elastic_body.solve([ind])
+    # The compliance of a subset of contact nodes is the submatrix of the full
+    # one (Schur complement onto fewer dofs): the same LCP solution; only the
+    # factorisation's rounding differs (condition ~1e3): 1e-9 relative.
+    assert few.force[0] == pytest.approx(full.force[0], rel=1e-9, abs=0.0)
+    scale = np.abs(full.displacement).max()
+    np.testing.assert_allclose(few.displacement, full.displacement, rtol=0, atol=1e-9 * scale)
+
+
+def test_reference_press_with_too_few_candidates_falls_back_to_the_whole_body():
+    skin = _small_skin()
+    ind, apex, overlap = _press(skin.config.layout)
+    # Candidates within 0.6 of the overlap radius: the nodes between 0.6 and
+    # 1.0 of it penetrate the sphere, so the check must reject the restricted solve.
+    got = skin._reference_contact(ind, apex, 0.6 * overlap)
+    assert skin._body is not None
+    want = skin._body.solve([ind])
+    assert got.force[0] == pytest.approx(want.force[0], rel=1e-12, abs=0.0)
