@@ -129,7 +129,12 @@ class DeformedElectrostatics:
 
     @property
     def points(self) -> np.ndarray:
-        """(n, 3) deformed node coordinates [m]."""
+        """(n, 3) deformed node coordinates [m], those the stiffness was computed with.
+
+        ``displacement`` is the applied field: each node within
+        :data:`MOVE_TOL` of the last one requested (a node that moved less
+        keeps its earlier position).
+        """
         return self.points0 + self.displacement
 
     def set_displacement(self, displacement: np.ndarray) -> np.ndarray:
