@@ -121,14 +121,20 @@ class ConstantVelocity(Motion):
         object.__setattr__(self, "velocity", V.bounded_vector("motion.velocity", self.velocity, V.SPEED_MAX, "m/s"))
         object.__setattr__(self, "angular_velocity", V.bounded_vector(
             "motion.angular_velocity", self.angular_velocity, V.ANGULAR_SPEED_MAX, "rad/s"))
+        # Without a turn every state has one rotation, I @ R0 re-orthonormalised: built once.
+        fixed = None if np.any(self.angular_velocity) else Pose._trusted(_ZERO, np.eye(3) @ self.pose0.rotation)
+        object.__setattr__(self, "_fixed", fixed)
 
     def state(self, t):
         t = check_time(t)
-        rot = rotvec_matrix("motion.angular_velocity * t", self.angular_velocity * t) @ self.pose0.rotation
         # |velocity * t| <= c * TIME_MAX = 3e18 m: far below one ulp of any position near the
         # float limit, so the sum never overflows.
-        return MotionState(Pose._trusted(self.pose0.position + self.velocity * t, rot), self.velocity,
-                           self.angular_velocity)
+        pos = self.pose0.position + self.velocity * t
+        if self._fixed is not None:
+            return MotionState(Pose._trusted(pos, self._fixed.rotation, normalised=True), self.velocity,
+                               self.angular_velocity)
+        rot = rotvec_matrix("motion.angular_velocity * t", self.angular_velocity * t) @ self.pose0.rotation
+        return MotionState(Pose._trusted(pos, rot), self.velocity, self.angular_velocity)
 
     def to_dict(self):
         return {"type": "constant_velocity", "pose": self.pose0.to_dict(),
@@ -177,6 +183,8 @@ class Waypoints(Motion):
         object.__setattr__(self, "_path", p)
         object.__setattr__(self, "_cum", cum)
         object.__setattr__(self, "_rot", _as_rotation_matrix("motion.rotation", self.rotation))
+        # The rotation of every state (re-orthonormalised once more, as a pose of it would be).
+        object.__setattr__(self, "_fixed", Pose._trusted(_ZERO, self._rot))
 
     @property
     def length(self) -> float:
@@ -206,7 +214,7 @@ class Waypoints(Motion):
         a, b = self._path[i], self._path[i + 1]
         d = (b - a) / (self._cum[i + 1] - self._cum[i])
         pos = a + d * (s - self._cum[i])
-        return MotionState(Pose._trusted(pos, self._rot), sign * self.speed * d, _ZERO)
+        return MotionState(Pose._trusted(pos, self._fixed.rotation, normalised=True), sign * self.speed * d, _ZERO)
 
     def to_dict(self):
         return {"type": "waypoints", "points": np.asarray(self.points).tolist(), "speed": self.speed,

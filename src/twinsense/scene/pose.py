@@ -75,20 +75,25 @@ class Pose:
         object.__setattr__(self, "rotation", rot)
 
     @classmethod
-    def _trusted(cls, position: np.ndarray, rotation: np.ndarray) -> Pose:
+    def _trusted(cls, position: np.ndarray, rotation: np.ndarray, *, normalised: bool = False) -> Pose:
         """A pose from parts already known valid: a finite (3,) position [m] and a rotation (3, 3) built
         from proper rotations (a product of poses' rotations, a motion's rotation vector, slerp).
 
         Skips the checks of the public constructor (about 10x its cost) but keeps its
         re-orthonormalisation, so the pose is bit for bit the one ``Pose(position, rotation)`` gives.
-        Internal: user input goes through ``Pose(...)``.
+        ``normalised=True``: ``rotation`` is already the ``rotation`` of such a pose (read-only), kept
+        as is (a motion whose rotation does not change reuses it). Internal: user input goes through
+        ``Pose(...)``.
         """
         pose = object.__new__(cls)
         pos = np.array(position, dtype=float)
-        u, _, vt = np.linalg.svd(np.asarray(rotation, dtype=float))
-        rot = u @ vt
+        if normalised:
+            rot = rotation
+        else:
+            u, _, vt = np.linalg.svd(np.asarray(rotation, dtype=float))
+            rot = u @ vt
+            rot.setflags(write=False)
         pos.setflags(write=False)
-        rot.setflags(write=False)
         object.__setattr__(pose, "position", pos)
         object.__setattr__(pose, "rotation", rot)
         return pose
