@@ -7,7 +7,7 @@ microseconds. The arithmetic is the model's (see ``model.py``).
 
 from __future__ import annotations
 
-from twinsense.render.kernels import jit
+from twinsense.compiled import jit
 
 
 @jit

@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from twinsense.render.kernels import jit
+from twinsense.compiled import jit
 
 _TWO_PI = 2.0 * math.pi
 

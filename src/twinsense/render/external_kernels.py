@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from twinsense.render.kernels import jit
+from twinsense.compiled import jit
 
 
 @jit

@@ -16,21 +16,9 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
-
-def jit(fn):
-    """``numba.njit`` without the GIL, NumPy's float error model, cached on disk when possible.
-
-    The cache lives next to the module or, in a read-only install, in the
-    user's cache directory; if neither is writable the kernels are compiled
-    in every process instead (a few seconds once).
-    """
-    try:
-        return numba.njit(cache=True, nogil=True, fastmath=False, error_model="numpy")(fn)
-    except RuntimeError:  # no writable cache location
-        return numba.njit(cache=False, nogil=True, fastmath=False, error_model="numpy")(fn)
+from twinsense.compiled import jit
 
 
 @jit

@@ -33,11 +33,11 @@ from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-import numba
 import numpy as np
 from scipy.interpolate import CubicSpline
 
 from twinsense import validation as V
+from twinsense.compiled import jit
 from twinsense.errors import ConfigError
 from twinsense.scene.geometry import Geometry, TriangleMesh
 from twinsense.scene.materials import Material, get_material
@@ -242,15 +242,7 @@ class TreeState:
         return self.linear_velocities[i] + np.cross(self.angular_velocities[i], p - self.positions[i])
 
 
-def _jit(fn):
-    """``numba.njit`` cached on disk when a cache location is writable (else compiled once per process)."""
-    try:
-        return numba.njit(cache=True, nogil=True, fastmath=False, error_model="numpy")(fn)
-    except RuntimeError:  # no writable cache location
-        return numba.njit(cache=False, nogil=True, fastmath=False, error_model="numpy")(fn)
-
-
-@_jit
+@jit
 def _fk_kernel(q, qd, jint, jdat, root, base, out):  # pragma: no cover - compiled
     """Forward kinematics with velocities, joints in parent-before-child order (see KinematicTree.forward).
 

@@ -22,7 +22,7 @@ import itertools
 
 import numpy as np
 
-from twinsense.render.kernels import jit
+from twinsense.compiled import jit
 from twinsense.render.parallel import map_ordered
 
 

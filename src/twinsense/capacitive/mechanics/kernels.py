@@ -9,22 +9,15 @@ right-hand sides of a row at once.
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 import scipy.sparse as sp
+
+from twinsense.compiled import jit
 
 __all__ = ["split_diagonal", "upper_solve"]
 
 
-def _jit(fn):
-    """``numba.njit`` cached on disk when a cache location is writable (else compiled once per process)."""
-    try:
-        return numba.njit(cache=True, nogil=True, fastmath=False, error_model="numpy")(fn)
-    except RuntimeError:  # no writable cache location
-        return numba.njit(cache=False, nogil=True, fastmath=False, error_model="numpy")(fn)
-
-
-@_jit
+@jit
 def _upper_solve_1(indptr, indices, data, diag, b):  # pragma: no cover - compiled
     x = b.copy()
     for j in range(len(b) - 1, -1, -1):
@@ -35,7 +28,7 @@ def _upper_solve_1(indptr, indices, data, diag, b):  # pragma: no cover - compil
     return x
 
 
-@_jit
+@jit
 def _upper_solve_k(indptr, indices, data, diag, b):  # pragma: no cover - compiled
     x = b.copy()
     k = b.shape[1]

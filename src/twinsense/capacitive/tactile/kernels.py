@@ -10,21 +10,14 @@ loops that touch each moved node and cell once.
 
 from __future__ import annotations
 
-import numba
 import numpy as np
+
+from twinsense.compiled import jit
 
 __all__ = ["moved_cells", "restamp", "tet_stiffness_nb"]
 
 
-def _jit(fn):
-    """``numba.njit`` cached on disk when a cache location is writable (else compiled once per process)."""
-    try:
-        return numba.njit(cache=True, nogil=True, fastmath=False, error_model="numpy")(fn)
-    except RuntimeError:  # no writable cache location
-        return numba.njit(cache=False, nogil=True, fastmath=False, error_model="numpy")(fn)
-
-
-@_jit
+@jit
 def moved_cells(u, applied, cells, tol):  # pragma: no cover - compiled
     """Cells with a node whose target displacement ``u`` (n, 3) differs from the applied one by > ``tol`` [m].
 
@@ -46,7 +39,7 @@ def moved_cells(u, applied, cells, tol):  # pragma: no cover - compiled
     return out[:k], moved
 
 
-@_jit
+@jit
 def tet_stiffness_nb(points, cells, sel):  # pragma: no cover - compiled
     """Unit-permittivity P1 element matrices (c, 4, 4) [m] and signed volumes (c,) [m^3] of ``cells[sel]``.
 
@@ -85,7 +78,7 @@ def tet_stiffness_nb(points, cells, sel):  # pragma: no cover - compiled
     return k, vol
 
 
-@_jit
+@jit
 def restamp(k_data, slots, local, sel, k_new, eps_new, eps_old, eps0):  # pragma: no cover - compiled
     """Swap the moved cells' stiffness in the CSR data: ``+= eps0 (eps_new K_new - eps_old K_old)``.
 
