@@ -86,19 +86,20 @@ def test_a_water_film_raises_the_mutual_capacitance_and_is_the_high_permittivity
     # the floating conductor is the eps -> inf limit.
     assert rise["eps10"][1] < rise["eps80"][1] < rise["eps_eff"][1] <= rise["floating"][1] * (1 + 1e-5)
     # The limit's size: the field inside a film of permittivity eps falls as 1/eps,
-    # so its gap to the conductor falls as 1/eps (first order in 1/eps). Checked
-    # on the two large permittivities: gap(3595) / gap(1000) = 1000 / 3595 = 0.28,
-    # within 25 % (the second-order term at eps = 1000 is ~ the first times the
-    # film's own aspect, small; solver noise ~1e-6 of C is far below the gaps).
-    # The gaps at the water's |sigma / (omega eps0)| are then a few percent of
-    # the rise or less, while the pure eps_r = 80 dielectric (ignoring conduction)
-    # misses the conductor by more: the model choice matters.
+    # so its gap to the conductor falls as 1/eps at first order. Self
+    # capacitances: gap(3595) / gap(1000) = 1000 / 3595 = 0.28, measured 0.31;
+    # 25 % allows the next order in 1/eps at eps = 1000. The mutual gap at 3595
+    # is 1e-4 of the rise (~1e-7 of C summed over 16 crossings), down at the
+    # solver's energy tolerance (1e-6 of C), so only its bound is checked: below
+    # the gap at eps = 1000 and below 0.5 % of the rise. The pure eps_r = 80
+    # dielectric (conduction ignored) misses the conductor by 5 % (mutual) and
+    # 36 % (self): bounded below by 2 %, the model choice matters.
     dm_f, ds_f = rise["floating"]
-    for k, ref in ((0, dm_f), (1, ds_f)):
-        gap_eff, gap_1k = abs(rise["eps_eff"][k] - ref), abs(rise["eps1000"][k] - ref)
-        assert gap_eff / gap_1k == pytest.approx(1000.0 / eps_eff, rel=0.25, abs=0.0)
-        assert gap_eff < 0.025 * ref
-        assert abs(rise["eps80"][k] - ref) > 2 * gap_eff
+    gap = {k: np.abs(np.array(v) - np.array(rise["floating"])) for k, v in rise.items()}
+    assert gap["eps_eff"][1] / gap["eps1000"][1] == pytest.approx(1000.0 / eps_eff, rel=0.25, abs=0.0)
+    assert gap["eps_eff"][0] < gap["eps1000"][0] and gap["eps_eff"][0] < 5e-3 * dm_f
+    assert gap["eps_eff"][1] < 0.025 * ds_f
+    assert gap["eps80"][0] > 0.02 * dm_f and gap["eps80"][1] > 0.02 * ds_f
 
 
 def test_a_floating_plate_couples_the_hand_through_it(sensor):
