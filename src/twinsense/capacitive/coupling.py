@@ -255,6 +255,14 @@ def map_inclusions(
         inside = None if rel is None else cache.lookup(inc.name, inc.shape, rel)
         if inside is None:
             cand = mesh.cells_meeting_box(bounds_in_mesh_frame(inc, mesh_to_world))
+            local = _relative(inc, mesh_to_world) if rel is None else rel
+            if local is not None and len(cand):
+                # Only centroids within the object's own box (padded by 1 nm against rounding: the inside
+                # test computes these coordinates its own way) can be inside: the costly inside test
+                # (ray parity, convex hulls) sees no others.
+                q = (mesh.centroids[cand] - local[:, 3]) @ local[:, :3]
+                lb = inc.local_bounds
+                cand = cand[np.all((q >= lb[0] - 1e-9) & (q <= lb[1] + 1e-9), axis=1)]
             if len(cand) == 0:
                 inside = cand
             else:
