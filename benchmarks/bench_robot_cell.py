@@ -51,7 +51,7 @@ from twinsense.scene import Mount, Pose
 from twinsense.simulate import simulate
 
 T0 = 0.9  # [s] the arm between pick and lift, the person walking in
-T_REACH = 2.7  # [s] the person's hand on its way to the forearm: the skin's map changes every frame
+T_REACH = 3.2  # [s] the person's hand at the forearm (3.2 to 3.7 s): the skin's map changes every frame
 
 
 def timed(fn, frames: int) -> tuple[float, float, float]:
