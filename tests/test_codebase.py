@@ -232,7 +232,7 @@ def test_registry_reraises_import_errors_from_twinsense(monkeypatch, tmp_path, s
 
 
 def _approx_without_abs(path: Path) -> list[int]:
-    """Lines of ``pytest.approx(..., rel=...)`` / ``approx(..., rel=...)`` calls without ``abs=``."""
+    """Lines of pytest's approx calls that set a relative tolerance (``rel``) but no ``abs``."""
     tree = ast.parse(path.read_text(), filename=str(path))
     lines = []
     for node in ast.walk(tree):
@@ -247,12 +247,12 @@ def _approx_without_abs(path: Path) -> list[int]:
 
 
 def test_approx_with_rel_states_abs():
-    # pytest.approx(x, rel=r) also accepts |a - x| <= 1e-12: for a quantity of
+    # pytest's approx with only a relative tolerance r also accepts |a - x| <= 1e-12: for a quantity of
     # order 1e-12 or smaller (capacitances, times of flight) that silently
     # replaces the stated relative tolerance.
     bad = [f"{p.relative_to(TESTS.parent)}:{line}" for p in sorted(TESTS.rglob("*.py"))
            for line in _approx_without_abs(p)]
-    assert not bad, "pytest.approx(..., rel=...) without an explicit abs=:\n" + "\n".join(bad)
+    assert not bad, "approx calls with a relative tolerance but no explicit abs:\n" + "\n".join(bad)
 
 
 def test_approx_scan_finds_a_missing_abs(tmp_path):
