@@ -28,7 +28,7 @@ from twinsense.linalg import rotate_rows
 from twinsense.radar.radiometry import backscatter_rcs
 from twinsense.radar.scatterers import Scatterers, ScatterRenderer
 from twinsense.radar.sensor import FMCWRadar, RadarFrame
-from twinsense.render.external import ExternalImages, images_to_hits
+from twinsense.render.external import ExternalImages, images_to_hits, sensor_pose
 from twinsense.render.rays import Rays
 from twinsense.scene.pose import Pose
 
@@ -90,13 +90,7 @@ def capture_from_images(radar: FMCWRadar, images: ExternalImages, t: float | Non
     if not isinstance(images, ExternalImages):
         raise ConfigError("images", images, "an ExternalImages")
     t = images.t if t is None else V.time("t", t)
-    if pose is None:
-        if radar.mount.parent is not None:
-            raise ConfigError("pose", None, f"the radar's world pose (its mount rides on "
-                              f"{radar.mount.parent!r}, which the images do not describe)")
-        pose = radar.mount.pose
-    elif not isinstance(pose, Pose):
-        raise ConfigError("pose", pose, "a Pose (radar -> world)")
+    pose = sensor_pose(radar, pose, "radar")
     scat = scatterers_from_images(radar, images, pose, **kwargs)
     return radar.capture_scatterers(scat, t, rng, pose=pose)
 

@@ -654,3 +654,20 @@ def images_from_scene(scene, camera: PinholeCamera, pose: Pose, t: float = 0.0, 
                           (camera.fx, camera.fy, camera.cx, camera.cy, *camera.distortion), pose, t,
                           depth_kind, normals.reshape(*shape, 3), hits.velocity.reshape(*shape, 3),
                           hits.material_id.reshape(shape))
+
+
+def sensor_pose(sensor, pose, what: str) -> Pose:
+    """The world pose (sensor -> world) a frame from images is taken at.
+
+    ``pose`` None: the sensor's own mount pose, which only a mount in the
+    world has (a mount on a scene object depends on a scene the images do not
+    describe). ``what`` names the sensor in messages ("camera", "radar").
+    """
+    if pose is None:
+        if sensor.mount.parent is not None:
+            raise ConfigError("pose", None, f"the {what}'s world pose (its mount rides on "
+                              f"{sensor.mount.parent!r}, which the images do not describe)")
+        return sensor.mount.pose
+    if not isinstance(pose, Pose):
+        raise ConfigError("pose", pose, f"a Pose ({what} -> world)")
+    return pose

@@ -123,11 +123,19 @@ class ToFCamera:
                 self._render_phasors(scene, float(ti)) for ti in times]
         else:
             phasors = self._render_phasors(scene, t)
+        return self._frame(phasors, noise, self.mount.pose_at(scene, t), t)
+
+    def _frame(self, phasors, noise, pose: Pose, t: float) -> ToFFrame:
+        """The frame from the pixels' phasors, the pending noise draw (or None) and the camera pose at ``t``.
+
+        Shared by the ray-cast path and frames from external images, so both
+        run the same raw-signal chain and demodulation.
+        """
+        cfg = self.config
         corr, taps, gray_taps = blurred_raw(phasors, cfg)
         out = chain_in_halves(corr, taps, gray_taps, cfg, None if noise is None else noise.result(),
                               _background())
         distance, depth, invalid, confidence, points = finish_geometry(out, self._pixel_dirs, cfg)
-        pose = self.mount.pose_at(scene, t)
         world = distance[..., None] * self._renderer.pixel_world_directions(pose.rotation)
         world += pose.position.astype(np.float32)
         world[invalid != 0] = np.nan

@@ -17,12 +17,12 @@ import numpy as np
 from twinsense import validation as V
 from twinsense.errors import ConfigError
 from twinsense.linalg import rotate_rows
-from twinsense.render.external import ExternalImages, images_to_hits
+from twinsense.render.external import ExternalImages, images_to_hits, sensor_pose
 from twinsense.scene.pose import Pose
 from twinsense.tof.camera import ToFCamera, _background
 from twinsense.tof.frame import ToFFrame
 from twinsense.tof.multipath import indirect_phasors
-from twinsense.tof.pipeline import blurred_raw, chain_in_halves, finish_geometry, noise_rows, noise_seeds
+from twinsense.tof.pipeline import noise_rows, noise_seeds
 from twinsense.tof.signal import SurfaceSamples, pixel_phasors, radiance_factor
 
 
@@ -97,13 +97,7 @@ def capture_from_images(camera: ToFCamera, images: ExternalImages, t: float | No
         raise ConfigError(f"{camera.name}.config.motion_artifacts", True,
                           "False for frames from external images (one render per frame)")
     t = images.t if t is None else V.time("t", t)
-    if pose is None:
-        if camera.mount.parent is not None:
-            raise ConfigError("pose", None, f"the camera's world pose (its mount rides on "
-                              f"{camera.mount.parent!r}, which the images do not describe)")
-        pose = camera.mount.pose
-    elif not isinstance(pose, Pose):
-        raise ConfigError("pose", pose, "a Pose (camera -> world)")
+    pose = sensor_pose(camera, pose, "camera")
     if rng is None:
         rng = np.random.default_rng()
     # The same draw order as ToFCamera.capture: noise seeds first.
@@ -113,14 +107,4 @@ def capture_from_images(camera: ToFCamera, images: ExternalImages, t: float | No
     phasors = pixel_phasors(samples, camera.radiometry)
     if cfg.multipath:
         phasors = phasors + indirect_phasors(samples.distance, normals, samples.albedo, camera.radiometry, None)
-    corr, taps, gray_taps = blurred_raw(phasors, cfg)
-    out = chain_in_halves(corr, taps, gray_taps, cfg, None if noise is None else noise.result(), _background())
-    distance, depth, invalid, confidence, points = finish_geometry(out, camera._pixel_dirs, cfg)
-    world = distance[..., None] * camera._renderer.pixel_world_directions(pose.rotation)
-    world += pose.position.astype(np.float32)
-    world[invalid != 0] = np.nan
-    return ToFFrame(
-        t=float(t), raw=out.raw, raw_times=cfg.raw_frame_times(t), gray=out.gray,
-        amplitude=out.amplitude.mean(axis=0), distance=distance, depth=depth, noise=out.noise,
-        confidence=confidence, invalid=invalid, points_sensor=points, points_world=world,
-        pose=pose, config=cfg)
+    return camera._frame(phasors, noise, pose, t)
