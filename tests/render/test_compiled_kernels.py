@@ -135,3 +135,90 @@ def test_chunks_skipped_by_their_cone_give_the_hits_of_the_same_objects_at_rest(
     assert (a.object_id == len(moving) - 1).any()  # the rod
     np.testing.assert_array_equal(a.object_id, b.object_id)
     np.testing.assert_allclose(a.distance[a.hit], b.distance[b.hit], rtol=0, atol=1e-9)
+
+
+def _posed_box(size, position, rpy_deg):
+    """A box mesh, a pose, and the caster's bounds of it (sphere centre in the world, radius, box)."""
+    box = trimesh.creation.box(size)
+    v = np.asarray(box.vertices)
+    pose = Pose.from_euler_deg(position, rpy_deg)
+    c_local = 0.5 * (v.min(axis=0) + v.max(axis=0))
+    radius = float(np.linalg.norm(v - c_local, axis=1).max()) * (1 + 1e-9) + 1e-9
+    lo, hi = v.min(axis=0) - 1e-9, v.max(axis=0) + 1e-9
+    return box, pose, pose.position + pose.rotation @ c_local, radius, lo, hi
+
+
+@pytest.mark.parametrize("case", [
+    ((0.4, 0.3, 1.8), (0.3, 0.1, 1.0), (10.0, -20.0, 35.0)),    # in front of the camera
+    ((0.08, 0.08, 0.06), (0.0, 0.0, -0.04), (0.0, 0.0, 30.0)),  # the camera's own link: in its sphere, not its box
+    ((0.2, 0.2, 0.2), (0.0, 0.0, 0.0), (5.0, 5.0, 5.0)),        # the camera inside the box
+    ((0.3, 0.3, 0.3), (0.0, 0.0, -2.0), (0.0, 0.0, 0.0)),       # behind the camera
+    ((2.0, 0.05, 0.05), (0.0, 0.0, -0.03), (0.0, 0.0, 0.0)),    # a rod just behind the origin, across the view
+])
+def test_block_cull_keeps_the_rays_of_the_plain_cull(case):
+    # The block culls skip whole blocks of 64 rays whose cone misses the object's
+    # sphere or box cone; the rays they keep and their local coordinates must be
+    # exactly those of cull_into_frame (same tests on the rays of the other blocks).
+    from twinsense.render import PinholeCamera
+    from twinsense.render.kernels import CONE_BLOCK, block_cones, cull_blocks_into_frame
+
+    box, pose, centre, radius, lo, hi = _posed_box(*case)
+    rays = PinholeCamera.from_fov(320, 240, 140.0, 110.0).rays(Pose.look_at((0, 0, 0), (1.0, 0.3, 0.8)))
+    o, d = rays.origins, rays.directions
+    t_max = np.where(np.arange(len(d)) % 5 == 0, 0.7, np.inf)
+    cones = block_cones(d, CONE_BLOCK)
+    got = cull_blocks_into_frame(o, d, cones, CONE_BLOCK, centre, radius, pose.rotation, pose.position,
+                                 lo, hi, t_max)
+    want = cull_into_frame(o, d, centre, radius, pose.rotation, pose.position, lo, hi, t_max)
+    for a, b in zip(got, want):
+        np.testing.assert_array_equal(a, b)
+    # And every ray that hits the box before t_max is among them (the NumPy reference backend).
+    t, *_ = make_intersector("numpy", [(np.asarray(box.vertices), box.faces)]).intersect(
+        _rotate(o - pose.position, pose.rotation), _rotate(d, pose.rotation))
+    assert set(np.flatnonzero(t < t_max)) <= set(got[0])
+
+
+def test_block_cones_hold_their_directions():
+    from twinsense.render.kernels import block_cones
+
+    _, d = _rays(1000, True)
+    axis, half, cos_h, sin_h = block_cones(d, 64)
+    assert axis.shape == (16, 3)  # ceil(1000 / 64): the last block is partial
+    block = np.repeat(np.arange(16), 64)[:1000]
+    angle = np.arccos(np.clip(np.sum(d * axis[block], axis=1), -1.0, 1.0))
+    assert np.all(angle <= half[block])
+    # The half-angle is the largest angle found plus the 1e-9 rad margin (acos near 1 is
+    # good to ~1e-8 rad for the small blocks, so 1e-7 bounds the rest).
+    largest = np.array([angle[block == b].max() for b in range(16)])
+    np.testing.assert_allclose(half, largest + 1e-9, rtol=0, atol=1e-7)
+    np.testing.assert_allclose(cos_h, np.cos(half), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(sin_h, np.sin(half), rtol=0, atol=1e-15)
+
+
+def test_object_wins_gives_the_bits_of_the_numpy_merge():
+    # The per-object merge (rays on which the object is nearer, world normals,
+    # n . d, closest distances updated) against its NumPy form in the caster.
+    from twinsense.render.caster import _dot_rows
+    from twinsense.render.kernels import object_wins
+
+    rng = np.random.default_rng(3)
+    n, k = 2000, 700
+    _, d = _rays(n, True)
+    dist = np.where(rng.uniform(size=n) < 0.3, np.inf, rng.uniform(0.5, 3.0, n))
+    sel = np.sort(rng.choice(n, k, replace=False))
+    t_m = np.where(rng.uniform(size=k) < 0.2, np.inf, rng.uniform(0.3, 3.5, k))
+    prim = rng.integers(0, 500, k).astype(np.int32)
+    n_local = rng.normal(size=(k, 3))
+    rot = Pose.from_euler_deg((0, 0, 0), (30.0, -15.0, 70.0)).rotation
+    won = np.flatnonzero(t_m < dist[sel])
+    rows = sel[won]
+    normal = _rotate(n_local[won], rot.T)
+    want = (rows, t_m[won], prim[won], normal, _dot_rows(normal, d[rows]))
+    new = dist.copy()
+    got = object_wins(sel, t_m, prim, n_local, new, d, rot, True)
+    for a, b in zip(got, want):
+        np.testing.assert_array_equal(a, b)
+    expect = dist.copy()
+    expect[rows] = t_m[won]
+    np.testing.assert_array_equal(new, expect)
+    assert 100 < len(rows) < k

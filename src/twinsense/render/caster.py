@@ -27,7 +27,14 @@ import numpy as np
 from twinsense.errors import ConfigError
 from twinsense.render.backends import make_intersector
 from twinsense.render.hits import ALWAYS_FIELDS, HIT_FIELDS, Hits, allocate_field, check_fields
-from twinsense.render.kernels import cull_into_frame, direction_cone
+from twinsense.render.kernels import (
+    CONE_BLOCK,
+    block_cones,
+    cull_blocks_into_frame,
+    cull_into_frame,
+    direction_cone,
+    object_wins,
+)
 from twinsense.render.parallel import default_workers, map_ordered
 from twinsense.render.rays import Rays
 from twinsense.scene.scene import SENSOR_KINDS, Scene
@@ -63,16 +70,21 @@ class SceneCaster:
         self._moving_box = []
         for i in self._moving:
             m = objs[i].geometry.mesh
-            self._moving_bvh.append(make_intersector(backend, [(m.vertices, np.asarray(m.faces))]))
-            c = 0.5 * (m.vertices.min(axis=0) + m.vertices.max(axis=0))
+            # Plain float64 arrays (not the mesh library's tracked subclass): the
+            # compiled culls are called per object and frame, and a subclass
+            # costs each call a slower dispatch.
+            v = np.asarray(m.vertices, dtype=float).view(np.ndarray)
+            self._moving_bvh.append(make_intersector(backend, [(v, np.asarray(m.faces))]))
+            c = 0.5 * (v.min(axis=0) + v.max(axis=0))
             self._moving_centre.append(c)
-            self._moving_radius.append(float(np.linalg.norm(m.vertices - c, axis=1).max()) * (1 + 1e-9) + 1e-9)
-            pad = 1e-9 * (1.0 + float(np.abs(m.vertices).max()))
-            self._moving_box.append((m.vertices.min(axis=0) - pad, m.vertices.max(axis=0) + pad))
+            self._moving_radius.append(float(np.linalg.norm(v - c, axis=1).max()) * (1 + 1e-9) + 1e-9)
+            pad = 1e-9 * (1.0 + float(np.abs(v).max()))
+            self._moving_box.append((v.min(axis=0) - pad, v.max(axis=0) + pad))
         # Static hits of the last few read-only ray bundles (one per fixed
         # sensor): [origins, directions, arrays, complete], newest last.
         self._memos: list[list] = []
         self._seen: list[tuple[np.ndarray, np.ndarray]] = []  # read-only bundles cast once
+        self._block_cones: list[tuple[np.ndarray, tuple]] = []  # of the last read-only bundles
 
     def cast(self, rays: Rays, t: float = 0.0, fields: Iterable[str] | None = None,
              workers: int | None = None, *, moving: bool = True) -> Hits:
@@ -110,12 +122,18 @@ class SceneCaster:
         chunk_workers = workers if n >= _PARALLEL_MIN_RAYS and not ready else 1
         trace_threads = 1 if chunk_workers > 1 else workers
         bounds = [(lo, min(lo + size, n)) for lo in range(0, n, size)] or [(0, 0)]
+        # Rays from one origin: a cone around every block of rays lets each
+        # moving object skip the blocks it cannot meet (a chunk is a whole
+        # number of blocks).
+        cones = self._cones(d) if states and n and o.strides[0] == 0 else None
 
         def chunk(b):
             lo, hi = b
+            part = None if cones is None else tuple(
+                a[lo // CONE_BLOCK:-(-hi // CONE_BLOCK)] for a in cones)
             self._cast_chunk(o[lo:hi], d[lo:hi], states, {f: a[lo:hi] for f, a in out.items()},
                              None if memo is None else tuple(a[lo:hi] for a in memo), ready,
-                             trace_threads)
+                             trace_threads, part)
 
         map_ordered(chunk, bounds, chunk_workers)
         if memo is not None:
@@ -175,10 +193,13 @@ class SceneCaster:
                     obj, np.take(self._mat_lut, obj + 1), tri, velocity)
         return rows, hits
 
-    def _moving_changes(self, o, d, states, dist, threads, update=True, cone=None) -> list[tuple]:
+    def _moving_changes(self, o, d, states, dist, threads, update=True, cone=None,
+                        blocks=None) -> list[tuple]:
         """Trace the rays near each moving object; ``dist`` is updated where one is
         nearer (unless ``update`` is False: one object, nothing to cull against).
-        ``cone``: (axis, cos half-angle) around all of ``d`` (rays from one origin), or None.
+        ``cone``: (axis, cos half-angle) around all of ``d`` (rays from one origin), or None;
+        ``blocks``: :func:`~twinsense.render.kernels.block_cones` of ``d`` (rays from one
+        origin), or None.
 
         Returns, per object that wins rays, in order: (rows, object index,
         triangle ids, world normals (not turned), normal . direction, distances).
@@ -197,22 +218,34 @@ class SceneCaster:
             lo, hi = self._moving_box[k]
             # Both culls and the move into the object's frame in one compiled
             # pass (the same tests as culling.rays_near_sphere / rays_hit_box).
-            sel, o_local, d_local = cull_into_frame(o, d, centre, self._moving_radius[k], rot, pos,
-                                                    lo, hi, dist)
+            if blocks is None:
+                sel, o_local, d_local = cull_into_frame(o, d, centre, self._moving_radius[k], rot, pos,
+                                                        lo, hi, dist)
+            else:
+                sel, o_local, d_local = cull_blocks_into_frame(o, d, blocks, CONE_BLOCK, centre,
+                                                               self._moving_radius[k], rot, pos, lo, hi,
+                                                               dist)
             if len(sel) == 0:
                 continue
             t_m, _, p, n_local = self._moving_bvh[k].intersect(o_local, d_local, threads=threads)
-            won = np.flatnonzero(t_m < np.take(dist, sel))  # inf < inf is False: misses never win
-            if len(won) == 0:
-                continue
-            rows = np.take(sel, won)
-            t_won = np.take(t_m, won)
-            if update:
-                dist[rows] = t_won
-            normal = _rotate(np.take(n_local, won, axis=0), rot.T)
-            changes.append((rows, i, np.take(p, won), normal,
-                            _dot_rows(normal, np.take(d, rows, axis=0)), t_won))
+            # The rays it wins (nearer than their hit so far), their world normals and
+            # normal . direction, and the new closest distances: one compiled pass
+            # (the bits of _rotate and _dot_rows).
+            rows, t_won, tri, normal, dn = object_wins(sel, t_m, p, n_local, dist, d, rot, update)
+            if len(rows):
+                changes.append((rows, i, tri, normal, dn, t_won))
         return changes
+
+    def _cones(self, d: np.ndarray) -> tuple:
+        """:func:`block_cones` of ``d``; kept for the last few read-only bundles (fixed sensors)."""
+        if not _frozen(d):
+            return block_cones(d, CONE_BLOCK)
+        for arr, cones in self._block_cones:
+            if arr is d:
+                return cones
+        cones = block_cones(d, CONE_BLOCK)
+        self._block_cones = [*self._block_cones[-(_MEMOS - 1):], (d, cones)]
+        return cones
 
     def _static_memo(self, o, d) -> tuple[tuple | None, bool]:
         """Arrays (distance, object, triangle, normal, normal . direction) for the static
@@ -237,7 +270,7 @@ class SceneCaster:
         self._memos = [e for e in self._memos if not (e[0] is o and e[1] is d)][-(_MEMOS - 1):]
         self._memos.append([o, d, memo, complete])
 
-    def _cast_chunk(self, o, d, states, out, memo=None, ready=False, threads=1) -> None:
+    def _cast_chunk(self, o, d, states, out, memo=None, ready=False, threads=1, blocks=None) -> None:
         """Cast one chunk of rays, writing every requested field into ``out`` (views).
 
         ``memo``: views of the static-hit store for this chunk (distance,
@@ -259,7 +292,7 @@ class SceneCaster:
         # From one origin, the cone around this chunk's directions lets most
         # objects skip the chunk without a pass over its rays.
         cone = direction_cone(d) if states and len(d) and o.strides[0] == 0 else None
-        changes = self._moving_changes(o, d, states, dist, threads, cone=cone) if states else []
+        changes = self._moving_changes(o, d, states, dist, threads, cone=cone, blocks=blocks) if states else []
         for rows, i, *_ in changes:
             obj[rows] = i
         if "triangle_id" in out:
