@@ -19,13 +19,16 @@ mapped once.
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from twinsense.capacitive.mesh import SimplexMesh
+from twinsense.compiled import jit
 from twinsense.errors import ConfigError
+from twinsense.scene.geometry import Geometry, TriangleMesh
 from twinsense.scene.materials import CONDUCTOR_KINDS
 
 POSE_TOLERANCE = 1e-9
@@ -72,7 +75,10 @@ class Inclusion:
     local_bounds : (2, 3) float or None
         The object's own box in its frame [m] (with ``pose``).
     shape : object or None
-        The geometry (its identity keys the cache: a new shape maps anew).
+        The geometry (its identity keys the cache: a new shape maps anew). A
+        :class:`~twinsense.scene.Geometry` here must be the one ``contains``
+        tests (in the world frame, through ``pose``): with ``pose`` the mapper
+        runs its inside test in the object frame instead.
     """
 
     name: str
@@ -254,22 +260,11 @@ def map_inclusions(
         rel = _relative(inc, mesh_to_world) if cache is not None else None
         inside = None if rel is None else cache.lookup(inc.name, inc.shape, rel)
         if inside is None:
-            cand = mesh.cells_meeting_box(bounds_in_mesh_frame(inc, mesh_to_world))
             local = _relative(inc, mesh_to_world) if rel is None else rel
-            if local is not None and len(cand):
-                # Only centroids within the object's own box (padded by 1 nm against rounding: the inside
-                # test computes these coordinates its own way) can be inside: the costly inside test
-                # (ray parity, convex hulls) sees no others.
-                q = (mesh.centroids[cand] - local[:, 3]) @ local[:, :3]
-                lb = inc.local_bounds
-                cand = cand[np.all((q >= lb[0] - 1e-9) & (q <= lb[1] + 1e-9), axis=1)]
-            if len(cand) == 0:
-                inside = cand
+            if local is not None and mesh.dim == 3:
+                inside = _inside_cells_local(mesh, inc, local, mesh_to_world)
             else:
-                cen = mesh.centroids[cand]
-                if mesh_to_world is not None:
-                    cen = mesh_to_world.apply(cen)
-                inside = cand[np.asarray(inc.contains(cen), bool)]
+                inside = _inside_cells_world(mesh, inc, mesh_to_world)
             if rel is not None:
                 cache.store(inc.name, inc.shape, rel, inside)
         if len(inside) == 0:
@@ -277,11 +272,129 @@ def map_inclusions(
         if inc.conductor == "none":
             eps[inside] = inc.permittivity
         elif inc.conductor == "grounded":
-            grounded[np.unique(mesh.cells[inside])] = True
+            grounded[mesh.cells[inside].ravel()] = True
         else:
-            floating.append(np.unique(mesh.cells[inside]))
+            floating.append(_node_set(mesh, inside))
             names.append(inc.name)
     return MaterialMap(eps, grounded, tuple(floating), tuple(names))
+
+
+def _node_set(mesh: SimplexMesh, cells: np.ndarray) -> np.ndarray:
+    """(k,) int64 sorted nodes of ``cells`` (``np.unique`` of their nodes, by a mask: no sort)."""
+    mark = np.zeros(mesh.n_nodes, bool)
+    mark[mesh.cells[cells].ravel()] = True
+    return np.flatnonzero(mark)
+
+
+def _inside_cells_world(mesh: SimplexMesh, inc: Inclusion, mesh_to_world) -> np.ndarray:
+    """Cells whose centroid ``inc.contains`` holds, among those meeting its box (no object pose known)."""
+    cand = mesh.cells_meeting_box(bounds_in_mesh_frame(inc, mesh_to_world))
+    if len(cand) == 0:
+        return cand
+    cen = mesh.centroids[cand]
+    if mesh_to_world is not None:
+        cen = mesh_to_world.apply(cen)
+    return cand[np.asarray(inc.contains(cen), bool)]
+
+
+def _inside_cells_local(mesh: SimplexMesh, inc: Inclusion, local: np.ndarray, mesh_to_world) -> np.ndarray:
+    """Cells whose centroid lies inside ``inc`` at ``local`` (3, 4) [R | p] (object -> mesh frame).
+
+    One compiled pass takes every centroid into the object frame and keeps those
+    within the object's own box (padded by 1 nm against rounding: the inside test
+    sees the coordinates computed another way), so the costly inside test sees no
+    others. That test runs in the object frame on those coordinates when the
+    inclusion carries its geometry (``shape``; a convex mesh by its face planes,
+    compiled), else through ``inc.contains`` in the world frame. The two frames
+    round a centroid's coordinates differently by ~1e-16 m: only a centroid that
+    close to the surface could be classified otherwise, where the exact test is
+    itself decided by rounding.
+    """
+    lb = inc.local_bounds
+    idx, q = _local_box_kernel(mesh.centroids, np.ascontiguousarray(local[:, :3]),
+                               np.ascontiguousarray(local[:, 3]), lb[0] - 1e-9, lb[1] + 1e-9)
+    if len(idx) == 0:
+        return idx
+    shape = inc.shape
+    if isinstance(shape, Geometry):
+        planes = _convex_planes(shape)
+        if planes is not None:
+            return idx[_inside_planes_kernel(q, planes[0], planes[1])]
+        return idx[np.asarray(shape.contains(q), bool)]
+    cen = mesh.centroids[idx]
+    if mesh_to_world is not None:
+        cen = mesh_to_world.apply(cen)
+    return idx[np.asarray(inc.contains(cen), bool)]
+
+
+_PLANES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _convex_planes(shape: Geometry) -> tuple[np.ndarray, np.ndarray] | None:
+    """Face planes (normals (f, 3), offsets (f,) [m]) of a convex closed mesh geometry, else None.
+
+    A box link with an offset origin (a person's hand, a robot's block) arrives as a
+    12-triangle :class:`TriangleMesh`, whose general inside test (winding numbers) costs
+    points x triangles arctangents; inside a convex closed mesh is below every face
+    plane. Computed once per shape (kept as long as the shape lives).
+    """
+    if not isinstance(shape, TriangleMesh):
+        return None
+    if shape in _PLANES:
+        return _PLANES[shape]
+    m = shape.mesh
+    planes = None
+    if m.is_watertight and m.is_convex:
+        normals = np.ascontiguousarray(m.face_normals, float)
+        offsets = np.einsum("ij,ij->i", normals, m.triangles[:, 0, :])
+        planes = (normals, offsets)
+    _PLANES[shape] = planes
+    return planes
+
+
+@jit
+def _local_box_kernel(centroids, rot, pos, lo, hi):
+    """Centroids (m, 3) in the object frame ``(c - pos) @ rot``, kept within ``[lo, hi]`` (3,) [m].
+
+    Returns (k,) int64 indices and their (k, 3) object-frame coordinates.
+    """
+    m = centroids.shape[0]
+    idx = np.empty(m, np.int64)
+    q = np.empty((m, 3))
+    k = 0
+    for i in range(m):
+        x = centroids[i, 0] - pos[0]
+        y = centroids[i, 1] - pos[1]
+        z = centroids[i, 2] - pos[2]
+        a = x * rot[0, 0] + y * rot[1, 0] + z * rot[2, 0]
+        if a < lo[0] or a > hi[0]:
+            continue
+        b = x * rot[0, 1] + y * rot[1, 1] + z * rot[2, 1]
+        if b < lo[1] or b > hi[1]:
+            continue
+        c = x * rot[0, 2] + y * rot[1, 2] + z * rot[2, 2]
+        if c < lo[2] or c > hi[2]:
+            continue
+        idx[k] = i
+        q[k, 0] = a
+        q[k, 1] = b
+        q[k, 2] = c
+        k += 1
+    return idx[:k], q[:k]
+
+
+@jit
+def _inside_planes_kernel(q, normals, offsets):
+    """(k,) bool: points ``q`` (k, 3) strictly below every plane ``normals . x = offsets``."""
+    out = np.empty(q.shape[0], np.bool_)
+    for i in range(q.shape[0]):
+        inside = True
+        for f in range(normals.shape[0]):
+            if q[i, 0] * normals[f, 0] + q[i, 1] * normals[f, 1] + q[i, 2] * normals[f, 2] >= offsets[f]:
+                inside = False
+                break
+        out[i] = inside
+    return out
 
 
 def electrically_relevant(obj, kind: str = "capacitive") -> bool:
