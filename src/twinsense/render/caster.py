@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 import weakref
 from collections.abc import Iterable
+from concurrent.futures import Future
 
 import numpy as np
 
@@ -35,7 +36,7 @@ from twinsense.render.kernels import (
     direction_cone,
     object_wins,
 )
-from twinsense.render.parallel import default_workers, map_ordered
+from twinsense.render.parallel import default_workers, pool
 from twinsense.render.rays import Rays
 from twinsense.scene.scene import SENSOR_KINDS, Scene
 
@@ -108,7 +109,7 @@ class SceneCaster:
         want = check_fields(fields)
         o, d = rays.origins, rays.directions
         n = len(d)
-        states = {i: self.scene.objects[i].state_at(t) for i in self._moving} if moving else {}
+        movers = moving and bool(self._moving)
         out = {f: allocate_field(f, n) for f in ALWAYS_FIELDS | want}
         workers = default_workers() if workers is None else workers
         memo, ready = self._static_memo(o, d)
@@ -125,7 +126,12 @@ class SceneCaster:
         # Rays from one origin: a cone around every block of rays lets each
         # moving object skip the blocks it cannot meet (a chunk is a whole
         # number of blocks).
-        cones = self._cones(d) if states and n and o.strides[0] == 0 else None
+        cones = self._cones(d) if movers and n and o.strides[0] == 0 else None
+        # The moving objects' poses at t: Python work that holds the GIL. With
+        # chunks on the workers, this thread works them out while the workers
+        # trace the static objects (Embree and the compiled loops release the
+        # GIL); each chunk waits for them before its moving objects.
+        states: Future = Future()
 
         def chunk(b):
             lo, hi = b
@@ -135,7 +141,15 @@ class SceneCaster:
                              None if memo is None else tuple(a[lo:hi] for a in memo), ready,
                              trace_threads, part)
 
-        map_ordered(chunk, bounds, chunk_workers)
+        if chunk_workers > 1 and len(bounds) > 1:
+            tasks = [pool(chunk_workers).submit(chunk, b) for b in bounds]
+            _resolve(states, lambda: self._states(t) if movers else {})
+            for task in tasks:
+                task.result()
+        else:
+            _resolve(states, lambda: self._states(t) if movers else {})
+            for b in bounds:
+                chunk(b)
         if memo is not None:
             self._remember(o, d, memo, True)
         return Hits(**{f: out.get(f) for f in HIT_FIELDS})
@@ -167,7 +181,7 @@ class SceneCaster:
         # Later objects cull against earlier ones' hits: a private copy then.
         several = len(self._moving) > 1
         dist = np.array(static_distance, dtype=float) if several else np.asarray(static_distance, float)
-        states = {i: self.scene.objects[i].state_at(t) for i in self._moving}
+        states = self._states(t)
         changes = self._moving_changes(o, d, states, dist, workers, update=several)
         if not changes:
             return np.zeros(0, np.int64), Hits(*(allocate_field(f, 0) for f in HIT_FIELDS))
@@ -236,6 +250,10 @@ class SceneCaster:
                 changes.append((rows, i, tri, normal, dn, t_won))
         return changes
 
+    def _states(self, t: float) -> dict:
+        """The motion state at ``t`` of every moving object, by object index."""
+        return {i: self.scene.objects[i].state_at(t) for i in self._moving}
+
     def _cones(self, d: np.ndarray) -> tuple:
         """:func:`block_cones` of ``d``; kept for the last few read-only bundles (fixed sensors)."""
         if not _frozen(d):
@@ -273,9 +291,11 @@ class SceneCaster:
     def _cast_chunk(self, o, d, states, out, memo=None, ready=False, threads=1, blocks=None) -> None:
         """Cast one chunk of rays, writing every requested field into ``out`` (views).
 
-        ``memo``: views of the static-hit store for this chunk (distance,
-        object, triangle, normal, normal . direction), filled (``ready``) or
-        to fill. ``threads``: for tracing this chunk's rays.
+        ``states``: a future of the moving objects' states (see :meth:`_states`),
+        waited for after the static hits. ``memo``: views of the static-hit
+        store for this chunk (distance, object, triangle, normal, normal .
+        direction), filled (``ready``) or to fill. ``threads``: for tracing
+        this chunk's rays.
         """
         if memo is not None and ready:
             static = memo
@@ -285,6 +305,7 @@ class SceneCaster:
                 for store, a in zip(memo, static):
                     store[:] = a
         dist_s, obj_s, tri_s, normal_s, dn_s = static
+        states = states.result()
         dist, obj = out["distance"], out["object_id"]
         dist[:] = dist_s
         obj[:] = obj_s
@@ -336,6 +357,14 @@ class SceneCaster:
 _MEMOS = 4  # ray bundles whose static hits are kept
 _CHUNK = 16384  # rays per task: a chunk's per-ray arrays stay in a core's L2 cache
 _PARALLEL_MIN_RAYS = 2 * _CHUNK
+def _resolve(future: Future, fn) -> None:
+    """Set ``future`` to ``fn()``, or to the exception it raises (the waiting chunks raise it)."""
+    try:
+        future.set_result(fn())
+    except BaseException as exc:  # handed on, not swallowed: every chunk's result() raises it
+        future.set_exception(exc)
+
+
 def _frozen(a: np.ndarray) -> bool:
     """True if ``a`` and every array it views are read-only (nothing can change it in place)."""
     while isinstance(a, np.ndarray):
@@ -358,7 +387,7 @@ def _outside_cone(w: np.ndarray, radius: float, axis: np.ndarray, cos_half: floa
 
 
 def _dot_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise dot products of two (n, 3) arrays."""
+    """Row-wise dot products of two (n, 3) arrays (the NumPy form of a step of ``kernels.object_wins``)."""
     out = a[:, 0] * b[:, 0]
     out += a[:, 1] * b[:, 1]
     out += a[:, 2] * b[:, 2]
@@ -366,7 +395,10 @@ def _dot_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def _rotate(v: np.ndarray, m: np.ndarray) -> np.ndarray:
-    """``v @ m`` for rows v (n, 3), column by column (no BLAS, no (n, 1) x (3,) broadcasts)."""
+    """``v @ m`` for rows v (n, 3), column by column (no BLAS, no (n, 1) x (3,) broadcasts).
+
+    The NumPy form of the rotations in ``kernels.cull_into_frame`` and ``kernels.object_wins``.
+    """
     out = np.empty((len(v), 3))
     x, y, z = v[:, 0], v[:, 1], v[:, 2]
     for k in range(3):
