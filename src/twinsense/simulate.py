@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import heapq
 import math
+import threading
 import time
+from collections import deque
 from collections.abc import Callable, Iterator, Mapping, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -15,6 +18,8 @@ import numpy as np
 from twinsense import validation as V
 from twinsense.errors import ConfigError
 from twinsense.io.recording import RecordingWriter, check_sensor_name
+from twinsense.render.parallel import default_workers
+from twinsense.scene.articulated import LinkMotion
 from twinsense.scene.scene import Scene
 
 
@@ -169,7 +174,8 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
              scenario: Mapping[str, Any] | None = None,
              on_frame: Callable[[Any, Any], None] | None = None,
              limits: RunLimits | None = None,
-             stop: Callable[[], BaseException | None] | None = None) -> SimulationResult:
+             stop: Callable[[], BaseException | None] | None = None,
+             workers: int | None = None) -> SimulationResult:
     """Run ``sensors`` over ``[t0, t0 + duration)`` on one shared clock.
 
     Parameters
@@ -203,6 +209,16 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
     limits : RunLimits, optional
         Frames per run and memory per frame allowed (checked before anything
         is allocated; ConfigError naming the field and the estimate).
+    workers : int, optional
+        Threads that capture different sensors' frames at once (default: the
+        shared thread setting, ``TWINSENSE_THREADS`` or the cores up to 4,
+        at most one per sensor; 1: one frame after another on this thread).
+        A sensor's own frames are always captured one after another, in
+        clock order, with its own random stream, and frames reach the
+        recording, ``keep_frames`` and ``on_frame`` in clock order on the
+        calling thread: the run gives the same bytes whatever ``workers``.
+        Sensors may capture frames up to a few frames ahead of the one being
+        written; a stop or an error discards those.
     """
     if not isinstance(scene, Scene):
         raise ConfigError("scene", scene, "a twinsense.Scene")
@@ -211,6 +227,8 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
     V.integer("seed", seed, lo=0)
     if limits is not None and not isinstance(limits, RunLimits):
         raise ConfigError("limits", limits, "a twinsense.simulate.RunLimits")
+    if workers is not None:
+        V.integer("workers", workers, lo=1, hi=64)
     problems = run_size_problems(sensors, duration, limits)
     if problems:
         raise ConfigError(*problems[0])
@@ -241,16 +259,18 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
             raise
     counts = {s.name: 0 for s in sensors}
     frames: dict[str, list] = {s.name: [] for s in sensors} if keep else {}
+    runs = _runs(events, [callable(getattr(s, "capture_frames", None)) for s in sensors])
+    n_workers = min(default_workers() if workers is None else workers, len(sensors))
+    source = (_Ahead(scene, sensors, rngs, runs, n_workers) if n_workers > 1
+              else ((i, times, lambda i=i, times=times: _capture(scene, sensors[i], times, rngs[i]))
+                    for i, times in runs))
     bar = _progress(sum(n_frames)) if progress else None
     try:
-        for i, times in _runs(events, [callable(getattr(s, "capture_frames", None)) for s in sensors]):
+        for i, times, get in source:
             s = sensors[i]
             if stop is not None and (reason := stop()) is not None:
                 raise reason
-            # A run of consecutive frames of one sensor is captured in one block when the sensor offers
-            # capture_frames (the same frames and random draws as one capture after another).
-            block = s.capture_frames(scene, times, rngs[i]) if len(times) > 1 else [s.capture(scene, times[0],
-                                                                                              rngs[i])]
+            block = get()
             # A block goes to the recording in writes of whole runs of frames (one HDF5 write per stream),
             # at the latest _WRITE_AFTER after the last write and before an error or stop leaves the loop.
             # With on_frame (live sinks, a run paced to wall time) the callback may block, so each frame
@@ -280,11 +300,15 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
                 if pending:
                     _write(writer, s.name, pending)
     except BaseException as exc:
+        if isinstance(source, _Ahead):
+            source.close()  # the captures still running end before the recording is closed
         if bar is not None:
             bar.stop()
         if writer is not None:
             writer.close(exc)
         raise
+    if isinstance(source, _Ahead):
+        source.close()
     if bar is not None:
         bar.stop()
     removed: list[Path] = []
@@ -303,6 +327,114 @@ _BLOCK = 1024
 # [s] Longest a captured frame of a block waits before it is written (a fraction of the recording's
 # 0.5 s flush interval, so a hard kill loses no more than with one write per frame plus this).
 _WRITE_AFTER = 0.1
+
+
+def _capture(scene: Scene, sensor, times: list[float], rng) -> list:
+    """The frames of ``sensor`` at ``times`` (one run of the clock), in order.
+
+    A run of consecutive frames of one sensor is captured in one block when the sensor offers
+    ``capture_frames`` (the same frames and random draws as one capture after another).
+    """
+    if len(times) > 1:
+        return sensor.capture_frames(scene, times, rng)
+    return [sensor.capture(scene, times[0], rng)]
+
+
+def _articulated_bodies(scene: Scene) -> list:
+    """The articulated bodies (robots, people) whose links move objects or mount frames of ``scene``."""
+    bodies: dict[int, Any] = {}
+    for item in (*scene.objects, *(scene.mount_target(n) for n in scene.frame_names)):
+        motion = getattr(item, "motion", None)
+        if isinstance(motion, LinkMotion) and not motion.body.is_static:
+            bodies.setdefault(id(motion.body), motion.body)
+    return list(bodies.values())
+
+
+class _Ahead:
+    """The clock's runs captured ahead of the writer on a few threads, handed out in clock order.
+
+    Each sensor is a lane: its runs are captured one after another in clock order (its random stream
+    and its own caches are only ever used by one thread at a time), lanes run side by side on the
+    pool. A lane captures one run per pool task and queues itself again behind the other lanes, so the
+    pool works on the runs in about clock order. At most ``depth`` runs are ahead of the one being
+    handed out: a bound on the frames held in memory and on how far the scene's times run ahead.
+
+    The articulated bodies' forward kinematics of each run's time is computed here, on the calling
+    thread, before the run is queued: every sensor of that time then reads it from the body's cache
+    instead of several threads computing the same time at once.
+
+    Iterating gives ``(sensor index, times, get)``; ``get()`` waits for that run's frames (or raises its
+    capture's error). :meth:`close` drops the runs not started and waits for those running.
+    """
+
+    def __init__(self, scene: Scene, sensors: list, rngs: list, runs: Iterator, workers: int):
+        self._scene, self._sensors, self._rngs, self._runs = scene, sensors, rngs, runs
+        self._bodies = _articulated_bodies(scene)
+        # Enough runs ahead for every sensor to have one queued behind the one being captured.
+        self._depth = 2 * len(sensors)
+        self._pool = ThreadPoolExecutor(workers, thread_name_prefix="twinsense-capture")
+        self._lock = threading.Lock()
+        self._lanes: list[deque] = [deque() for _ in sensors]
+        self._busy = [False] * len(sensors)
+        self._order: deque = deque()  # (sensor index, times, future) in clock order
+        self._closed = False
+
+    def __iter__(self):
+        self._fill()
+        while self._order:
+            i, times, fut = self._order.popleft()
+            self._fill()
+            yield i, times, fut.result
+
+    def _fill(self) -> None:
+        while len(self._order) < self._depth:
+            run = next(self._runs, None)
+            if run is None:
+                return
+            i, times = run
+            if len(times) == 1:
+                for body in self._bodies:
+                    try:
+                        body.state(times[0])
+                    except Exception:  # the capture at this time raises it, in clock order
+                        pass
+            fut: Future = Future()
+            self._order.append((i, times, fut))
+            with self._lock:
+                self._lanes[i].append((times, fut))
+                if not self._busy[i]:
+                    self._busy[i] = True
+                    self._pool.submit(self._step, i)
+
+    def _step(self, i: int) -> None:
+        """Capture the next queued run of sensor ``i``; queue the lane again if it has more."""
+        with self._lock:
+            if not self._lanes[i]:  # emptied by close()
+                self._busy[i] = False
+                return
+            times, fut = self._lanes[i].popleft()
+        if not self._closed and fut.set_running_or_notify_cancel():
+            try:
+                block = _capture(self._scene, self._sensors[i], times, self._rngs[i])
+            except BaseException as exc:  # handed to the writer's thread, raised there at this run
+                fut.set_exception(exc)
+            else:
+                fut.set_result(block)
+        with self._lock:
+            if self._lanes[i] and not self._closed:
+                self._pool.submit(self._step, i)
+            else:
+                self._busy[i] = False
+
+    def close(self) -> None:
+        """Drop the runs not started; wait for the captures running (a capture cannot be interrupted)."""
+        with self._lock:
+            self._closed = True
+            for lane in self._lanes:
+                for _, fut in lane:
+                    fut.cancel()
+                lane.clear()
+        self._pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _write(writer: RecordingWriter, name: str, pending: list) -> None:

@@ -212,6 +212,9 @@ class TreeState:
     linear_velocities: np.ndarray
     angular_velocities: np.ndarray
     _index: dict = field(repr=False, default_factory=dict)
+    # Link -> world poses built so far. A state is cached per time and every sensor asks for every moving
+    # link at each capture: the pose is built once per link and time (threads that race build the same one).
+    _poses: dict = field(repr=False, default_factory=dict)
 
     def index(self, link: str | int) -> int:
         if isinstance(link, (int, np.integer)) and not isinstance(link, bool):
@@ -228,12 +231,16 @@ class TreeState:
     def pose(self, link: str | int) -> Pose:
         """Link -> world."""
         i = self.index(link)
-        return Pose(self.positions[i], self.rotations[i])
+        pose = self._poses.get(i)
+        if pose is None:
+            # The kernel's rotations are products of proper rotations: the checks of Pose(...) are skipped,
+            # its re-orthonormalisation kept (the same bits, about 10x less time).
+            pose = self._poses[i] = Pose._trusted(self.positions[i], self.rotations[i])
+        return pose
 
     def state(self, link: str | int) -> MotionState:
         i = self.index(link)
-        return MotionState(Pose(self.positions[i], self.rotations[i]),
-                           self.linear_velocities[i].copy(), self.angular_velocities[i].copy())
+        return MotionState(self.pose(i), self.linear_velocities[i].copy(), self.angular_velocities[i].copy())
 
     def point_velocity(self, link: str | int, points_world) -> np.ndarray:
         """Velocity (n, 3) [m/s] of points (n, 3) fixed to ``link``, given in world coordinates: v + w x r."""
@@ -828,13 +835,19 @@ class JointSetpoints(JointMotion):
 
     def q(self, t):
         t = check_time(t)
-        i = self._at(t)
-        if not math.isfinite(self._t[i]):
-            return self._q[i].copy()
-        return self._q[i] + self._qd[i] * (t - self._t[i])
+        # Read under the lock: a push from another thread may drop the oldest setpoint between the
+        # search and the reads, which would pair one setpoint's time with another's values.
+        with self._lock:
+            i = self._at(t)
+            t_i, q_i, qd_i = self._t[i], self._q[i], self._qd[i]
+        if not math.isfinite(t_i):
+            return q_i.copy()
+        return q_i + qd_i * (t - t_i)
 
     def qd(self, t):
-        return self._qd[self._at(check_time(t))].copy()
+        t = check_time(t)
+        with self._lock:
+            return self._qd[self._at(t)].copy()
 
     def to_dict(self):
         return {"type": "setpoints", "n_joints": self.n_columns,

@@ -1,0 +1,38 @@
+"""Link poses of a forward-kinematics state: built once per link and time, the bits of the public constructor.
+
+A ``TreeState`` is cached per time and every sensor asks for every moving link at each capture, so
+``TreeState.pose`` keeps each link's pose. It must equal, bit for bit, ``Pose(position, rotation)`` of
+the kernel's rows (the checked constructor), for a real robot (example-robot-data's UR5) and a person.
+"""
+
+import numpy as np
+
+from twinsense import Pose
+from twinsense.robots import load_robot
+from twinsense.scene import JointKeyframes, Scene
+from twinsense.scene.human import Walk, add_person
+
+
+def bits_equal(a: Pose, b: Pose) -> bool:
+    return a.position.tobytes() == b.position.tobytes() and a.rotation.tobytes() == b.rotation.tobytes()
+
+
+def test_link_poses_are_the_checked_poses_and_built_once():
+    ur5 = load_robot("ur5", joints=JointKeyframes((0.0, 2.0), ((0.0,) * 6, (0.5, -1.2, 1.4, -0.7, 1.1, 0.3))))
+    s = Scene()
+    add_person(s, "p", 1.75, (1.0, -2.0), walk=Walk(1.2, path=((0.5, 0.0),)))
+    person = s.object("p/thorax").motion.body
+    for body in (ur5, person):
+        for t in (0.0, 0.37, 1.3):
+            st = body.state(t)
+            for i in range(len(st.link_names)):
+                pose = st.pose(i)
+                assert bits_equal(pose, Pose(st.positions[i], st.rotations[i]))
+                assert st.pose(st.link_names[i]) is pose  # by name or index: the same pose
+                ms = st.state(i)
+                assert ms.pose is pose
+                assert np.array_equal(ms.linear_velocity, st.linear_velocities[i])
+                assert np.array_equal(ms.angular_velocity, st.angular_velocities[i])
+                # The velocities handed out are the caller's own: writing them leaves the state as it was.
+                ms.linear_velocity[:] = 7.0
+                assert not np.any(st.linear_velocities[i] == 7.0)
