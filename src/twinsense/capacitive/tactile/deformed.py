@@ -19,6 +19,7 @@ from twinsense.capacitive.coupling import map_inclusions
 from twinsense.capacitive.fem import EPS0, ElectrostaticSystem
 from twinsense.capacitive.mesh import SimplexMesh
 from twinsense.capacitive.solver import MaxwellResult, MaxwellSolver, SolverConfig
+from twinsense.capacitive.tactile.framesolver import FrameSolver
 from twinsense.capacitive.tactile.kernels import moved_cells, restamp, tet_stiffness_nb
 from twinsense.capacitive.tactile.permittivity import PorousPermittivity
 from twinsense.capacitive.tactile.stack_mesh import DIELECTRIC, StackMesh
@@ -95,10 +96,16 @@ class DeformedElectrostatics:
         replaces the dielectric's own permittivity, also at rest.
     outer_boundary : {"open", "grounded", "neumann"}
         Far field of the meshed box (open space by default).
+    compiled : bool
+        Solve with :class:`~twinsense.capacitive.tactile.framesolver.FrameSolver`
+        (the PCG steps in compiled loops, the default) or with the NumPy
+        :class:`~twinsense.capacitive.solver.MaxwellSolver`; the same
+        algorithm, equal to the stopping tolerance.
     """
 
     def __init__(self, stack: StackMesh, solver: SolverConfig | None = None,
-                 porous: PorousPermittivity | None = None, outer_boundary: str = "open") -> None:
+                 porous: PorousPermittivity | None = None, outer_boundary: str = "open",
+                 compiled: bool = True) -> None:
         self.stack = stack
         mesh = stack.mesh
         center = np.array([0.0, 0.0, stack.z_top])
@@ -108,7 +115,9 @@ class DeformedElectrostatics:
         self._rest_eps = eps
         self.system = _SkinSystem(mesh, stack.terminals, grounded=stack.ground,
                                   permittivity=eps, outer_boundary=outer_boundary, center=center)
-        self.solver = MaxwellSolver(self.system, solver)
+        if not isinstance(compiled, bool):
+            raise ConfigError("DeformedElectrostatics.compiled", compiled, "True or False")
+        self.solver = FrameSolver(self.system, solver) if compiled else MaxwellSolver(self.system, solver)
         self.porous = porous
         self.points0 = np.array(mesh.points)
         self.displacement = np.zeros_like(self.points0)

@@ -1,0 +1,198 @@
+"""The tactile skin's per-frame Maxwell solve: the warm-started AMG-PCG in compiled loops.
+
+The same algorithm as :class:`~twinsense.capacitive.solver.MaxwellSolver`
+(the previous frame's potentials as the start, the smoothed-aggregation
+hierarchy kept across frames with its finest level swapped for the current
+matrix and rebuilt by the same rule, CG with the energy and residual
+stopping rules of :func:`~twinsense.capacitive.pcg.block_pcg`), with the
+work of a CG step moved into the loops of
+:mod:`~twinsense.capacitive.tactile.kernels`: the sparse product, the
+updates and the column inner products in one pass each, the finest level of
+the V-cycle (Jacobi smoothing, restriction, prolongation) in two, and the
+converged columns dropped from the block by one copy instead of gathered at
+every step. Each column follows the same CG recurrence as the NumPy path;
+only the summation order of the inner products differs, so the two agree to
+the stopping tolerance (tests/tactile/test_tactile_framesolver.py).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from twinsense.capacitive.amg import BlockAMG
+from twinsense.capacitive.fem import reduce_floating
+from twinsense.capacitive.pcg import _EnergyTail
+from twinsense.capacitive.solver import MaxwellResult, SolverConfig
+from twinsense.capacitive.tactile.kernels import amg_down, amg_up, block_product, cg_update, new_direction
+
+__all__ = ["FrameSolver"]
+
+
+class _FineCycle:
+    """A BlockAMG V-cycle whose finest level runs in compiled loops (one Jacobi step each way)."""
+
+    def __init__(self, ml: BlockAMG, A, free: np.ndarray) -> None:
+        self.ml = ml
+        self.A = A
+        self.d = np.ascontiguousarray(ml.scaled_dinv[0][:, 0])
+        P = ml.P[0]
+        self.P = (P.indptr, P.indices, P.data)
+        self.nc = P.shape[1]
+        self.mask = free.astype(float)
+
+    def __call__(self, B: np.ndarray, rz: np.ndarray) -> np.ndarray:
+        """(n, c) masked V-cycle of ``B`` (n, c); ``rz`` (c,) receives ``B . Z`` per column."""
+        A = self.A
+        X = np.empty_like(B)
+        Rc = np.empty((self.nc, B.shape[1]))
+        amg_down(A.indptr, A.indices, A.data, self.d, B, X, *self.P, Rc)
+        Xc = np.ascontiguousarray(self.ml._cycle(Rc, 1))
+        amg_up(A.indptr, A.indices, A.data, self.d, B, X, *self.P, Xc, self.mask, np.empty_like(B), rz)
+        return X
+
+
+class FrameSolver:
+    """Maxwell-matrix solves of an ElectrostaticSystem, warm-started frame to frame, in compiled loops.
+
+    A drop-in for :class:`~twinsense.capacitive.solver.MaxwellSolver`
+    without static condensation (the skin's mesh changes wherever the
+    contacts go). A configuration the loops do not cover (Jacobi
+    preconditioner, more than one smoothing step) runs the NumPy path's
+    preconditioner inside the same loop.
+
+    Parameters
+    ----------
+    system : ElectrostaticSystem
+    config : SolverConfig, optional
+    """
+
+    def __init__(self, system, config: SolverConfig | None = None) -> None:
+        self.system = system
+        self.config = config or SolverConfig()
+        self._X: np.ndarray | None = None
+        self._ml: BlockAMG | None = None
+        self._n = -1
+        self._reference_iters = 0
+        self._force_rebuild = False
+
+    @property
+    def potentials(self) -> np.ndarray | None:
+        """(n, t) node potentials [V] of the last solve, one column per terminal."""
+        return self._X
+
+    def reset(self) -> None:
+        """Forget the warm start and the preconditioner."""
+        self._X = None
+        self._ml = None
+
+    def _preconditioner(self, A, free: np.ndarray):
+        """(callable (R, rz) -> Z, rebuilt): the masked preconditioner and whether the AMG was rebuilt."""
+        cfg = self.config
+        mask = free.astype(float)[:, None]
+        if cfg.preconditioner == "jacobi":
+            inv_d = (1.0 / A.diagonal())[:, None] * mask
+            return lambda R, rz: _dotted(inv_d * R, R, rz), False
+        rebuilt = False
+        if self._ml is None or self._n != A.shape[0] or self._force_rebuild:
+            self._ml = BlockAMG(A, cfg.amg_strength_theta, cfg.smoothing_steps)
+            self._n = A.shape[0]
+            rebuilt = True
+        else:
+            self._ml.set_fine(A)
+        ml = self._ml
+        if cfg.smoothing_steps == 1 and len(ml.P) > 0:
+            return _FineCycle(ml, A, free), rebuilt
+        return (lambda R, rz: _dotted(ml(R) * mask, R, rz)), rebuilt
+
+    def solve(self) -> MaxwellResult:
+        """Solve for every terminal and return the capacitances."""
+        sysm = self.system
+        cfg = self.config
+        A, B, fixed, X_fixed = sysm.system()
+        # The pattern holds every entry a deformed cell can fill; on the
+        # undeformed grid's faces about a third are exactly zero (and every
+        # coupling of a prescribed node in A): the products skip them.
+        A = _without_zeros(A)
+        K = _without_zeros(sysm.stiffness())
+        t = B.shape[1]
+        X0 = X_fixed.copy()
+        if self._X is not None:
+            k = min(t, self._X.shape[1])
+            X0[:, :k] = self._X[:, :k]
+            X0[fixed] = X_fixed[fixed]
+        energy = np.empty(t)
+        KX = np.empty_like(X0)
+        block_product(K.indptr, K.indices, K.data, X0, KX, energy)
+        precond, rebuilt = self._preconditioner(A, ~fixed)
+        X, iters = _block_pcg(A, B, X0, precond, cfg.rtol, cfg.maxiter, energy, cfg.energy_tol)
+        if rebuilt:
+            self._reference_iters = max(int(iters.max()), 4)
+            self._force_rebuild = False
+        elif int(iters.max()) > max(8, cfg.rebuild_factor * self._reference_iters):
+            self._force_rebuild = True
+        self._X = X
+        block_product(K.indptr, K.indices, K.data, X, KX, energy)
+        full = np.einsum("ni,nj->ij", X, KX)  # a thin product: BLAS threads would only spin
+        full = 0.5 * (full + full.T)
+        mat = reduce_floating(full, len(sysm.terminals))
+        return MaxwellResult(mat, full, iters, rebuilt)
+
+
+def _without_zeros(M):
+    """A copy of the CSR matrix ``M`` without its explicitly stored zeros (``M`` may share the pattern)."""
+    M = M.copy()
+    M.eliminate_zeros()
+    return M
+
+
+def _dotted(Z: np.ndarray, R: np.ndarray, rz: np.ndarray) -> np.ndarray:
+    rz[:] = np.einsum("ij,ij->j", R, Z)
+    return Z
+
+
+def _block_pcg(A, B, X0, precond, rtol: float, maxiter: int, energy: np.ndarray, energy_tol: float):
+    """:func:`~twinsense.capacitive.pcg.block_pcg` on compact blocks; ``precond(R, rz)`` masks and dots.
+
+    Returns (X (n, t), iterations (t,) int).
+    """
+    X = np.array(X0, dtype=float, copy=True)
+    t = B.shape[1]
+    iters = np.zeros(t, dtype=np.int64)
+    R = np.empty_like(X)
+    w = np.empty(t)
+    block_product(A.indptr, A.indices, A.data, X, R, w)
+    R = B - R
+    bnorm = np.linalg.norm(B, axis=0)
+    bnorm[bnorm == 0] = 1.0
+    cols = np.flatnonzero(np.linalg.norm(R, axis=0) > rtol * bnorm)
+    if len(cols) == 0:
+        return X, iters
+    tail = _EnergyTail.start(energy) if energy_tol > 0 else None
+    Xa = np.ascontiguousarray(X[:, cols])
+    Ra = np.ascontiguousarray(R[:, cols])
+    rz = np.empty(len(cols))
+    P = precond(Ra, rz)
+    for _ in range(maxiter):
+        c = len(cols)
+        AP = np.empty_like(P)
+        pap = np.empty(c)
+        block_product(A.indptr, A.indices, A.data, P, AP, pap)
+        alpha = rz / pap
+        rr = np.empty(c)
+        cg_update(Xa, Ra, P, AP, alpha, rr)
+        iters[cols] += 1
+        still = np.sqrt(rr) > rtol * bnorm[cols]
+        if tail is not None:
+            still &= tail.unconverged(cols, alpha * rz, energy_tol)
+        if not np.all(still):
+            X[:, cols[~still]] = Xa[:, ~still]
+            if not np.any(still):
+                return X, iters
+            cols = cols[still]
+            Xa, Ra, P = (np.ascontiguousarray(M[:, still]) for M in (Xa, Ra, P))
+            rz = rz[still]
+        rz_new = np.empty(len(cols))
+        Z = precond(Ra, rz_new)
+        new_direction(P, Z, rz_new / rz)
+        rz = rz_new
+    raise RuntimeError(f"PCG did not converge in {maxiter} iterations (columns {cols.tolist()} still active)")
