@@ -40,7 +40,7 @@ def test_capture_uses_the_same_weights_as_a_capture_of_its_scatterers():
     frame = radar.capture(_scene(), 0.3, np.random.default_rng(0))
     # The same scatterers handed in again (amplitudes from received_amplitude).
     again = FMCWRadar.preset("paper_bgt60tr13c", render_width=90, render_height=30,
-                             num_chirps=4, process=False).capture_scatterers(
+                             num_chirps=4, process=False, reuse_static=False).capture_scatterers(
         frame.scatterers, 0.3, np.random.default_rng(0))
     # Weights agree to ~1e-15; both synthesise the same points with the same
     # plans, so the cubes agree far inside the synthesis' own eps (1e-6).

@@ -141,6 +141,25 @@ def shape_noise(noise: np.ndarray, config: RadarConfig) -> np.ndarray:
     return filter_cube(noise, replace(ifc, hp_cutoff=0.0), config.chirp.sample_rate)
 
 
+def noise_power(config: RadarConfig) -> float:
+    """Receiver noise power per real IF sample (or of I and of Q) at the receiver input [W].
+
+    The variance of :func:`thermal_noise` after :func:`shape_noise`, referred
+    back through the voltage gain to the scale of the synthesised IF signal
+    (sqrt(W)): ``noise_variance / gain^2`` times the mean of ``|H_aaf|^2``
+    over the frequencies of a chirp's DFT bins (Parseval: the power of white
+    noise filtered in the frequency domain, as :func:`shape_noise` does).
+    """
+    ifc = config.if_chain
+    power = config.noise_variance() / ifc.voltage_gain**2
+    if ifc.aaf_cutoff <= 0 or power == 0.0:
+        return power
+    n = config.chirp.num_samples
+    h = filter_response(np.fft.fftfreq(n, 1.0 / config.chirp.sample_rate),
+                        replace(ifc, hp_cutoff=0.0))
+    return power * float(np.mean(np.abs(h) ** 2))
+
+
 def thermal_noise(config: RadarConfig, rng: np.random.Generator) -> np.ndarray:
     """White receiver noise at the ADC input, cube shape [V] (before the IF filters).
 

@@ -24,7 +24,7 @@ from twinsense.radar.presets import preset_config
 from twinsense.radar.processing import ProcessingResult, ProcessingSettings, process_cube
 from twinsense.radar.radiometry import received_amplitude
 from twinsense.radar.scatterers import Scatterers, ScatterRenderer
-from twinsense.radar.synthesis import synthesize
+from twinsense.radar.synthesis import DEFAULT_EPS, noise_tolerance, synthesize
 from twinsense.render.parallel import default_workers
 from twinsense.scene import Mount, Pose
 
@@ -88,14 +88,15 @@ class _StaticBase:
     """The static scatterers of one frame and their IF cube (see ``FMCWRadar.reuse_static``)."""
 
     config: RadarConfig
-    eps: float
+    eps: float | None  # the sensor's requested eps when the base was made
+    frame_eps: float  # the tolerance its cube was synthesised at (also used for the changes)
     points: np.ndarray  # (n, 3) [m], every scatterer of that frame
     rcs: np.ndarray  # (n,) [m^2]
     weights: np.ndarray  # (n,) complex
     moving: np.ndarray  # (n,) bool; these rows are not in ``cube``
     cube: np.ndarray  # synthesised cube of the static rows
 
-    def matches(self, config: RadarConfig, eps: float, n: int) -> bool:
+    def matches(self, config: RadarConfig, eps: float | None, n: int) -> bool:
         return self.config is config and self.eps == eps and len(self.points) == n
 
 
@@ -115,8 +116,12 @@ class FMCWRadar:
         Run the processing chain in :meth:`capture` (range/Doppler FFT, CFAR, angles).
     backend : str
         Ray-cast backend for the scene render.
-    eps : float
-        Requested relative accuracy of the fast IF synthesis.
+    eps : float or None
+        Relative tolerance of the fast IF synthesis. None (default): the
+        tolerance the frame's receiver noise allows
+        (:func:`twinsense.radar.synthesis.noise_tolerance`: the synthesis
+        error power 30 dB below the noise power per sample), never tighter
+        than 1e-6; a number: exactly that tolerance.
     workers : int or None
         Threads for the render and the IF synthesis (see
         :func:`twinsense.radar.synthesize`); None: the cores, at most 4.
@@ -140,7 +145,7 @@ class FMCWRadar:
 
     def __init__(self, config: RadarConfig, *, name: str = "radar", mount: Mount | None = None,
                  processing: ProcessingSettings | None = None, process: bool = True,
-                 backend: str = "embree", eps: float = 1e-6, workers: int | None = None,
+                 backend: str = "embree", eps: float | None = None, workers: int | None = None,
                  reuse_static: bool = True, interferers=()):
         if not isinstance(config, RadarConfig):
             raise ConfigError("FMCWRadar.config", config, "a RadarConfig")
@@ -154,7 +159,7 @@ class FMCWRadar:
         self.processing = processing or ProcessingSettings(min_range=0.05)
         self.process = bool(process)
         self.backend = backend
-        self.eps = V.number("FMCWRadar.eps", eps, lo=1e-14, hi=1e-5)
+        self.eps = None if eps is None else V.number("FMCWRadar.eps", eps, lo=1e-14, hi=1e-5)
         self.workers = (default_workers() if workers is None
                         else V.integer("FMCWRadar.workers", workers, lo=1, hi=64))
         self.reuse_static = bool(reuse_static)
@@ -263,14 +268,26 @@ class FMCWRadar:
         return effects.filtered_weights(amp, s.points, s.velocities, self.config, s.points_rx,
                                         s.velocities_rx)
 
+    def _tolerance(self, points, weights, points_rx=None, parts: int = 1) -> float:
+        """The synthesis tolerance of a frame (``eps``, or the noise's when ``eps`` is None).
+
+        ``parts``: how many separately synthesised cubes make the frame. Their
+        errors may add in amplitude, so each gets 1 / parts^2 of the noise
+        share: the tolerance, proportional to sqrt(share), over ``parts``.
+        """
+        if self.eps is not None:
+            return self.eps
+        loose = noise_tolerance(points, weights, self.config, DEFAULT_EPS, points_rx=points_rx)
+        return max(DEFAULT_EPS, loose / parts)
+
     def _signal(self, s: Scatterers) -> np.ndarray:
         """IF cube of the scatterers (see ``reuse_static`` in the class docstring)."""
         cfg = self.config
-        kw = {"eps": self.eps, "workers": self.workers}
         p, v = s.points, s.velocities
         if not self.reuse_static or s.is_bistatic:
-            return synthesize(p, v, self._weights(s), cfg, points_rx=s.points_rx,
-                              velocities_rx=s.velocities_rx, **kw)
+            w = self._weights(s)
+            return synthesize(p, v, w, cfg, points_rx=s.points_rx, velocities_rx=s.velocities_rx,
+                              eps=self._tolerance(p, w, s.points_rx), workers=self.workers)
         moving = (v[:, 0] != 0) | (v[:, 1] != 0) | (v[:, 2] != 0)
         base = self._static_base
         if base is not None and base.matches(cfg, self.eps, len(p)):
@@ -297,12 +314,19 @@ class FMCWRadar:
                 dv[len(gone) + len(new):] = np.take(v, mv, axis=0)
                 dw = np.concatenate([-np.take(base.weights, gone), w_rows[is_new],
                                      w_rows[is_mover]])
-                return base.cube + synthesize(dp, dv, dw, cfg, **kw)
-        # A new base from this frame: the static scatterers (movers with zero weight).
+                return base.cube + synthesize(dp, dv, dw, cfg, eps=base.frame_eps,
+                                              workers=self.workers)
+        # A new base from this frame: the static scatterers. When every scatterer
+        # moves (a moving radar) there is none, and the frame is one synthesis.
         w = self._weights(s)
-        static = synthesize(p, None, np.where(moving, 0.0, w), cfg, **kw)
-        self._static_base = _StaticBase(cfg, self.eps, p.copy(), s.rcs.copy(), w, moving, static)
-        return static + self._moving_signal(p, v, w, moving)
+        if moving.all():
+            return self._moving_signal(p, v, w, moving, self._tolerance(p, w))
+        # Two cubes now (static and movers), the kept one and a change later.
+        eps = self._tolerance(p, w, parts=2)
+        static = synthesize(p, None, np.where(moving, 0.0, w), cfg, eps=eps, workers=self.workers)
+        self._static_base = _StaticBase(cfg, self.eps, eps, p.copy(), s.rcs.copy(), w, moving,
+                                        static)
+        return static + self._moving_signal(p, v, w, moving, eps)
 
     def _impaired_signal(self, s: Scatterers, rng: np.random.Generator) -> np.ndarray:
         """IF cube with the delay-dependent impairments (phase noise, ramp error), leakage included.
@@ -323,7 +347,13 @@ class FMCWRadar:
         max_delay = max(float(tau.max()) if len(tau) else 0.0, tau_leak or 0.0)
         errors = delay_impairment(cfg, rng, max_delay)
         cube = np.zeros(cfg.cube_shape, dtype=complex)
-        for tau_g, rows in delay_groups(tau, errors.max_span(cfg.impairments.group_phase_error)):
+        # The groups' errors may add in amplitude: each gets its share of the
+        # noise budget (tolerance over the number of groups).
+        groups = delay_groups(tau, errors.max_span(cfg.impairments.group_phase_error))
+        eps = self._tolerance(np.take(s.points, keep, axis=0), np.take(w, keep),
+                              np.take(s.points_rx, keep, axis=0) if bistatic else None,
+                              parts=max(len(groups), 1))
+        for tau_g, rows in groups:
             r = keep[rows]
 
             def pick(a, r=r):
@@ -331,19 +361,20 @@ class FMCWRadar:
 
             part = synthesize(pick(s.points), pick(s.velocities), np.take(w, r), ccfg,
                               points_rx=pick(s.points_rx), velocities_rx=pick(s.velocities_rx),
-                              eps=self.eps, workers=self.workers)
+                              eps=eps, workers=self.workers)
             cube += part * np.exp(1j * errors.phase(tau_g))
         if tau_leak is not None:
             cube += effects.leakage(ccfg) * np.exp(1j * errors.phase(tau_leak))
         return cube if ifc.complex_if else cube.real
 
-    def _moving_signal(self, p, v, w, moving):
+    def _moving_signal(self, p, v, w, moving, eps):
         # Zero weights (behind the antennas) add nothing; only movers cost per point.
         mv = np.flatnonzero(moving & (w != 0))
         if len(mv) == 0:
-            return 0.0
+            return np.zeros(self.config.cube_shape, complex if self.config.if_chain.complex_if
+                            else float)
         return synthesize(np.take(p, mv, axis=0), np.take(v, mv, axis=0), np.take(w, mv),
-                          self.config, eps=self.eps, workers=self.workers)
+                          self.config, eps=eps, workers=self.workers)
 
     def process_cube(self, cube: np.ndarray, pose: Pose | None = None) -> ProcessingResult:
         """Run the processing chain on a raw (rx, chirp, sample) cube of this radar."""

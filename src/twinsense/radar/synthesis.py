@@ -65,6 +65,7 @@ import math
 import numpy as np
 
 from twinsense.constants import SPEED_OF_LIGHT
+from twinsense.radar import effects
 from twinsense.radar.config import RadarConfig
 from twinsense.radar.nufft import (
     CHUNK,
@@ -125,6 +126,81 @@ def still_speed(config: RadarConfig, eps: float) -> float:
     f_max = c.start_frequency + max(c.slope, 0.0) * c.ramp_end_time
     t_end = float(c.chirp_times()[-1]) + c.ramp_end_time
     return eps * SPEED_OF_LIGHT / (8.0 * math.pi * f_max * t_end)
+
+
+DEFAULT_EPS = 1e-6  # the requested relative tolerance when none is given
+
+# The synthesis error may have at most this share of the receiver noise power per
+# sample: 30 dB below the noise, far under what any processing of the frame resolves.
+NOISE_SHARE = 1e-3
+# The frame's signal power over the first chirp's estimate (3 dB): over a frame the
+# scatterers' relative phases turn (range rates differ), which moves the coherent sum.
+_POWER_MARGIN = 2.0
+_ESTIMATE_EPS = 1e-3  # accuracy of that estimate's NUFFT: 1e-3 of the summed |weights|
+# The fast path's l2 error over its tolerance e: the NUFFTs (e) plus the per-scatterer
+# series budget (e), which add up to 2 e at most when they do not cancel.
+_ERROR_FACTOR = 2.0
+LOOSEST_EPS = 1e-3  # the noise-derived tolerance never goes beyond this
+
+
+def noise_tolerance(points: np.ndarray, weights: np.ndarray, config: RadarConfig,
+                    eps: float = 1e-6, *, points_rx: np.ndarray | None = None,
+                    noise_power: float | None = None, share: float = NOISE_SHARE) -> float:
+    """The synthesis tolerance the frame's receiver noise allows (never tighter than ``eps``).
+
+    The fast synthesis errs by at most 2 e relative to the cube in the l2
+    sense, ``|fast - exact| <= 2 e |exact|`` over the cube, for its tolerance
+    e: finufft's tolerance is a relative l2 error of its output, and the
+    series remainders and skipped terms, at most e of each scatterer's
+    amplitude at every sample together, scale with the signal as well. The
+    error power per sample is then at most 4 e^2 P, with P the cube's mean
+    power per sample (complex). The receiver adds ``noise_power`` (sigma^2,
+    per real sample, or to I and to Q: :func:`twinsense.radar.effects.noise_power`)
+    to each real channel. For a complex cube the noise power per sample is
+    2 sigma^2; a real cube keeps the real part, half of the signal's and of
+    the error's power (tones away from DC) and all of sigma^2: both give
+
+        4 e^2 P / 2 <= share sigma^2   <=>   e = sqrt(share sigma^2 / (2 P)).
+
+    P is estimated from the first chirp of every (tx, rx) pair, each
+    scatterer at its position at the frame start (chirp 0 up to the motion
+    within it), by one 1-D NUFFT at tolerance 1e-3 (an error of at most 1e-3
+    of the summed |weights| per sample), taking the largest pair's power
+    times a margin of 2 for the change of the coherent sum over the frame.
+    Returns ``max(eps, e)``, at most ``LOOSEST_EPS``; ``eps`` when there is
+    no noise. ``share`` = 1e-3 (:data:`NOISE_SHARE`): the synthesis error 30 dB
+    below the noise floor. ``tests/radar/test_noise_tolerance.py`` checks the
+    error power of the whole cube against the exact sum.
+
+    Parameters
+    ----------
+    points, points_rx : (n, 3) float
+        Scatterer positions at the frame start, sensor frame [m] (``points_rx``:
+        bistatic receive legs, default ``points``).
+    weights : (n,) complex
+        Tone weights [sqrt(W)].
+    config : RadarConfig
+    eps : float
+        The requested relative tolerance (the result is never below it).
+    noise_power : float or None
+        sigma^2 [W] at the receiver input; None: ``effects.noise_power(config)``.
+    share : float
+        Allowed error power per sample over sigma^2.
+    """
+    if noise_power is None:
+        noise_power = effects.noise_power(config)
+    w = np.asarray(weights, dtype=complex)
+    if noise_power <= 0.0 or len(w) == 0:
+        return float(eps)
+    p = np.ascontiguousarray(points, dtype=float)
+    pr = p if points_rx is None else np.ascontiguousarray(points_rx, dtype=float)
+    geo = Geometry(config, config.chirp.num_chirps)
+    rows = static_chunk(p, pr, w, geo, _ESTIMATE_EPS)  # (pairs, N): chirp 0 of each pair
+    power = float(np.max(np.mean(rows.real**2 + rows.imag**2, axis=1)))
+    if power <= 0.0:
+        return float(LOOSEST_EPS)
+    loose = math.sqrt(2.0 * share * noise_power / (_ERROR_FACTOR**2 * _POWER_MARGIN * power))
+    return float(min(max(eps, loose), max(eps, LOOSEST_EPS)))
 
 
 def _moving_rows(v: np.ndarray, vr: np.ndarray, config: RadarConfig, eps: float) -> np.ndarray:
@@ -203,7 +279,7 @@ def synthesize_exact(points: np.ndarray, velocities: np.ndarray | None, weights:
 
 def synthesize(points: np.ndarray, velocities: np.ndarray | None, weights: np.ndarray,
                config: RadarConfig, *, points_rx: np.ndarray | None = None,
-               velocities_rx: np.ndarray | None = None, eps: float = 1e-6,
+               velocities_rx: np.ndarray | None = None, eps: float = DEFAULT_EPS,
                workers: int = 1) -> np.ndarray:
     """Fast IF cube; agrees with :func:`synthesize_exact` to about ``eps`` relative.
 
