@@ -106,6 +106,8 @@ class DeformedElectrostatics:
     def __init__(self, stack: StackMesh, solver: SolverConfig | None = None,
                  porous: PorousPermittivity | None = None, outer_boundary: str = "open",
                  compiled: bool = True) -> None:
+        if not isinstance(compiled, bool):
+            raise ConfigError("DeformedElectrostatics.compiled", compiled, "True or False")
         self.stack = stack
         mesh = stack.mesh
         center = np.array([0.0, 0.0, stack.z_top])
@@ -115,8 +117,6 @@ class DeformedElectrostatics:
         self._rest_eps = eps
         self.system = _SkinSystem(mesh, stack.terminals, grounded=stack.ground,
                                   permittivity=eps, outer_boundary=outer_boundary, center=center)
-        if not isinstance(compiled, bool):
-            raise ConfigError("DeformedElectrostatics.compiled", compiled, "True or False")
         self.solver = FrameSolver(self.system, solver) if compiled else MaxwellSolver(self.system, solver)
         self.porous = porous
         self.points0 = np.array(mesh.points)

@@ -18,12 +18,20 @@ the stopping tolerance (tests/tactile/test_tactile_framesolver.py).
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
 from twinsense.capacitive.amg import BlockAMG
 from twinsense.capacitive.fem import reduce_floating
 from twinsense.capacitive.pcg import _EnergyTail
 from twinsense.capacitive.solver import MaxwellResult, SolverConfig
-from twinsense.capacitive.tactile.kernels import amg_down, amg_up, block_product, cg_update, new_direction
+from twinsense.capacitive.tactile.kernels import (
+    amg_down,
+    amg_up,
+    block_product,
+    cg_update,
+    new_direction,
+    split_system,
+)
 
 __all__ = ["FrameSolver"]
 
@@ -108,12 +116,15 @@ class FrameSolver:
         """Solve for every terminal and return the capacitances."""
         sysm = self.system
         cfg = self.config
-        A, B, fixed, X_fixed = sysm.system()
-        # The pattern holds every entry a deformed cell can fill; on the
-        # undeformed grid's faces about a third are exactly zero (and every
-        # coupling of a prescribed node in A): the products skip them.
-        A = _without_zeros(A)
-        K = _without_zeros(sysm.stiffness())
+        fixed = sysm.fixed_mask()
+        terms = sysm.all_terminals()
+        column = np.full(len(fixed), -1, np.int64)
+        for j, nodes in enumerate(terms):
+            column[nodes] = j
+        A, K, B = _split(sysm, fixed, column, len(terms))
+        X_fixed = np.zeros_like(B)
+        for j, nodes in enumerate(terms):
+            X_fixed[nodes, j] = 1.0
         t = B.shape[1]
         X0 = X_fixed.copy()
         if self._X is not None:
@@ -138,11 +149,21 @@ class FrameSolver:
         return MaxwellResult(mat, full, iters, rebuilt)
 
 
-def _without_zeros(M):
-    """A copy of the CSR matrix ``M`` without its explicitly stored zeros (``M`` may share the pattern)."""
-    M = M.copy()
-    M.eliminate_zeros()
-    return M
+def _split(sysm, fixed: np.ndarray, column: np.ndarray, t: int):
+    """(A, K, B): :meth:`ElectrostaticSystem.system`'s ``A`` and ``B`` and the stiffness, zeros dropped.
+
+    The pattern holds every entry a deformed cell can fill; on the
+    undeformed grid's faces about a third of them are exactly zero, and A
+    has none in the couplings of prescribed nodes: the products skip them.
+    """
+    pat = sysm.pattern
+    (ap, ai, ad), (kp, ki, kd), B = split_system(pat.indptr, pat.indices, sysm.k_data, fixed, column)
+    n = len(fixed)
+    if B.shape[1] < t:  # a terminal without nodes (never in a mesh_stack) keeps its column
+        B = np.hstack([B, np.zeros((n, t - B.shape[1]))])
+    A = sp.csr_matrix((ad, ai, ap), shape=(n, n))
+    K = sp.csr_matrix((kd, ki, kp), shape=(n, n))
+    return A, K, B
 
 
 def _dotted(Z: np.ndarray, R: np.ndarray, rz: np.ndarray) -> np.ndarray:

@@ -15,7 +15,7 @@ import numpy as np
 from twinsense.compiled import jit
 
 __all__ = ["amg_down", "amg_up", "block_product", "cg_update", "moved_cells", "new_direction", "restamp",
-           "tet_stiffness_nb"]
+           "split_system", "tet_stiffness_nb"]
 
 
 @jit
@@ -196,3 +196,61 @@ def amg_up(indptr, indices, data, d, B, X, p_indptr, p_indices, p_data, Xc, mask
             x = (X[i, k] + d[i] * T[i, k]) * mask[i]
             X[i, k] = x
             rz[k] += B[i, k] * x
+
+
+@jit
+def split_system(indptr, indices, k_data, fixed, column):  # pragma: no cover - compiled
+    """The Dirichlet system of a CSR stiffness ``K``, zeros left out, in one pass.
+
+    The same ``A`` and ``B`` as :meth:`~twinsense.capacitive.fem.ElectrostaticSystem.system`:
+    ``A`` is ``K`` with the rows and columns of the prescribed nodes (``fixed``
+    (n,) bool) replaced by their diagonal, ``B = -K X_fixed`` on the free rows
+    and ``K_ii`` on a prescribed node at 1 V, where ``column`` (n,) int is the
+    terminal (column of ``B``) whose potential node ``i`` carries (-1: ground
+    or free). Exactly zero entries are dropped from ``A`` and from the copy of
+    ``K`` (the pattern holds every entry a deformed cell may fill).
+
+    Returns
+    -------
+    A : (indptr, indices, data); K : (indptr, indices, data) without zeros; B : (n, t) float.
+    """
+    n = indptr.shape[0] - 1
+    t = 0
+    for i in range(n):
+        t = max(t, column[i] + 1)
+    nnz = indptr[n]
+    a_ptr = np.zeros(n + 1, indptr.dtype)
+    a_ind = np.empty(nnz, indices.dtype)
+    a_dat = np.empty(nnz)
+    k_ptr = np.zeros(n + 1, indptr.dtype)
+    k_ind = np.empty(nnz, indices.dtype)
+    k_dat = np.empty(nnz)
+    B = np.zeros((n, t))
+    na = 0
+    nk = 0
+    for i in range(n):
+        for p in range(indptr[i], indptr[i + 1]):
+            j = indices[p]
+            v = k_data[p]
+            if v == 0.0:
+                continue
+            k_ind[nk] = j
+            k_dat[nk] = v
+            nk += 1
+            if fixed[i]:
+                if j == i:
+                    a_ind[na] = j
+                    a_dat[na] = v
+                    na += 1
+                    if column[i] >= 0:
+                        B[i, column[i]] = v
+            elif fixed[j]:
+                if column[j] >= 0:
+                    B[i, column[j]] -= v
+            else:
+                a_ind[na] = j
+                a_dat[na] = v
+                na += 1
+        a_ptr[i + 1] = na
+        k_ptr[i + 1] = nk
+    return (a_ptr, a_ind[:na].copy(), a_dat[:na].copy()), (k_ptr, k_ind[:nk].copy(), k_dat[:nk].copy()), B
