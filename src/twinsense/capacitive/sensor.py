@@ -35,11 +35,26 @@ from twinsense.capacitive.layouts import Layout
 from twinsense.capacitive.mesh import MeshSettings
 from twinsense.capacitive.presets import PRESETS
 from twinsense.capacitive.readout import read_out
-from twinsense.capacitive.solver import MaxwellResult, MaxwellSolver
+from twinsense.capacitive.solver import MaxwellResult, MaxwellSolver, SolverConfig
 from twinsense.errors import ConfigError, UnknownNameError
 from twinsense.scene.scene import Mount
 
-__all__ = ["MODES", "CapacitiveConfig", "CapacitiveFrame", "CapacitiveSensor", "ResolutionWarning", "make_capacitive"]
+__all__ = [
+    "MODES",
+    "READOUT_ERROR_SHARE",
+    "CapacitiveConfig",
+    "CapacitiveFrame",
+    "CapacitiveSensor",
+    "ResolutionWarning",
+    "make_capacitive",
+]
+
+READOUT_ERROR_SHARE = 0.1
+"""Capacitance error the frame solves may leave, as a share of the readout's error per
+sample (``SolverConfig.capacitance_atol`` None). The energy rule's estimate errs by up to
+~2.5x (tests/capacitive/test_frame_speed.py), so a frame's capacitances sit within about
+0.25 of a noise standard deviation of the exact ones: the reading's rms error, noise and
+solver error together, grows by at most sqrt(1 + 0.25^2) - 1 = 3 %."""
 
 RESOLUTION_SLACK = 1.5
 """A capture warns when an object's cells exceed its resolving size by this factor
@@ -239,8 +254,21 @@ class CapacitiveSensor:
             active = None
             if self.config.active_boxes:
                 active = active_cells_in_boxes(self.layout_mesh.mesh, self.config.active_boxes)
-            self._solver = MaxwellSolver(self._system, self.config.solver, active)
+            self._solver = MaxwellSolver(self._system, self.frame_solver_config, active)
         return self._system
+
+    @property
+    def frame_solver_config(self) -> SolverConfig:
+        """The solver settings of the frames: the config's, with ``capacitance_atol`` None
+        replaced by :data:`READOUT_ERROR_SHARE` times the readout's error per sample
+        (white noise at the frame rate and the quantisation step's ``lsb / sqrt(12)``, in
+        quadrature; 0 for an ideal readout, which leaves ``energy_tol`` alone)."""
+        s = self.config.solver
+        if s.capacitance_atol is not None:
+            return s
+        ro = self.config.readout
+        sigma = float(np.hypot(ro.sample_noise_rms, ro.resolution / np.sqrt(12.0)))
+        return replace(s, capacitance_atol=READOUT_ERROR_SHARE * sigma)
 
     def prepare(self, scene, times) -> np.ndarray:
         """Declare the capture times of a run: resolve its objects, and condense the rest.

@@ -23,9 +23,13 @@ from twinsense.capacitive.amg import BlockAMG
 from twinsense.capacitive.pcg import block_pcg
 from twinsense.errors import ConfigError
 
-__all__ = ["PRECONDITIONERS", "PCGSolver", "SolveInfo", "SolverConfig", "block_pcg"]
+__all__ = ["MAX_ENERGY_TOL", "PRECONDITIONERS", "PCGSolver", "SolveInfo", "SolverConfig", "block_pcg"]
 
 PRECONDITIONERS = ("amg", "jacobi")
+
+MAX_ENERGY_TOL = 1e-3
+"""Loosest relative energy tolerance ``capacitance_atol`` may set (the energy rule's tail
+estimate assumes CG is already in its geometric phase)."""
 
 
 @dataclass(frozen=True)
@@ -49,6 +53,20 @@ class SolverConfig:
     rebuild_factor : float
         Rebuild the AMG hierarchy when a solve needs more than this many times
         the iterations measured right after the last rebuild (and >= 8).
+    rebuild_rows : float
+        Also rebuild it before a solve whose matrix differs from the one the
+        hierarchy was built on in more than this share of its rows (cells
+        that changed material, nodes that a conductor fixed or freed): the
+        coarse levels no longer fit it, and a rebuild (about six V-cycles of
+        work) costs less than the iterations a stale hierarchy adds
+        (BENCHMARKS.md). 1 leaves it to ``rebuild_factor``.
+    capacitance_atol : float or None
+        Absolute capacitance error per terminal [F] at which a column stops
+        by the energy rule; the looser of this and ``energy_tol`` applies. 0:
+        ``energy_tol`` only; None: a :class:`CapacitiveSensor` derives it from
+        its readout's noise (``READOUT_ERROR_SHARE``), other users take 0.
+        The relative tolerance never gets looser than ``MAX_ENERGY_TOL``, and
+        with ``energy_tol`` 0 the energy rule stays off.
     amg_strength_theta : float
         Strength-of-connection threshold of the AMG aggregation.
     smoothing_steps : int
@@ -70,6 +88,8 @@ class SolverConfig:
     amg_strength_theta: float = 0.0
     smoothing_steps: int = 1
     condense: bool = False
+    rebuild_rows: float = 0.05
+    capacitance_atol: float | None = None
 
     def __post_init__(self) -> None:
         v.choice("SolverConfig.preconditioner", self.preconditioner, PRECONDITIONERS)
@@ -81,6 +101,9 @@ class SolverConfig:
         v.integer("SolverConfig.smoothing_steps", self.smoothing_steps, lo=1, hi=10)
         if not isinstance(self.condense, bool):
             raise ConfigError("SolverConfig.condense", self.condense, "True or False")
+        v.number("SolverConfig.rebuild_rows", self.rebuild_rows, lo=0.0, hi=1.0)
+        if self.capacitance_atol is not None:
+            v.number("SolverConfig.capacitance_atol", self.capacitance_atol, lo=0.0, unit="F")
 
 
 @dataclass(frozen=True)
@@ -111,10 +134,29 @@ class PCGSolver:
         self._n = -1
         self._reference_iters = 0
         self._force_rebuild = False
+        # The finest matrix the hierarchy was built on: (data copy, row of every entry).
+        self._built: tuple[np.ndarray, np.ndarray] | None = None
+        self.builds = 0
 
     def invalidate(self) -> None:
         """Rebuild the preconditioner at the next solve."""
         self._ml = None
+        self._built = None
+
+    def changed_rows(self, sparse) -> float:
+        """Share of the rows of ``sparse`` (csr) that differ from the matrix the hierarchy was built on.
+
+        1.0 when there is no hierarchy or the sparsity pattern differs.
+        """
+        b = self._built
+        if b is None or not sp.issparse(sparse) or sparse.nnz != len(b[0]) or sparse.shape[0] != self._n:
+            return 1.0
+        diff = sparse.data != b[0]
+        if not diff.any():
+            return 0.0
+        rows = np.zeros(self._n, bool)
+        rows[b[1][diff]] = True
+        return float(rows.sum()) / self._n
 
     def solve(
         self,
@@ -123,6 +165,7 @@ class PCGSolver:
         X0: np.ndarray,
         energy: np.ndarray | None = None,
         free: np.ndarray | None = None,
+        energy_tol: float | None = None,
     ) -> tuple[np.ndarray, SolveInfo]:
         """Solve ``A X = B`` column by column from ``X0``.
 
@@ -133,25 +176,32 @@ class PCGSolver:
         B, X0 : (n, t) float.
         energy : (t,) float, optional, ``x0^T K x0`` per column (energy rule).
         free : (n,) bool, optional, unknowns that may change (see :func:`block_pcg`).
+        energy_tol : float, optional, the energy rule's tolerance for this solve
+            (default ``config.energy_tol``).
         """
         cfg = self.config
+        tol = cfg.energy_tol if energy_tol is None else energy_tol
         if cfg.preconditioner == "jacobi":
             inv_d = 1.0 / A.diagonal()
 
             def precond(R):
                 return inv_d[:, None] * R
 
-            X, it = block_pcg(A, B, X0, precond, cfg.rtol, cfg.maxiter, energy, cfg.energy_tol, free)
+            X, it = block_pcg(A, B, X0, precond, cfg.rtol, cfg.maxiter, energy, tol, free)
             return X, SolveInfo(it, False)
         rebuilt = False
         sparse = getattr(A, "sparse", A)
-        if self._ml is None or self._n != A.shape[0] or self._force_rebuild:
+        stale = cfg.rebuild_rows < 1.0 and self._ml is not None and self.changed_rows(sparse) > cfg.rebuild_rows
+        if self._ml is None or self._n != A.shape[0] or self._force_rebuild or stale:
             self._ml = BlockAMG(sparse, cfg.amg_strength_theta, cfg.smoothing_steps)
             self._n = A.shape[0]
+            self.builds += 1
             rebuilt = True
+            if cfg.rebuild_rows < 1.0 and sp.isspmatrix_csr(sparse):
+                self._built = (sparse.data.copy(), np.repeat(np.arange(self._n), np.diff(sparse.indptr)))
         else:
             self._ml.set_fine(sparse)
-        X, it = block_pcg(A, B, X0, self._ml, cfg.rtol, cfg.maxiter, energy, cfg.energy_tol, free)
+        X, it = block_pcg(A, B, X0, self._ml, cfg.rtol, cfg.maxiter, energy, tol, free)
         worst = int(it.max()) if len(it) else 0
         if rebuilt:
             self._reference_iters = max(worst, 4)
@@ -256,6 +306,20 @@ class MaxwellSolver:
         self._X = None
         self.pcg.invalidate()
 
+    def _energy_tol(self, energy: np.ndarray) -> float:
+        """The energy rule's relative tolerance: ``energy_tol``, or looser by ``capacitance_atol``.
+
+        Each column stops when its estimated error is below ``tol * E_j`` (``E_j``
+        its energy, the terminal's capacitance); with ``tol = atol / max_j E_j``
+        that is below ``atol`` for every column.
+        """
+        cfg = self.config
+        atol = cfg.capacitance_atol or 0.0
+        top = float(np.max(energy)) if len(energy) else 0.0
+        if cfg.energy_tol == 0 or atol == 0 or not top > 0:
+            return cfg.energy_tol
+        return max(cfg.energy_tol, min(atol / top, MAX_ENERGY_TOL))
+
     def solve(self) -> MaxwellResult:
         """Solve for every terminal and return the capacitances."""
         sysm = self.system
@@ -285,7 +349,7 @@ class MaxwellSolver:
             energy = cond.energies(X0)
         else:
             energy = np.einsum("ij,ij->j", X0, sysm.stiffness() @ X0)
-        X, info = self.pcg.solve(A, B, X0, energy, ~fixed)
+        X, info = self.pcg.solve(A, B, X0, energy, ~fixed, self._energy_tol(energy))
         self._X = X
         full = cond.maxwell(X) if cond is not None else sysm.maxwell(X)
         from twinsense.capacitive.fem import reduce_floating
