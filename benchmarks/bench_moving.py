@@ -108,6 +108,8 @@ def robot_cell(frames: int) -> None:
     report(f"wrist ToF ({tof.config.width} x {tof.config.height}, {tof.config.supersample} x "
            f"{tof.config.supersample} sub-pixels), on the moving arm",
            *timed(lambda k: tof.capture(scene, t_of[k], rng), frames), anchor)
+    tof_stages(scene, tof, t_of[1:], anchor)
+    movers_world_bvh(scene, tof, t_of[1:])
 
     # Beside the ToF camera on the flange, looking the same way (down at the table).
     radar = FMCWRadar.preset("paper_bgt60tr13c", name="wrist_radar",
@@ -119,6 +121,106 @@ def robot_cell(frames: int) -> None:
     report(f"radar paper_bgt60tr13c on the moving wrist ({n} frames)",
            *timed(lambda k: radar.capture(scene, t_of[k], np.random.default_rng(k)), n), anchor)
     wrist_synthesis(radar, scene, t_of[1], anchor)
+
+
+def tof_stages(scene, tof, times, anchor: float) -> None:
+    """CPU time of each stage of a moving ToF camera's frame on this thread (one worker,
+    thread CPU time: it holds better than wall time on a busy machine), medians over ``times``."""
+    from twinsense.render import caster_for
+    from twinsense.tof.kernels import hits_to_phasors
+    from twinsense.tof.pipeline import (
+        ChainNoise,
+        blurred_raw,
+        chain_from_raw,
+        finish_geometry,
+        noise_rows,
+        noise_seeds,
+    )
+    from twinsense.tof.rendering import DIRECT_FIELDS, material_table
+    from twinsense.tof.signal import PixelPhasors
+
+    caster = caster_for(scene, "tof")
+    cfg, renderer = tof.config, tof._renderer
+    rng = np.random.default_rng(0)
+    stages: dict[str, list[float]] = {}
+    clock = [0.0]
+
+    def done(name):
+        now = time.thread_time()
+        stages.setdefault(name, []).append(now - clock[0])
+        clock[0] = time.thread_time()
+
+    for t in times:
+        clock[0] = time.thread_time()
+        pose = tof.mount.pose_at(scene, t)
+        done("camera pose (mount on the flange)")
+        rays = renderer.rays(pose.rotation, pose.position)
+        done("world rays of the new pose")
+        caster._states(t)
+        done("moving objects' poses (state_at of every link)")
+        caster.cast(rays, 0.0, DIRECT_FIELDS, workers=1, moving=False)
+        done("cast, static objects only (Embree + distances)")
+        o32 = np.broadcast_to(rays.origins[0].astype(np.float32), rays.directions.shape)
+        d32 = rays.directions.astype(np.float32)
+        clock[0] = time.thread_time()
+        caster._static_bvh._run(o32, d32)
+        done("- of which Embree's own traversal")
+        hits = caster.cast(rays, t, DIRECT_FIELDS, workers=1)
+        done("cast, everything (poses as above)")
+        ph = PixelPhasors(*hits_to_phasors(hits.distance, hits.cos_incidence, hits.object_id,
+                                           material_table(scene), cfg, tof.radiometry, 1))
+        done("hits -> pixel phasors")
+        noise = noise_rows(cfg, noise_seeds(cfg, rng), 0, cfg.height)
+        done("noise draws (a background thread in a capture)")
+        raw = blurred_raw(ph, cfg)
+        done("cross-talk blur")
+        out = chain_from_raw(*raw, cfg, ChainNoise(noise.raw, noise.gray))
+        done("noise, ADC, demodulation, unwrapping, validity")
+        finish_geometry(out, tof._pixel_dirs, cfg)
+        done("flying pixels, confidence, points")
+    print(f"  stages of the wrist ToF frame, CPU on one thread (median of {len(times)} frames; anchor "
+          f"{anchor * 1e3:.1f} ms):")
+    for name, v in stages.items():
+        print(f"    {name:<52s} {np.median(v) * 1e3:6.1f} ms ({np.median(v) / anchor:4.2f} x anchor)")
+
+
+def movers_world_bvh(scene, tof, times) -> None:
+    """The alternative to tracing each moving object in its own frame: one world-space
+    Embree BVH per frame over every moving object's posed triangles. Its posing and
+    build time against the moving objects' share of the per-object cast (process CPU)."""
+    from embreex import rtcore_scene
+    from embreex.mesh_construction import TriangleMesh
+
+    from twinsense.render import caster_for
+    from twinsense.tof.rendering import DIRECT_FIELDS
+
+    caster = caster_for(scene, "tof")
+    objs = scene.objects
+    meshes = [(np.asarray(objs[i].geometry.mesh.vertices, float), np.asarray(objs[i].geometry.mesh.faces))
+              for i in caster._moving]
+    pose_cpu, build_cpu, movers_cpu = [], [], []
+    for t in times:
+        c0 = time.process_time()
+        tri = np.ascontiguousarray(np.concatenate([objs[i].pose_at(t).apply(v)[f]
+                                                   for (v, f), i in zip(meshes, caster._moving)]), np.float32)
+        c1 = time.process_time()
+        bvh = rtcore_scene.EmbreeScene()
+        TriangleMesh(bvh, tri)
+        bvh.run(np.zeros((1, 3), np.float32), np.array([[0, 0, 1]], np.float32))  # commit: the build
+        c2 = time.process_time()
+        pose_cpu.append(c1 - c0)
+        build_cpu.append(c2 - c1)
+        pose = tof.mount.pose_at(scene, t)
+        rays = tof._renderer.rays(pose.rotation, pose.position)
+        caster._states(t)
+        c3 = time.process_time()
+        caster.cast(rays, t, DIRECT_FIELDS, workers=1, moving=False)
+        c4 = time.process_time()
+        caster.cast(rays, t, DIRECT_FIELDS, workers=1)
+        movers_cpu.append((time.process_time() - c4) - (c4 - c3))
+    print(f"  one world BVH of the {len(tri)} moving triangles per frame: posing {np.median(pose_cpu) * 1e3:.1f} ms "
+          f"+ Embree build {np.median(build_cpu) * 1e3:.1f} ms CPU, before any ray; the per-object path's "
+          f"moving objects (cull, trace, merge): {np.median(movers_cpu) * 1e3:.1f} ms CPU")
 
 
 def wrist_synthesis(radar: FMCWRadar, scene, t: float, anchor: float) -> None:

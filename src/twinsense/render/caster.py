@@ -33,6 +33,7 @@ from twinsense.render.kernels import (
     block_cones,
     cull_blocks_into_frame,
     cull_into_frame,
+    cull_objects_into_frames,
     direction_cone,
     object_wins,
 )
@@ -81,6 +82,12 @@ class SceneCaster:
             self._moving_radius.append(float(np.linalg.norm(v - c, axis=1).max()) * (1 + 1e-9) + 1e-9)
             pad = 1e-9 * (1.0 + float(np.abs(v).max()))
             self._moving_box.append((v.min(axis=0) - pad, v.max(axis=0) + pad))
+        # The same bounds stacked (m, ...) for the compiled cull of all moving objects.
+        m = len(self._moving)
+        self._stacked_centre = np.array(self._moving_centre).reshape(m, 3)
+        self._stacked_radius = np.array(self._moving_radius, dtype=float).reshape(m)
+        self._stacked_lo = np.array([b[0] for b in self._moving_box]).reshape(m, 3)
+        self._stacked_hi = np.array([b[1] for b in self._moving_box]).reshape(m, 3)
         # Static hits of the last few read-only ray bundles (one per fixed
         # sensor): [origins, directions, arrays, complete], newest last.
         self._memos: list[list] = []
@@ -218,6 +225,8 @@ class SceneCaster:
         Returns, per object that wins rays, in order: (rows, object index,
         triangle ids, world normals (not turned), normal . direction, distances).
         """
+        if blocks is not None:
+            return self._moving_changes_blocks(o, d, states, dist, threads, blocks)
         changes = []
         for k, i in enumerate(self._moving):
             st = states[i]
@@ -248,6 +257,31 @@ class SceneCaster:
             rows, t_won, tri, normal, dn = object_wins(sel, t_m, p, n_local, dist, d, rot, update)
             if len(rows):
                 changes.append((rows, i, tri, normal, dn, t_won))
+        return changes
+
+    def _moving_changes_blocks(self, o, d, states, dist, threads, blocks) -> list[tuple]:
+        """:meth:`_moving_changes` for rays from one origin with their block cones: every
+        object culled in one compiled call, then each object that keeps rays traced and merged.
+
+        All objects are culled against the hits before any of them (not against the
+        nearer objects before them, as one by one): a few more rays may be traced,
+        but a ray only wins where the object is nearer than the hit so far, in the
+        objects' order, so the result is the same.
+        """
+        mv = self._moving
+        rots = np.array([states[i].pose.rotation for i in mv])
+        poss = np.array([states[i].pose.position for i in mv])
+        sel_all, ol_all, dl_all, off = cull_objects_into_frames(
+            o, d, blocks, CONE_BLOCK, self._stacked_centre, self._stacked_radius, rots, poss,
+            self._stacked_lo, self._stacked_hi, dist)
+        changes = []
+        for k in np.flatnonzero(off[1:] > off[:-1]).tolist():
+            a, b = off[k], off[k + 1]
+            sel = sel_all[a:b]
+            t_m, _, p, n_local = self._moving_bvh[k].intersect(ol_all[a:b], dl_all[a:b], threads=threads)
+            rows, t_won, tri, normal, dn = object_wins(sel, t_m, p, n_local, dist, d, rots[k], True)
+            if len(rows):
+                changes.append((rows, mv[k], tri, normal, dn, t_won))
         return changes
 
     def _states(self, t: float) -> dict:
@@ -310,9 +344,9 @@ class SceneCaster:
         dist[:] = dist_s
         obj[:] = obj_s
         # Moving objects, in order; a later one that is nearer overwrites.
-        # From one origin, the cone around this chunk's directions lets most
-        # objects skip the chunk without a pass over its rays.
-        cone = direction_cone(d) if states and len(d) and o.strides[0] == 0 else None
+        # From one origin, the cones around blocks of rays (or, without them, the
+        # cone around this chunk's directions) let most objects skip most rays.
+        cone = direction_cone(d) if states and len(d) and o.strides[0] == 0 and blocks is None else None
         changes = self._moving_changes(o, d, states, dist, threads, cone=cone, blocks=blocks) if states else []
         for rows, i, *_ in changes:
             obj[rows] = i

@@ -410,3 +410,44 @@ def direction_cone(d):  # pragma: no cover
         if c < lowest:
             lowest = c
     return axis, lowest - 1e-12
+
+
+@jit
+def cull_objects_into_frames(o, d, cones, block, c_local, radius, rots, poss, lo, hi, t_max):  # pragma: no cover
+    """:func:`cull_blocks_into_frame` for every moving object in one call (rays from one origin).
+
+    c_local (m, 3) the objects' bounding-sphere centres in their frames, radius
+    (m,), rots (m, 3, 3) and poss (m, 3) their poses (local -> world), lo, hi
+    (m, 3) their boxes; the other arguments as for :func:`cull_blocks_into_frame`.
+    Every object is culled against the same ``t_max``.
+
+    Returns sel (k,), o_local, d_local (k, 3): the objects' kept rays one after
+    the other, and offsets (m + 1,): object j's rows are offsets[j]:offsets[j + 1].
+    """
+    m = radius.shape[0]
+    offsets = np.zeros(m + 1, np.int64)
+    sels = []
+    ols = []
+    dls = []
+    centre = np.empty(3)
+    for j in range(m):
+        rot = rots[j]
+        for a in range(3):
+            centre[a] = poss[j, a] + (rot[a, 0] * c_local[j, 0] + rot[a, 1] * c_local[j, 1]
+                                      + rot[a, 2] * c_local[j, 2])
+        sel, ol, dl = cull_blocks_into_frame(o, d, cones, block, centre, radius[j], rot, poss[j], lo[j], hi[j],
+                                             t_max)
+        sels.append(sel)
+        ols.append(ol)
+        dls.append(dl)
+        offsets[j + 1] = offsets[j] + sel.shape[0]
+    k = offsets[m]
+    sel_all = np.empty(k, np.int64)
+    ol_all = np.empty((k, 3))
+    dl_all = np.empty((k, 3))
+    for j in range(m):
+        a, b = offsets[j], offsets[j + 1]
+        sel_all[a:b] = sels[j]
+        ol_all[a:b] = ols[j]
+        dl_all[a:b] = dls[j]
+    return sel_all, ol_all, dl_all, offsets
