@@ -72,9 +72,9 @@ def test_object_frame_mapping_equals_the_world_frame_test(pads):
         rot = Pose.from_euler_deg((0, 0, 0), tuple(rng.uniform(-40, 40, 3))).rotation
         objs = [
             SceneObject("hand", HAND, Material("g", conductor="grounded"),
-                        Pose(rng.uniform(-0.008, 0.008, 3) + (0, 0, 0.006), rot)),
+                        Pose(rng.uniform(-0.008, 0.008, 3) + np.array([0, 0, 0.006]), rot)),
             SceneObject("ball", Sphere(0.004), Material("d", permittivity=3.0),
-                        Pose(rng.uniform(-0.01, 0.01, 3) + (0, 0, 0.008))),
+                        Pose(rng.uniform(-0.01, 0.01, 3) + np.array([0, 0, 0.008]))),
             SceneObject("plate", Box((0.012, 0.008, 0.002)), Material("f", conductor="floating"),
                         Pose((0.0, 0.0, 0.012 + 0.001 * k), rot)),
         ]
