@@ -28,35 +28,48 @@ from twinsense.capacitive.tactile.kernels import (
     amg_down,
     amg_up,
     block_product,
+    block_residual,
     cg_update,
+    gram,
     new_direction,
     split_system,
+    take_columns,
 )
 
 __all__ = ["FrameSolver"]
 
 
-class _FineCycle:
-    """A BlockAMG V-cycle whose finest level runs in compiled loops (one Jacobi step each way)."""
+class _CompiledCycle:
+    """A BlockAMG V-cycle (one Jacobi step each way) in compiled loops on every level but the coarsest.
 
-    def __init__(self, ml: BlockAMG, A, free: np.ndarray) -> None:
+    The levels, damping and prolongators are the hierarchy's own (the finest
+    level holds the current matrix, see :meth:`BlockAMG.set_fine`); the
+    coarsest level is its dense Cholesky solve.
+    """
+
+    def __init__(self, ml: BlockAMG, free: np.ndarray) -> None:
         self.ml = ml
-        self.A = A
-        self.d = np.ascontiguousarray(ml.scaled_dinv[0][:, 0])
-        P = ml.P[0]
-        self.P = (P.indptr, P.indices, P.data)
-        self.nc = P.shape[1]
-        self.mask = free.astype(float)
+        self.levels = [(a, np.ascontiguousarray(d[:, 0]), (p.indptr, p.indices, p.data), p.shape[1])
+                       for a, d, p in zip(ml.A[:-1], ml.scaled_dinv, ml.P, strict=True)]
+        self.masks = [free.astype(float)] + [np.ones(a.shape[0]) for a in ml.A[1:-1]]
 
     def __call__(self, B: np.ndarray, rz: np.ndarray) -> np.ndarray:
         """(n, c) masked V-cycle of ``B`` (n, c); ``rz`` (c,) receives ``B . Z`` per column."""
-        A = self.A
-        X = np.empty_like(B)
-        Rc = np.empty((self.nc, B.shape[1]))
-        amg_down(A.indptr, A.indices, A.data, self.d, B, X, *self.P, Rc)
-        Xc = np.ascontiguousarray(self.ml._cycle(Rc, 1))
-        amg_up(A.indptr, A.indices, A.data, self.d, B, X, *self.P, Xc, self.mask, np.empty_like(B), rz)
-        return X
+        c = B.shape[1]
+        down = []
+        for A, d, P, nc in self.levels:
+            X = np.empty_like(B)
+            Rc = np.empty((nc, c))
+            amg_down(A.indptr, A.indices, A.data, d, B, X, *P, Rc)
+            down.append((B, X))
+            B = Rc
+        Xc = np.ascontiguousarray(self.ml._cycle(B, len(self.levels)))
+        scratch = np.empty(c)
+        for (A, d, P, _), mask, (B, X) in zip(self.levels[::-1], self.masks[::-1], down[::-1], strict=True):
+            amg_up(A.indptr, A.indices, A.data, d, B, X, *P, Xc, mask, np.empty_like(B), scratch)
+            Xc = X
+        rz[:] = scratch  # the finest level's, computed last
+        return Xc
 
 
 class FrameSolver:
@@ -109,7 +122,7 @@ class FrameSolver:
             self._ml.set_fine(A)
         ml = self._ml
         if cfg.smoothing_steps == 1 and len(ml.P) > 0:
-            return _FineCycle(ml, A, free), rebuilt
+            return _CompiledCycle(ml, free), rebuilt
         return (lambda R, rz: _dotted(ml(R) * mask, R, rz)), rebuilt
 
     def solve(self) -> MaxwellResult:
@@ -143,7 +156,7 @@ class FrameSolver:
             self._force_rebuild = True
         self._X = X
         block_product(K.indptr, K.indices, K.data, X, KX, energy)
-        full = np.einsum("ni,nj->ij", X, KX)  # a thin product: BLAS threads would only spin
+        full = gram(X, KX)
         full = 0.5 * (full + full.T)
         mat = reduce_floating(full, len(sysm.terminals))
         return MaxwellResult(mat, full, iters, rebuilt)
@@ -174,23 +187,26 @@ def _dotted(Z: np.ndarray, R: np.ndarray, rz: np.ndarray) -> np.ndarray:
 def _block_pcg(A, B, X0, precond, rtol: float, maxiter: int, energy: np.ndarray, energy_tol: float):
     """:func:`~twinsense.capacitive.pcg.block_pcg` on compact blocks; ``precond(R, rz)`` masks and dots.
 
+    ``X0`` (n, t) C-ordered is overwritten with the solution.
+
     Returns (X (n, t), iterations (t,) int).
     """
-    X = np.array(X0, dtype=float, copy=True)
+    X = X0
     t = B.shape[1]
     iters = np.zeros(t, dtype=np.int64)
     R = np.empty_like(X)
-    w = np.empty(t)
-    block_product(A.indptr, A.indices, A.data, X, R, w)
-    R = B - R
-    bnorm = np.linalg.norm(B, axis=0)
+    rr = np.empty(t)
+    block_residual(A.indptr, A.indices, A.data, B, X, R, rr)
+    bnorm = np.sqrt(np.einsum("ij,ij->j", B, B))
     bnorm[bnorm == 0] = 1.0
-    cols = np.flatnonzero(np.linalg.norm(R, axis=0) > rtol * bnorm)
+    cols = np.flatnonzero(np.sqrt(rr) > rtol * bnorm)
     if len(cols) == 0:
         return X, iters
     tail = _EnergyTail.start(energy) if energy_tol > 0 else None
-    Xa = np.ascontiguousarray(X[:, cols])
-    Ra = np.ascontiguousarray(R[:, cols])
+    if len(cols) == t:  # the usual case: no copies
+        Xa, Ra = X, R
+    else:
+        Xa, Ra = np.ascontiguousarray(X[:, cols]), np.ascontiguousarray(R[:, cols])
     rz = np.empty(len(cols))
     P = precond(Ra, rz)
     for _ in range(maxiter):
@@ -210,7 +226,8 @@ def _block_pcg(A, B, X0, precond, rtol: float, maxiter: int, energy: np.ndarray,
             if not np.any(still):
                 return X, iters
             cols = cols[still]
-            Xa, Ra, P = (np.ascontiguousarray(M[:, still]) for M in (Xa, Ra, P))
+            keep = np.flatnonzero(still)
+            Xa, Ra, P = (take_columns(M, keep) for M in (Xa, Ra, P))
             rz = rz[still]
         rz_new = np.empty(len(cols))
         Z = precond(Ra, rz_new)

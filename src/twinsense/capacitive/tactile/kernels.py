@@ -14,8 +14,8 @@ import numpy as np
 
 from twinsense.compiled import jit
 
-__all__ = ["amg_down", "amg_up", "block_product", "cg_update", "moved_cells", "new_direction", "restamp",
-           "split_system", "tet_stiffness_nb"]
+__all__ = ["amg_down", "amg_up", "block_product", "block_residual", "cg_update", "gram", "moved_cells",
+           "new_direction", "restamp", "split_system", "take_columns", "tet_stiffness_nb"]
 
 
 @jit
@@ -120,6 +120,23 @@ def block_product(indptr, indices, data, X, Y, w):  # pragma: no cover - compile
 
 
 @jit
+def block_residual(indptr, indices, data, B, X, R, rr):  # pragma: no cover - compiled
+    """``R = B - A X`` for a CSR ``A`` (n, n) and blocks (n, c); ``rr[k] = |R[:, k]|^2``."""
+    n, c = X.shape
+    rr[:] = 0.0
+    for i in range(n):
+        for k in range(c):
+            R[i, k] = B[i, k]
+        for p in range(indptr[i], indptr[i + 1]):
+            j = indices[p]
+            a = data[p]
+            for k in range(c):
+                R[i, k] -= a * X[j, k]
+        for k in range(c):
+            rr[k] += R[i, k] * R[i, k]
+
+
+@jit
 def cg_update(X, R, P, AP, alpha, rr):  # pragma: no cover - compiled
     """``X += alpha P``, ``R -= alpha AP`` column by column; ``rr[k] = |R[:, k]|^2``."""
     n, c = X.shape
@@ -130,6 +147,31 @@ def cg_update(X, R, P, AP, alpha, rr):  # pragma: no cover - compiled
             r = R[i, k] - alpha[k] * AP[i, k]
             R[i, k] = r
             rr[k] += r * r
+
+
+@jit
+def take_columns(M, keep):  # pragma: no cover - compiled
+    """(n, len(keep)) C-ordered copy of the columns ``keep`` of ``M`` (n, c)."""
+    n = M.shape[0]
+    m = keep.shape[0]
+    out = np.empty((n, m))
+    for i in range(n):
+        for q in range(m):
+            out[i, q] = M[i, keep[q]]
+    return out
+
+
+@jit
+def gram(X, Y):  # pragma: no cover - compiled
+    """(c, c) ``X^T Y`` of two (n, c) blocks, row by row (a thin product no BLAS thread pays for)."""
+    n, c = X.shape
+    G = np.zeros((c, c))
+    for i in range(n):
+        for a in range(c):
+            x = X[i, a]
+            for b in range(c):
+                G[a, b] += x * Y[i, b]
+    return G
 
 
 @jit
