@@ -44,10 +44,16 @@ class Geometry:
         """Inside test for points (n, 3) in the local frame -> bool (n,)."""
         raise NotImplementedError
 
-    @property
+    @functools.cached_property
     def bounds(self) -> np.ndarray:
-        """Axis-aligned bounds (2, 3) in the local frame [m]."""
-        return np.asarray(self.mesh.bounds, dtype=float)
+        """Axis-aligned bounds (2, 3) in the local frame [m] (read-only).
+
+        Kept: the mesh's vertices are read-only, and trimesh checks its own cache by hashing the
+        arrays at every call (sensors ask for every object's bounds at every frame).
+        """
+        b = np.array(self.mesh.bounds, dtype=float)
+        b.setflags(write=False)
+        return b
 
     def to_dict(self) -> dict:
         raise NotImplementedError

@@ -1,15 +1,19 @@
-"""Link poses of a forward-kinematics state: built once per link and time, the bits of the public constructor.
+"""What the scene keeps between frames: link poses per time, geometry bounds.
+
+Link poses of a forward-kinematics state are built once per link and time, with the bits of the public
+constructor.
 
 A ``TreeState`` is cached per time and every sensor asks for every moving link at each capture, so
 ``TreeState.pose`` keeps each link's pose. It must equal, bit for bit, ``Pose(position, rotation)`` of
 the kernel's rows (the checked constructor), for a real robot (example-robot-data's UR5) and a person.
+A geometry's bounds are kept (its mesh's vertices are read-only): the mesh's own bounds, read-only.
 """
 
 import numpy as np
 
 from twinsense import Pose
 from twinsense.robots import load_robot
-from twinsense.scene import JointKeyframes, Scene
+from twinsense.scene import Box, Cylinder, JointKeyframes, Scene, Sphere
 from twinsense.scene.human import Walk, add_person
 
 
@@ -36,3 +40,10 @@ def test_link_poses_are_the_checked_poses_and_built_once():
                 # The velocities handed out are the caller's own: writing them leaves the state as it was.
                 ms.linear_velocity[:] = 7.0
                 assert not np.any(st.linear_velocities[i] == 7.0)
+
+
+def test_geometry_bounds_are_the_mesh_bounds_kept_read_only():
+    for g in (Box((0.1, 0.2, 0.3)), Sphere(0.25), Cylinder(0.06, 0.5)):
+        b = g.bounds
+        assert b.tobytes() == np.asarray(g.mesh.bounds, dtype=float).tobytes()
+        assert g.bounds is b and not b.flags.writeable
