@@ -16,6 +16,8 @@ what rendering the whole image gives.
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 
 from twinsense.linalg import rotate_rows
@@ -70,6 +72,8 @@ class ToFRenderer:
         self._rays: dict[bytes, Rays] = {}
         self._pixel_world: dict[bytes, np.ndarray] = {}
         self._static: dict[int, tuple] = {}
+        self._scratch: dict = {}  # work arrays of hits_to_phasors, kept between frames
+        self._scratch_lock = threading.Lock()
 
     # --- rays ------------------------------------------------------------------
 
@@ -141,9 +145,16 @@ class ToFRenderer:
                 # hits to phasors in one compiled pass (same numbers as
                 # pixel_phasors(surface_samples(...)) but the float32 cos/sin).
                 hits = self.hits(scene, rotation, position, t)
-                return PixelPhasors(*hits_to_phasors(hits.distance, hits.cos_incidence, hits.object_id,
-                                                     material_table(scene), self.config,
-                                                     self.radiometry, default_workers()))
+                # The kept work arrays serve one frame at a time; a frame rendered
+                # meanwhile on another thread gets its own.
+                mine = self._scratch_lock.acquire(blocking=False)
+                try:
+                    return PixelPhasors(*hits_to_phasors(hits.distance, hits.cos_incidence, hits.object_id,
+                                                         material_table(scene), self.config, self.radiometry,
+                                                         default_workers(), self._scratch if mine else None))
+                finally:
+                    if mine:
+                        self._scratch_lock.release()
             st = caster.cast_static(rays, DIRECT_FIELDS)
             tables = material_table(scene)
             samples = surface_samples(st, tables, self.config, self.sub_dirs.shape[:2])
