@@ -517,8 +517,26 @@ class _Block2D:
         return len(self.keep)
 
 
+class _Leg:
+    """One leg's offsets d (m, 3) from an element at the block's centre time, their
+    lengths r0 (m,), y = T |vel| / r0 (m,) and its Taylor series per order (kept)."""
+
+    def __init__(self, pos, vel, t_mid, element, t_span):
+        self.d = pos + vel * t_mid - element
+        self.vel = vel
+        self.r0 = np.sqrt(np.einsum("ij,ij->i", self.d, self.d))
+        with np.errstate(divide="ignore", invalid="ignore"):  # a point on an element: not 2-D
+            self.y = t_span * np.linalg.norm(vel, axis=1) / self.r0
+        self._series: dict[int, np.ndarray] = {}
+
+    def series(self, order: int) -> np.ndarray:
+        if order not in self._series:
+            self._series[order] = _leg_series(self.d, self.vel, order)[0]
+        return self._series[order]
+
+
 def _plan_block(p, v, pr, vr, tx, rx, chirps, t_mid, a_step, geo: Geometry,
-                eps: float) -> _Block2D | None:
+                eps: float, tx_leg: _Leg | None = None) -> _Block2D | None:
     """Expansion of movers (p, v; pr, vr) for one receiver ``rx`` and the chirps ``chirps``
     (sent by ``tx``, evenly ``a_step`` seconds apart; ``t_mid`` [s]: the time of the
     block's centre sample from the frame start). None when the delay's Taylor
@@ -529,19 +547,16 @@ def _plan_block(p, v, pr, vr, tx, rx, chirps, t_mid, a_step, geo: Geometry,
     and dropped degrees of tau^2 eps / 16 each, dropped monomials eps / 16,
     exp-series order and skipped series terms 13/32 eps each: together eps,
     the per-chirp path's budget (its series order and skipped terms, eps / 2
-    each).
+    each). ``tx_leg``: the transmit leg of the same movers, block and
+    transmitter, shared by the receivers' blocks (computed here when None).
     """
     n_samp = geo.n_samp
     jb = len(chirps)
     mu_half = jb // 2
     t_span = a_step * mu_half + (n_samp // 2) / geo.fs  # max |Delta| [s]
-    d_tx = p + v * t_mid - tx
-    d_rx = pr + vr * t_mid - rx
-    r0_tx = np.sqrt(np.einsum("ij,ij->i", d_tx, d_tx))
-    r0_rx = np.sqrt(np.einsum("ij,ij->i", d_rx, d_rx))
-    with np.errstate(divide="ignore", invalid="ignore"):  # a point on an element: not 2-D
-        y_tx = t_span * np.linalg.norm(v, axis=1) / r0_tx
-        y_rx = t_span * np.linalg.norm(vr, axis=1) / r0_rx
+    leg_tx = _Leg(p, v, t_mid, tx, t_span) if tx_leg is None else tx_leg
+    leg_rx = _Leg(pr, vr, t_mid, rx, t_span)
+    r0_tx, r0_rx, y_tx, y_rx = leg_tx.r0, leg_rx.r0, leg_tx.y, leg_rx.y
     if not max(float(y_tx.max()), float(y_rx.max())) <= _Y_MAX:
         return None
     # |d Phi / d tau| <= 2 pi (|fc| + |S| (N/2 / fs + tau)): the tail of the delay moves
@@ -561,12 +576,15 @@ def _plan_block(p, v, pr, vr, tx, rx, chirps, t_mid, a_step, geo: Geometry,
         order += 1
     if phase_per_m * tail > eps / 16:
         return None
-    r_tx, _ = _leg_series(d_tx, v, order)
-    r_rx, _ = _leg_series(d_rx, vr, order)
-    tau = (r_tx + r_rx) * (1.0 / SPEED_OF_LIGHT)
+    tau = (leg_tx.series(order) + leg_rx.series(order)) * (1.0 / SPEED_OF_LIGHT)
     # Degrees of tau^2 above the order are dropped: at most pi S (sum_{k>=1} |tau_k| T^k)^2.
     span = t_span ** np.arange(order + 1)
-    dmax = float(np.max(np.abs(tau[1:]).T @ span[1:]))
+    # (A loop, not a (m, K) @ (K,) product: BLAS threads on tall, thin products
+    # cost far more than the arithmetic on shared cores.)
+    acc = np.abs(tau[1]) * span[1]
+    for k in range(2, order + 1):
+        acc += np.abs(tau[k]) * span[k]
+    dmax = float(np.max(acc))
     if math.pi * abs(geo.slope) * dmax**2 > eps / 16:
         return None
     coeffs = _monomial_coeffs(tau, geo, a_step)
@@ -580,12 +598,14 @@ def _plan_block(p, v, pr, vr, tx, rx, chirps, t_mid, a_step, geo: Geometry,
     for (i, j), c in coeffs.items():
         if i > 0 and mu_half == 0:
             continue  # a single chirp: mu = 0
-        c = c * (float(mu_s) ** i * float(nu_s) ** j)
-        mid = 0.5 * (float(c.max()) + float(c.min()))
+        c *= float(mu_s) ** i * float(nu_s) ** j  # c is this function's own array
+        hi, lo = float(c.max()), float(c.min())
+        mid = 0.5 * (hi + lo)
         common[(i, j)] = mid
-        r = c - mid
-        resid[(i, j)] = r
-        bounds[(i, j)] = float(np.max(np.abs(r)))
+        c -= mid
+        resid[(i, j)] = c
+        # max |c - mid| = (hi - lo) / 2; the factor covers the rounding of mid and of c - mid.
+        bounds[(i, j)] = 0.5 * (hi - lo) * (1.0 + 1e-12)
     # Drop the per-scatterer rest of the smallest monomials within eps / 8.
     dropped = 0.0
     for key, b in sorted(bounds.items(), key=lambda kv: kv[1]):
@@ -712,8 +732,11 @@ def moving_chunk_2d(p, v, pr, vr, w, geo: Geometry, chirp_centre: np.ndarray,
                 t_mid = float(chirp_centre[part[len(part) // 2]])
                 a_step = float(chirp_centre[part[1]] - chirp_centre[part[0]]) if len(part) > 1 else 0.0
                 tx = geo.tx_per_chirp[part[0]]
+                t_span = a_step * (len(part) // 2) + (n_samp // 2) / geo.fs
+                tx_leg = _Leg(p, v, t_mid, tx, t_span)  # shared by the receivers
                 for a in range(n_rx):
-                    blk = _plan_block(p, v, pr, vr, tx, geo.rx[a], part, t_mid, a_step, geo, eps)
+                    blk = _plan_block(p, v, pr, vr, tx, geo.rx[a], part, t_mid, a_step, geo, eps,
+                                      tx_leg)
                     if blk is None:
                         cost = math.inf
                         break

@@ -277,7 +277,8 @@ class FMCWRadar:
         """
         if self.eps is not None:
             return self.eps
-        loose = noise_tolerance(points, weights, self.config, DEFAULT_EPS, points_rx=points_rx)
+        loose = noise_tolerance(points, weights, self.config, DEFAULT_EPS, points_rx=points_rx,
+                                workers=self.workers)
         return max(DEFAULT_EPS, loose / parts)
 
     def _signal(self, s: Scatterers) -> np.ndarray:
