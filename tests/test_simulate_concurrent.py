@@ -175,3 +175,22 @@ def test_a_stop_request_keeps_the_same_frames(workers):
 def test_bad_worker_counts_are_refused(bad):
     with pytest.raises(ConfigError, match="workers"):
         simulate(plain_scene(), [Gate("a", 10.0, threading.Event())], 0.1, workers=bad)
+
+
+def test_one_shared_thread_setting_captures_on_the_calling_thread(monkeypatch):
+    # TWINSENSE_THREADS=1 (a sweep's worker processes) means one frame after another, on this thread;
+    # the default otherwise uses capture threads.
+    where = []
+
+    class Where(Gate):
+        def capture(self, scene, t, rng=None):
+            where.append(threading.get_ident())
+            return super().capture(scene, t, rng)
+
+    monkeypatch.setenv("TWINSENSE_THREADS", "1")
+    simulate(plain_scene(), [Where("a", 10.0, threading.Event()), Where("b", 10.0, threading.Event())], 0.3)
+    assert set(where) == {threading.get_ident()}
+    where.clear()
+    monkeypatch.setenv("TWINSENSE_THREADS", "2")
+    simulate(plain_scene(), [Where("a", 10.0, threading.Event()), Where("b", 10.0, threading.Event())], 0.3)
+    assert threading.get_ident() not in where
