@@ -325,9 +325,23 @@ class ScatterRenderer:
         """(m, 3) velocities of the hit points relative to the sensor, sensor frame."""
         v_world = hits.velocity if idx is None else np.take(hits.velocity, idx, axis=0)
         if np.any(sensor_state.linear_velocity) or np.any(sensor_state.angular_velocity):
-            pose = sensor_state.pose
-            p_world = _times(points, pose.rotation.T) + pose.position
-            return self._relative_velocity(v_world, p_world, sensor_state)
+            # R^T (v_p - v_o - w x (p - o)) with p - o = R p_s (p_s: ``points``, sensor
+            # frame) is R^T v_p - R^T v_o - (R^T w) x p_s: no world points and no
+            # (n, 3) cross product, column by column (the same value as
+            # :meth:`_relative_velocity` up to rounding).
+            rot = sensor_state.pose.rotation
+            out = _times(v_world, rot)
+            v_o = np.asarray(sensor_state.linear_velocity, float) @ rot
+            w_s = np.asarray(sensor_state.angular_velocity, float) @ rot
+            px, py, pz = points[:, 0], points[:, 1], points[:, 2]
+            for k, (i, j) in enumerate(((1, 2), (2, 0), (0, 1))):
+                col = out[:, k]
+                col -= v_o[k]
+                if w_s[i] != 0.0:
+                    col -= w_s[i] * (pz, px, py)[k]
+                if w_s[j] != 0.0:
+                    col += w_s[j] * (py, pz, px)[k]
+            return out
         # A sensor at rest: only points on moving objects move, R^T v row by row.
         moving = np.array([not o.is_static for o in scene.objects] + [False])
         rows = np.flatnonzero(np.take(moving, obj_hit))  # id -1 (none) -> last entry
