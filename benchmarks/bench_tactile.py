@@ -20,7 +20,10 @@ COLAMD ordering) of the same constrained stiffness, factorised before
 timing, with one right-hand side.
 
 The electrical part of the tactile frame (electrostatics on the deformed
-stack) is timed by ``electrical_section`` when present.
+stack) is timed by ``electrical_section``: whole frames of ``skin_patch_8x8``
+with the Maxwell solve in NumPy and in compiled loops, in the same run,
+wall time and process CPU time (the machine is shared: CPU time is the
+figure that load moves least).
 
 Run:  .venv/bin/python benchmarks/bench_tactile.py [--electrical]   (--electrical: whole frames only)
 """
@@ -90,14 +93,51 @@ def mechanics_section() -> None:
 
 
 def electrical_section() -> None:
-    """Whole tactile frames of the ``skin_patch_8x8`` preset: contact solve, deformed electrostatics, readout."""
-    from twinsense import Pose, Scene, Sphere
+    """Whole tactile frames of the ``skin_patch_8x8`` preset: contact solve, deformed electrostatics, readout.
+
+    Twice in the same run: with the Maxwell solve in NumPy (``compiled_solver=False``,
+    the path before the compiled loops) and in compiled loops (the default).
+    """
     from twinsense.capacitive.tactile import make_tactile
+
+    rows = {}
+    for label, compiled in (("NumPy solve", False), ("compiled solve", True)):
+        skin = make_tactile("skin_patch_8x8", compiled_solver=compiled)
+        rows[label] = _whole_frames(skin)
+    stack = skin.stack
+    m = stack.mesh
+    print(f"electrical: skin_patch_8x8 (8 x 8 at 4 mm, 1.5 mm ecoflex_0030 + 0.5 mm pdms_sylgard184), "
+          f"{m.n_nodes} nodes, {m.n_cells} tets, {len(stack.terminals)} electrodes")
+    names = ("contact (objects -> heights -> active set -> node displacement)", "re-assembly of moved cells",
+             "scene objects on the air cells", "Maxwell solve (warm AMG-PCG, 16 columns)")
+    for label, r in rows.items():
+        print(f"  {label}: first frame (assembly, AMG, baseline, elastic body, calibrations) {r['first']:.1f} s")
+        print(f"    whole frame, 2 moving contacts {r['best'] * 1e3:7.1f} ms best {r['med'] * 1e3:7.1f} ms median"
+              f"  -> {1 / r['med']:5.1f} frames/s; process CPU {r['cpu'] * 1e3:6.1f} ms median"
+              f" -> {1 / r['cpu']:5.1f} frames/s of one core")
+        print(f"    whole frame, contacts still    {r['s_best'] * 1e3:7.1f} ms best {r['s_med'] * 1e3:7.1f} ms median"
+              f"  -> {1 / r['s_med']:5.1f} frames/s (contact and Maxwell matrix reused)")
+        for name, wall, cpu in zip(names, r["stages"], r["stages_cpu"], strict=True):
+            print(f"      {name:<66s} {wall * 1e3:7.1f} ms median wall {cpu * 1e3:7.1f} ms CPU")
+        print(f"    PCG iterations per moving frame: {r['iters']:.1f} (most in one column), "
+              f"{r['col_iters']:.1f} (all columns)")
+        print(f"    electrostatics only, every soft cell moved {r['e_best'] * 1e3:7.1f} ms best "
+              f"{r['e_med'] * 1e3:7.1f} ms median")
+    before, after = rows["NumPy solve"], rows["compiled solve"]
+    print(f"  compiled / NumPy, same run: whole moving frame {after['med'] / before['med']:.2f} (wall median), "
+          f"{after['cpu'] / before['cpu']:.2f} (CPU median); Maxwell solve "
+          f"{after['stages_cpu'][3] / before['stages_cpu'][3]:.2f} (CPU median)")
+    anchor = skfem_pyamg_anchor(m.points, m.cells, stack.terminals, stack.ground, stack.permittivity)
+    for label, r in rows.items():
+        print_anchor(f"scikit-fem + pyamg cold solve, same mesh ({label})", anchor, r["med"])
+
+
+def _whole_frames(skin) -> dict:
+    """Timings of whole frames of ``skin`` (seconds; ``cpu``: process CPU time per frame)."""
+    from twinsense import Pose, Scene, Sphere
     from twinsense.capacitive.tactile.estimate import confined_compression
 
-    skin = make_tactile("skin_patch_8x8")
     lay = skin.config.layout
-    stack = skin.stack
     top = lay.total_thickness
 
     # One geometry per finger, shared by every frame's scene as in a run (a
@@ -122,10 +162,19 @@ def electrical_section() -> None:
         skin.capture(sc, 0.0)
     frames = iter(range(10**6))
     best, med = best_and_median(lambda: skin.capture(scenes[next(frames) % 60], 0.0), repeats=20)
+    cpu = []
+    for k in range(20):
+        c0 = time.process_time()
+        skin.capture(scenes[k % 60], 0.0)
+        cpu.append(time.process_time() - c0)
     still = scenes[5]
     skin.capture(still, 0.0)
     s_best, s_med = best_and_median(lambda: skin.capture(still, 0.0), repeats=20)
-    stages = np.median([_frame_stages(skin, scenes[k % 60]) for k in range(20)], axis=0)
+    stages = np.array([_frame_stages(skin, scenes[k % 60]) for k in range(20)])
+    iters = [skin._last_result.iterations]
+    for k in range(20, 30):
+        skin.capture(scenes[k % 60], 0.0)
+        iters.append(skin._last_result.iterations)
     es = skin.electrostatics
     u = confined_compression(es.points0, lay.z_tx, lay.z_rx, top, 0.05)
     toggle = iter(range(10**6))
@@ -135,39 +184,29 @@ def electrical_section() -> None:
         es.solve()
 
     e_best, e_med = best_and_median(electric, repeats=10)
-    m = stack.mesh
-    print(f"electrical: skin_patch_8x8 (8 x 8 at 4 mm, 1.5 mm ecoflex_0030 + 0.5 mm pdms_sylgard184), "
-          f"{m.n_nodes} nodes, {m.n_cells} tets, {len(stack.terminals)} electrodes; "
-          f"first frame (assembly, AMG, baseline, elastic body, calibrations) {first:.1f} s")
-    print(f"  whole frame, 2 moving contacts {best * 1e3:7.1f} ms best {med * 1e3:7.1f} ms median"
-          f"  -> {1 / med:5.1f} frames/s")
-    print(f"  whole frame, contacts still    {s_best * 1e3:7.1f} ms best {s_med * 1e3:7.1f} ms median"
-          f"  -> {1 / s_med:5.1f} frames/s (contact and Maxwell matrix reused)")
-    names = ("contact (objects -> heights -> active set -> node displacement)", "re-assembly of moved cells",
-             "scene objects on the air cells", "Maxwell solve (warm AMG-PCG, 16 columns)")
-    for name, sec in zip(names, stages):
-        print(f"    {name:<66s} {sec * 1e3:7.1f} ms median")
-    print(f"  electrostatics only, every soft cell moved {e_best * 1e3:7.1f} ms best {e_med * 1e3:7.1f} ms median")
-    anchor = skfem_pyamg_anchor(m.points, m.cells, stack.terminals, stack.ground, stack.permittivity)
-    print_anchor("scikit-fem + pyamg cold solve, same mesh", anchor, med)
+    return {"first": first, "best": best, "med": med, "cpu": float(np.median(cpu)), "s_best": s_best,
+            "s_med": s_med, "stages": np.median(stages[:, 0], axis=0), "stages_cpu": np.median(stages[:, 1], axis=0),
+            "iters": float(np.mean([i.max() for i in iters])), "col_iters": float(np.mean([i.sum() for i in iters])),
+            "e_best": e_best, "e_med": e_med}
 
 
-def _frame_stages(skin, scene) -> list[float]:
-    """Seconds of the stages of one moving frame, in the order :meth:`TactileSensor.solve_at` runs them."""
+def _frame_stages(skin, scene) -> list[list[float]]:
+    """[wall, CPU] seconds of the stages of one moving frame, in the order :meth:`TactileSensor.solve_at` runs them."""
     from twinsense.capacitive.coupling import inclusions_from_scene
 
     es = skin.electrostatics
     pose = skin.mount.pose_at(scene, 0.0)
-    t0 = time.perf_counter()
+    marks = [(time.perf_counter(), time.process_time())]
     u, _, _ = skin._contact(scene, 0.0, pose)
-    t1 = time.perf_counter()
+    marks.append((time.perf_counter(), time.process_time()))
     es.set_displacement(u)
-    t2 = time.perf_counter()
+    marks.append((time.perf_counter(), time.process_time()))
     es.set_objects(inclusions_from_scene(scene, 0.0, skin.kind), skin_to_world=pose)
-    t3 = time.perf_counter()
+    marks.append((time.perf_counter(), time.process_time()))
     skin._last_result = es.solve()
-    t4 = time.perf_counter()
-    return [t1 - t0, t2 - t1, t3 - t2, t4 - t3]
+    marks.append((time.perf_counter(), time.process_time()))
+    m = np.array(marks)
+    return np.diff(m, axis=0).T.tolist()
 
 
 def main() -> None:

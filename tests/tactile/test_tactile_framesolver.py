@@ -1,12 +1,15 @@
 """The compiled per-frame Maxwell solve of the tactile skin against the NumPy forms and an exact solve."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
 from twinsense.capacitive.amg import BlockAMG
 from twinsense.capacitive.solver import MaxwellSolver, SolverConfig
-from twinsense.capacitive.tactile.framesolver import FrameSolver
+from twinsense.capacitive.tactile import TactileSensor
+from twinsense.capacitive.tactile.framesolver import FrameSolver, _CompiledCycle
 from twinsense.capacitive.tactile.kernels import amg_down, amg_up, block_product, split_system
 from twinsense.capacitive.tactile.readout import AD7147_READOUT
 from twinsense.errors import ConfigError
@@ -144,6 +147,14 @@ def test_compiled_finest_level_equals_the_numpy_v_cycle(moving):
     # The same operations with sums in another order: 1e-12 of the largest entry.
     np.testing.assert_allclose(X, want, rtol=0, atol=1e-12 * np.abs(want).max())
     np.testing.assert_allclose(rz, np.einsum("ij,ij->j", B, want), rtol=1e-12, atol=0)
+    # The whole cycle as FrameSolver runs it, levels in float32: float32 rounds
+    # each of the cycle's ~10 passes to 6e-8, each sum of ~15-30 terms; 1e-5 of
+    # the largest entry bounds what accumulates (float64 cycle: as above).
+    for dtype, tol in ((np.float64, 1e-12), (np.float32, 1e-5)):
+        rz = np.empty(5)
+        Z = _CompiledCycle(ml, ~fixed, dtype)(B, rz)
+        np.testing.assert_allclose(Z, want, rtol=0, atol=tol * np.abs(want).max())
+        np.testing.assert_allclose(rz, np.einsum("ij,ij->j", B, Z), rtol=1e-12, atol=0)
     Y = np.empty_like(B)
     w = np.empty(5)
     block_product(A.indptr, A.indices, A.data, B, Y, w)
@@ -171,3 +182,7 @@ def test_compiled_switch_must_be_a_bool(moving):
 
     with pytest.raises(ConfigError, match="DeformedElectrostatics.compiled"):
         DeformedElectrostatics(moving[0].stack, compiled="yes")
+    with pytest.raises(ConfigError, match="TactileConfig.compiled_solver"):
+        dataclasses.replace(moving[0].config, compiled_solver=1)
+    numpy_skin = TactileSensor(dataclasses.replace(moving[0].config, compiled_solver=False))
+    assert isinstance(numpy_skin.electrostatics.solver, MaxwellSolver)

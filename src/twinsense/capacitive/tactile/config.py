@@ -42,6 +42,12 @@ class TactileConfig:
         Estimated taxel pressure above which a taxel belongs to a contact [Pa].
     max_contacts : int
         Slots for per-contact forces in the recorded streams (NaN when unused).
+    compiled_solver : bool
+        Run each frame's Maxwell solve in compiled loops
+        (:class:`~twinsense.capacitive.tactile.framesolver.FrameSolver`, the
+        default) or in NumPy (:class:`~twinsense.capacitive.solver.MaxwellSolver`):
+        the same algorithm and stopping rules, results equal to the solver's
+        energy tolerance.
     """
 
     layout: TactileLayout
@@ -53,6 +59,7 @@ class TactileConfig:
     calibration_strain: float = 0.05
     pressure_threshold: float = 2e3
     max_contacts: int = 4
+    compiled_solver: bool = True
 
     def __post_init__(self) -> None:
         checks = (("layout", TactileLayout), ("mesh", StackMeshSettings), ("self_readout", ReadoutConfig),
@@ -68,6 +75,8 @@ class TactileConfig:
         v.number("TactileConfig.calibration_strain", self.calibration_strain, lo=0.0, hi=0.3, lo_open=True)
         v.non_negative("TactileConfig.pressure_threshold", self.pressure_threshold, "Pa")
         v.integer("TactileConfig.max_contacts", self.max_contacts, lo=1, hi=64)
+        if not isinstance(self.compiled_solver, bool):
+            raise ConfigError("TactileConfig.compiled_solver", self.compiled_solver, "True or False")
 
     @property
     def frame_rate(self) -> float:

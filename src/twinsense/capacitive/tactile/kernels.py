@@ -235,9 +235,8 @@ def amg_up(indptr, indices, data, d, B, X, p_indptr, p_indices, p_data, Xc, mask
     rz[:] = 0.0
     for i in range(n):
         for k in range(c):
-            x = (X[i, k] + d[i] * T[i, k]) * mask[i]
-            X[i, k] = x
-            rz[k] += B[i, k] * x
+            X[i, k] = (X[i, k] + d[i] * T[i, k]) * mask[i]
+            rz[k] += B[i, k] * X[i, k]  # the value as stored (rounded if X is float32)
 
 
 @jit

@@ -188,7 +188,8 @@ class TactileSensor:
     @property
     def electrostatics(self) -> DeformedElectrostatics:
         if self._es is None:
-            self._es = DeformedElectrostatics(self.stack, self.config.solver, self.config.porous)
+            self._es = DeformedElectrostatics(self.stack, self.config.solver, self.config.porous,
+                                              compiled=self.config.compiled_solver)
         return self._es
 
     @property
