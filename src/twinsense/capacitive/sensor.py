@@ -330,8 +330,10 @@ class CapacitiveSensor:
         """Capacitances with an empty scene (computed once)."""
         if self._baseline is None:
             empty = self._new_system()
-            # The empty scene is one solve: no condensation.
-            tight = replace(self.config.solver, rtol=min(self.config.solver.rtol, 1e-8), condense=False)
+            # The empty scene is one solve, the reference of every frame: no condensation, and the
+            # config's relative energy_tol rather than the readout's looser absolute one.
+            tight = replace(self.config.solver, rtol=min(self.config.solver.rtol, 1e-8), condense=False,
+                            capacitance_atol=0.0)
             self._baseline = MaxwellSolver(empty, tight).solve()
         return self._baseline
 
