@@ -218,7 +218,9 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
         recording, ``keep_frames`` and ``on_frame`` in clock order on the
         calling thread: the run gives the same bytes whatever ``workers``.
         Sensors may capture frames up to a few frames ahead of the one being
-        written; a stop or an error discards those.
+        written; a stop or an error discards those. Use 1 when sensors share
+        unguarded state, or when the scene's motion follows what ``on_frame``
+        has seen (a controller fed from the frames).
     """
     if not isinstance(scene, Scene):
         raise ConfigError("scene", scene, "a twinsense.Scene")
