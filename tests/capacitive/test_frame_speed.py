@@ -171,6 +171,13 @@ def test_sensor_derives_its_tolerance_from_the_readout():
     assert CapacitiveSensor(two_pad_config()).frame_solver_config.capacitance_atol == 0.0
     fixed = two_pad_config(readout=ro, solver=SolverConfig(capacitance_atol=2e-18))
     assert CapacitiveSensor(fixed).frame_solver_config.capacitance_atol == 2e-18
+    # The empty-scene baseline, every frame's reference, keeps the relative energy_tol (1e-7) even
+    # under a loose absolute tolerance (here 1 fF, capped at MAX_ENERGY_TOL = 1e-3 relative): within
+    # 3 x 1e-7 of a tight solve (the energy rule's estimate factor, as above).
+    loose = CapacitiveSensor(two_pad_config(solver=SolverConfig(capacitance_atol=1e-15)))
+    exact = MaxwellSolver(loose._new_system(), TIGHT).solve().matrix
+    base = loose.baseline().matrix
+    assert np.max(np.abs(np.diag(base) - np.diag(exact)) / np.diag(exact)) <= 3e-7
 
 
 def test_warm_frames_of_a_reaching_hand_match_cold_exact_solves():
