@@ -104,3 +104,32 @@ def test_reference_press_with_too_few_candidates_falls_back_to_the_whole_body():
     assert skin._body is not None
     want = skin._body.solve([ind])
     assert got.force[0] == pytest.approx(want.force[0], rel=1e-12, abs=0.0)
+
+
+def test_air_cell_boxes_follow_the_deformation():
+    # The scene coupling picks its candidate cells by their boxes: after a
+    # dent they must be the deformed cells' boxes, exactly (same coordinates,
+    # min/max and a mean of 4).
+    skin = _small_skin()
+    es = skin.electrostatics
+    am = es._air_mesh
+    p0 = es.points0
+    # A box ending 0.1 mm below the second layer of air cells: the 0.2 mm dent
+    # brings that layer's cells into it.
+    top = skin.config.layout.total_thickness
+    floors = np.unique(p0[am.cells][:, :, 2].min(axis=1))
+    second = floors[floors > top + 1e-9].min()
+    box = np.array([[-3e-3, -3e-3, top], [3e-3, 3e-3, second - 1e-4]])
+    before = am.cells_meeting_box(box)  # the per-axis box columns are cached here
+    r2 = p0[:, 0] ** 2 + p0[:, 1] ** 2
+    u = np.zeros_like(p0)
+    u[:, 2] = -2e-4 * np.exp(-r2 / 4e-6) * np.clip(p0[:, 2] / 2e-3, 0.0, 1.0)
+    es.set_displacement(u)
+    p = es.points[am.cells]
+    np.testing.assert_array_equal(am.cell_bounds[0], p.min(axis=1))
+    np.testing.assert_array_equal(am.cell_bounds[1], p.max(axis=1))
+    np.testing.assert_allclose(am.centroids, p.mean(axis=1), rtol=0, atol=1e-18)
+    lo, hi = p.min(axis=1), p.max(axis=1)
+    want = np.flatnonzero(np.all(hi >= box[0], axis=1) & np.all(lo <= box[1], axis=1))
+    assert len(want) > len(before)
+    np.testing.assert_array_equal(am.cells_meeting_box(box), want)

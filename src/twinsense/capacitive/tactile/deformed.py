@@ -20,7 +20,7 @@ from twinsense.capacitive.fem import EPS0, ElectrostaticSystem
 from twinsense.capacitive.mesh import SimplexMesh
 from twinsense.capacitive.solver import MaxwellResult, MaxwellSolver, SolverConfig
 from twinsense.capacitive.tactile.framesolver import FrameSolver
-from twinsense.capacitive.tactile.kernels import moved_cells, restamp, tet_stiffness_nb
+from twinsense.capacitive.tactile.kernels import moved_cells, restamp, tet_stiffness_nb, update_cell_boxes
 from twinsense.capacitive.tactile.permittivity import PorousPermittivity
 from twinsense.capacitive.tactile.stack_mesh import DIELECTRIC, StackMesh
 from twinsense.errors import ConfigError
@@ -192,10 +192,10 @@ class DeformedElectrostatics:
         air = air[air >= 0]
         if len(air):
             am = self._air_mesh
-            p = pts[am.cells[air]]
-            am.centroids[air] = p.mean(axis=1)
-            am.cell_bounds[0][air] = p.min(axis=1)
-            am.cell_bounds[1][air] = p.max(axis=1)
+            update_cell_boxes(pts, am.cells, air, am.centroids, *am.cell_bounds)
+            # The mesh keeps per-axis copies of the boxes for its box queries
+            # (the scene coupling's candidate cells): recomputed from these on next use.
+            am.__dict__.pop("_bounds_columns", None)
         return cells
 
     def _stack_eps(self, cells: np.ndarray) -> np.ndarray:

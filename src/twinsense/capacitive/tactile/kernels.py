@@ -15,7 +15,7 @@ import numpy as np
 from twinsense.compiled import jit
 
 __all__ = ["amg_down", "amg_up", "block_product", "block_residual", "cg_update", "gram", "moved_cells",
-           "new_direction", "restamp", "split_system", "take_columns", "tet_stiffness_nb"]
+           "new_direction", "restamp", "split_system", "take_columns", "tet_stiffness_nb", "update_cell_boxes"]
 
 
 @jit
@@ -77,6 +77,26 @@ def tet_stiffness_nb(points, cells, sel):  # pragma: no cover - compiled
                 k[q, a, b] = v
                 k[q, b, a] = v
     return k, vol
+
+
+@jit
+def update_cell_boxes(points, cells, sel, centroids, lo, hi):  # pragma: no cover - compiled
+    """Centroids and bounding boxes (each (m, 3)) of ``cells[sel]`` from ``points`` (n, 3), in place."""
+    for q in range(sel.shape[0]):
+        c = sel[q]
+        for d in range(3):
+            v = points[cells[c, 0], d]
+            s = v
+            a = v
+            b = v
+            for k in range(1, cells.shape[1]):
+                v = points[cells[c, k], d]
+                s += v
+                a = min(a, v)
+                b = max(b, v)
+            centroids[c, d] = s / cells.shape[1]
+            lo[c, d] = a
+            hi[c, d] = b
 
 
 @jit
