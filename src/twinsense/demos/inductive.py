@@ -112,7 +112,8 @@ def run_inductive_demo(out_dir, duration: float = 1.1, frame_rate: float | None 
         a.set_xlabel("distance [mm]")
         a.axvline(sn * 1e3, color="k", lw=0.6)
     axes[0].legend(fontsize=7)
-    fig.suptitle("M18 flush coil (300 kHz): impedance change, standard-size disc, 1 mm plates (FEM)", fontsize=9)
+    fig.suptitle(f"M18 flush coil ({sensor.config.frequency / 1e3:g} kHz): impedance change, standard-size disc, "
+                 "1 mm plates (FEM)", fontsize=9)
     p_z = out / "inductive_impedance.png"
     fig.savefig(p_z, dpi=110, bbox_inches="tight")
     plt.close(fig)

@@ -27,7 +27,7 @@ ring responses do not add (tests/inductive measure both on a washer against
 the FEM: the ring sum is off by 54-64 %, this model by the figures in
 docs/inductive.md). Every plate is taken with the table's thickness (1 mm:
 > 3 skin depths for steel, brass, aluminium and copper at these
-frequencies, ~1 skin depth for stainless steel at 150-300 kHz). Beyond the
+frequencies, 1.4-2 skin depths for stainless steel at 400-700 kHz). Beyond the
 largest table radius and distance a target counts nothing; closer than the
 smallest distance it counts as at that distance.
 

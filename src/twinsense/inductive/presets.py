@@ -10,12 +10,22 @@ NBN8-18GM50-E2), 150 Hz (NCN30 non-flush M30); the M12 (1500 / 1000 Hz) and
 M30 flush (300 Hz) figures are the family's typical values.
 
 What the makers do not publish is representative: oscillator frequencies
-(500 kHz for M12, 300 kHz for M18, 150 kHz for M30: smaller coils run
-faster), the ferrite pot-core proportions (see ``head.py``), 100 turns (the
-amplitude depends on relative changes only, so the turn count cancels),
+(500 kHz for M12, 700 kHz for M18, 400 kHz for M30, inside the usual
+100 kHz - 1 MHz), the ferrite pot-core proportions (see ``head.py``), 100
+turns (the amplitude depends on relative changes only, so the turn count cancels),
 coil Q0 = 80, a nickel-plated brass sleeve 1 mm thick (1.5 mm for M30).
 A non-flush sensor has the same core without its outer wall, a wider
 winding and its sleeve set back behind the core.
+
+The frequencies are chosen by the reduction factors, which fall as the
+frequency rises (a plate's surface resistance grows as sqrt(f) towards
+steel's): M18 and M30 run at the lowest round frequency at which direct
+FEM solves at the switching threshold put the flush head's brass at 0.475
+or less (catalogue range 0.35-0.5) and every other factor, flush and
+non-flush, inside its catalogue range. M12 meets this at 500 kHz and would
+drop copper below 0.15 at 1 MHz; its s_n is 0.44 core radii against 0.7-0.8
+for M18 and M30, so a coil-radius-to-skin-depth scaling does not carry over
+between sizes (docs/inductive.md, section 6).
 """
 
 from __future__ import annotations
@@ -31,8 +41,8 @@ from twinsense.inductive.head import HeadGeometry
 # (switching frequency flush, non-flush) [Hz]
 _SIZES = {
     "m12": ((6e-3, 1.0e-3, 4.5e-3), 500e3, (2e-3, 4e-3), (1500.0, 1000.0)),
-    "m18": ((9e-3, 1.0e-3, 7.0e-3), 300e3, (5e-3, 8e-3), (1000.0, 500.0)),
-    "m30": ((15e-3, 1.5e-3, 12.5e-3), 150e3, (10e-3, 15e-3), (300.0, 150.0)),
+    "m18": ((9e-3, 1.0e-3, 7.0e-3), 700e3, (5e-3, 8e-3), (1000.0, 500.0)),
+    "m30": ((15e-3, 1.5e-3, 12.5e-3), 400e3, (10e-3, 15e-3), (300.0, 150.0)),
 }
 
 
