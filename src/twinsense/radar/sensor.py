@@ -268,15 +268,21 @@ class FMCWRadar:
         return effects.filtered_weights(amp, s.points, s.velocities, self.config, s.points_rx,
                                         s.velocities_rx)
 
-    def _tolerance(self, points, weights, points_rx=None, parts: int = 1) -> float:
+    def _tolerance(self, points, weights, points_rx=None, parts: int = 1,
+                   n_moving: int | None = None) -> float:
         """The synthesis tolerance of a frame (``eps``, or the noise's when ``eps`` is None).
 
         ``parts``: how many separately synthesised cubes make the frame. Their
         errors may add in amplitude, so each gets 1 / parts^2 of the noise
         share: the tolerance, proportional to sqrt(share), over ``parts``.
+        The noise estimate costs about one static pass over all scatterers,
+        and a looser tolerance saves little on static ones: it is made only
+        when the movers' work (``n_moving`` x chirps) is at least that much.
         """
         if self.eps is not None:
             return self.eps
+        if n_moving is not None and n_moving * self.config.chirp.num_chirps < len(weights):
+            return DEFAULT_EPS
         loose = noise_tolerance(points, weights, self.config, DEFAULT_EPS, points_rx=points_rx,
                                 workers=self.workers)
         return max(DEFAULT_EPS, loose / parts)
@@ -288,7 +294,8 @@ class FMCWRadar:
         if not self.reuse_static or s.is_bistatic:
             w = self._weights(s)
             return synthesize(p, v, w, cfg, points_rx=s.points_rx, velocities_rx=s.velocities_rx,
-                              eps=self._tolerance(p, w, s.points_rx), workers=self.workers)
+                              eps=self._tolerance(p, w, s.points_rx, n_moving=_count_moving(s)),
+                              workers=self.workers)
         moving = (v[:, 0] != 0) | (v[:, 1] != 0) | (v[:, 2] != 0)
         base = self._static_base
         if base is not None and base.matches(cfg, self.eps, len(p)):
@@ -321,9 +328,9 @@ class FMCWRadar:
         # moves (a moving radar) there is none, and the frame is one synthesis.
         w = self._weights(s)
         if moving.all():
-            return self._moving_signal(p, v, w, moving, self._tolerance(p, w))
+            return self._moving_signal(p, v, w, moving, self._tolerance(p, w, n_moving=len(p)))
         # Two cubes now (static and movers), the kept one and a change later.
-        eps = self._tolerance(p, w, parts=2)
+        eps = self._tolerance(p, w, parts=2, n_moving=int(np.count_nonzero(moving)))
         static = synthesize(p, None, np.where(moving, 0.0, w), cfg, eps=eps, workers=self.workers)
         self._static_base = _StaticBase(cfg, self.eps, eps, p.copy(), s.rcs.copy(), w, moving,
                                         static)
@@ -353,7 +360,7 @@ class FMCWRadar:
         groups = delay_groups(tau, errors.max_span(cfg.impairments.group_phase_error))
         eps = self._tolerance(np.take(s.points, keep, axis=0), np.take(w, keep),
                               np.take(s.points_rx, keep, axis=0) if bistatic else None,
-                              parts=max(len(groups), 1))
+                              parts=max(len(groups), 1), n_moving=_count_moving(s))
         for tau_g, rows in groups:
             r = keep[rows]
 
@@ -393,6 +400,14 @@ class FMCWRadar:
         c = self.config.chirp
         return (f"FMCWRadar(name={self.name!r}, {c.centre_frequency / 1e9:.1f} GHz, "
                 f"{self.config.num_rx} rx, {c.num_chirps} chirps x {c.num_samples} samples)")
+
+
+def _count_moving(s: Scatterers) -> int:
+    """Scatterers with a velocity on either leg."""
+    moving = np.any(s.velocities != 0, axis=1)
+    if s.velocities_rx is not None:
+        moving |= np.any(s.velocities_rx != 0, axis=1)
+    return int(np.count_nonzero(moving))
 
 
 _SENSOR_KEYS = ("name", "mount", "processing", "process", "backend", "eps", "workers",
