@@ -25,7 +25,8 @@ with the Maxwell solve in NumPy and in compiled loops, in the same run,
 wall time and process CPU time (the machine is shared: CPU time is the
 figure that load moves least).
 
-Run:  .venv/bin/python benchmarks/bench_tactile.py [--electrical]   (--electrical: whole frames only)
+Run:  .venv/bin/python benchmarks/bench_tactile.py [--electrical | --levers]
+      (--electrical: whole frames only; --levers: the Maxwell-solve variants of docs/tactile.md, Speed)
 """
 
 from __future__ import annotations
@@ -209,13 +210,183 @@ def _frame_stages(skin, scene) -> list[list[float]]:
     return np.diff(m, axis=0).T.tolist()
 
 
+def levers_section(frames: int = 43) -> None:
+    """The Maxwell-solve variants of docs/tactile.md (Speed), on the frames of ``_whole_frames``' sequence.
+
+    Records the deformed systems of ``frames`` solves of a ``skin_patch_8x8``
+    run (calibrations included; the first three are left out of the
+    figures), solves each to a residual of 1e-13 as the reference, and
+    replays the sequence with each variant: warm start, AMG hierarchy kept
+    with its finest level swapped, block CG with an energy rule.
+    Errors are the largest entry of the Maxwell matrix against the reference
+    in AD7147 LSB; CG steps are per frame, slowest column and all columns.
+    """
+    from twinsense import Pose, Scene, Sphere
+    from twinsense.capacitive.amg import BlockAMG
+    from twinsense.capacitive.pcg import block_pcg
+    from twinsense.capacitive.tactile import make_tactile
+    from twinsense.capacitive.tactile.framesolver import _split
+    from twinsense.capacitive.tactile.readout import AD7147_READOUT
+
+    lsb = AD7147_READOUT.resolution
+    skin = make_tactile("skin_patch_8x8")
+    es = skin.electrostatics
+    top = skin.config.layout.total_thickness
+    tips = Sphere(9e-3), Sphere(9e-3)
+    recorded = []
+    solve = es.solve
+
+    def recording():
+        sysm = es.system
+        fixed = sysm.fixed_mask()
+        terms = sysm.all_terminals()
+        column = np.full(len(fixed), -1, np.int64)
+        for j, nodes in enumerate(terms):
+            column[nodes] = j
+        A, K, B = _split(sysm, fixed, column, len(terms))
+        X_fixed = np.zeros_like(B)
+        for j, nodes in enumerate(terms):
+            X_fixed[nodes, j] = 1.0
+        recorded.append((A, K, B, fixed, X_fixed))
+        return solve()
+
+    es.solve = recording
+    k = 0
+    while len(recorded) < frames:
+        sc = Scene()
+        dx, d1 = 0.1e-3 * (k % 20), 0.10e-3 + 0.05e-3 * (k % 2)
+        sc.add_object("index", tips[0], "human_skin", pose=Pose((-6e-3 + dx, -6e-3, top + 9e-3 - d1)))
+        sc.add_object("thumb", tips[1], "human_skin", pose=Pose((6e-3 - dx, 6e-3, top + 9e-3 - 0.12e-3)))
+        skin.capture(sc, 0.0)
+        k += 1
+    recorded = recorded[:frames]
+    exact = []
+    for A, K, B, fixed, X_fixed in recorded:
+        X, _ = block_pcg(A, B, X_fixed, BlockAMG(A), 1e-13, 2000, free=~fixed)
+        exact.append(X.T @ (K @ X))
+
+    def replay(rule, start="previous", coarse="kept", basis=0):
+        ml, history, errors, steps = None, [], [], []
+        for f, ((A, K, B, fixed, X_fixed), C_ref) in enumerate(zip(recorded, exact, strict=True)):
+            if ml is None or coarse == "rebuilt":
+                ml = BlockAMG(A)
+            else:
+                ml.set_fine(A)
+                if coarse == "galerkin":
+                    _galerkin_coarse(ml)
+            X0 = X_fixed.copy()
+            if history:
+                X0 = history[-1].copy()
+                if start == "extrapolated" and len(history) > 1:
+                    X0 = 2.0 * history[-1] - history[-2]
+                X0[fixed] = X_fixed[fixed]
+                if basis:
+                    X0 = _galerkin_start(A, B, X0, history, basis, fixed)
+            X, it = _pcg_with_rule(A, B, X0, ml, np.einsum("ij,ij->j", X0, K @ X0), rule, ~fixed)
+            history = [*history, X][-4:]
+            if f >= 3:
+                errors.append(np.abs(X.T @ (K @ X) - C_ref).max() / lsb)
+                steps.append(it)
+        steps = np.array(steps)
+        return max(errors), float(np.median(errors)), steps.max(axis=1).mean(), steps.sum(axis=1).mean()
+
+    variants = [
+        ("energy rule, 1e-5 of each capacitance (default)", {"rule": lambda e: 1e-5 * np.abs(e)}),
+        ("energy rule, 1e-6", {"rule": lambda e: 1e-6 * np.abs(e)}),
+        *[(f"absolute rule, {f} LSB per column", {"rule": lambda e, f=f: np.full_like(e, f * lsb)})
+          for f in (0.5, 0.25, 0.1)],
+        ("start extrapolated from two frames", {"rule": lambda e: 1e-5 * np.abs(e), "start": "extrapolated"}),
+        *[(f"Galerkin start on the last {m} frame-to-frame changes", {"rule": lambda e: 1e-5 * np.abs(e),
+                                                                      "basis": m}) for m in (1, 2, 3)],
+        ("coarse levels recomputed (P^T A P) every frame", {"rule": lambda e: 1e-5 * np.abs(e), "coarse": "galerkin"}),
+        ("AMG hierarchy rebuilt every frame", {"rule": lambda e: 1e-5 * np.abs(e), "coarse": "rebuilt"}),
+    ]
+    print(f"levers: {frames - 3} recorded frames of skin_patch_8x8, errors against a 1e-13 residual solve "
+          f"(AD7147 LSB = {lsb * 1e15:.3f} fF)")
+    for label, kw in variants:
+        worst, median, slowest, total = replay(**kw)
+        print(f"  {label:<58s} largest error {worst:5.2f} LSB (median {median:5.3f}); CG steps: "
+              f"slowest column {slowest:4.2f}, all columns {total:5.1f}")
+
+
+def _pcg_with_rule(A, B, X0, precond, energy, rule, free):
+    """Block PCG whose energy rule stops a column when its estimated tail is below ``rule(energy)`` [F]."""
+    from twinsense.capacitive.pcg import _EnergyTail
+
+    X = X0.copy()
+    R = B - A @ X
+    t = B.shape[1]
+    iters = np.zeros(t, int)
+    active = np.arange(t)
+    tail = _EnergyTail.start(energy)
+    mask = free.astype(float)[:, None]
+    Z = precond(R) * mask
+    P = Z.copy()
+    rz = np.einsum("ij,ij->j", R, Z)
+    for _ in range(500):
+        AP = A @ P
+        alpha = rz / np.einsum("ij,ij->j", P, AP)
+        X[:, active] += alpha * P
+        Ra = R[:, active] - alpha * AP
+        R[:, active] = Ra
+        iters[active] += 1
+        drop = alpha * rz
+        # _EnergyTail.unconverged with a per-column absolute tolerance: tol = rule(E) / E.
+        tol = rule(tail.energy[active] - drop) / np.abs(tail.energy[active] - drop)
+        still = np.array([tail.unconverged(active[q:q + 1], drop[q:q + 1], tol[q])[0] for q in range(len(active))])
+        if not np.any(still):
+            return X, iters
+        active, Ra, P, rz = active[still], Ra[:, still], P[:, still], rz[still]
+        Z = precond(Ra) * mask
+        rz_new = np.einsum("ij,ij->j", Ra, Z)
+        P = Z + (rz_new / rz) * P
+        rz = rz_new
+    raise RuntimeError("no convergence in 500 steps")
+
+
+def _galerkin_coarse(ml) -> None:
+    """Recompute a BlockAMG's coarse operators from its current finest level (aggregates kept)."""
+    import scipy.linalg as sla
+    import scipy.sparse as sp
+
+    for lvl in range(len(ml.P)):
+        ml.A[lvl + 1] = sp.csr_matrix(ml.R[lvl] @ ml.A[lvl] @ ml.P[lvl])
+    coarse = ml.A[-1].toarray()
+    empty = np.diag(coarse) <= 0
+    coarse[empty, empty] = 1.0
+    coarse += 1e-14 * np.trace(coarse) / len(coarse) * np.eye(len(coarse))
+    ml._chol = sla.cho_factor(coarse)
+
+
+def _galerkin_start(A, B, X0, history, m, fixed):
+    """X0 improved per column by the energy minimum over the span of the last ``m`` solution changes."""
+    R0 = B - A @ X0
+    W = [history[-1 - q] - history[-2 - q] for q in range(min(m, len(history) - 1))]
+    if not W:
+        return X0
+    for w in W:
+        w[fixed] = 0.0
+    AW = [A @ w for w in W]
+    X = X0.copy()
+    for j in range(X0.shape[1]):
+        G = np.array([[w[:, j] @ aw[:, j] for aw in AW] for w in W])
+        g = np.array([w[:, j] @ R0[:, j] for w in W])
+        c = np.linalg.lstsq(G, g, rcond=1e-12)[0]
+        for w, cq in zip(W, c, strict=True):
+            X[:, j] += cq * w[:, j]
+    return X
+
+
 def main() -> None:
     import sys
 
     print_machine()
-    if "--electrical" not in sys.argv[1:]:
-        mechanics_section()
-    electrical_section()
+    if "--levers" in sys.argv[1:]:
+        levers_section()
+    else:
+        if "--electrical" not in sys.argv[1:]:
+            mechanics_section()
+        electrical_section()
     print_load_at_end()
 
 
