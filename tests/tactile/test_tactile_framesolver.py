@@ -83,12 +83,13 @@ def _energy_bound(C: np.ndarray, tol: float) -> np.ndarray:
     The charges are variational: with e_i the energy-norm error of column i's
     potential, C_ii errs by |e_i|^2 and C_ij by e_i^T K e_j <= |e_i| |e_j|
     (the first-order terms vanish, K x_j is zero on the free nodes), so
-    |dC_ij| <= tol sqrt(C_ii C_jj). The energy rule's tail is an estimate, 0.2
-    to 1.3 times the true error (tests/capacitive/test_energy_rule.py): a
-    factor 2 covers it.
+    |dC_ij| <= tol sqrt(C_ii C_jj). The energy rule's tail is an estimate: the
+    true error is 0.2-1.3 times it in tests/capacitive/test_energy_rule.py, up
+    to 2.5 times on the proximity skin (tests/capacitive/test_frame_speed.py),
+    up to 1.2 times on these frames: a factor 3 covers it.
     """
     d = np.sqrt(np.abs(np.diag(C)))
-    return 2.0 * tol * np.outer(d, d)
+    return 3.0 * tol * np.outer(d, d)
 
 
 def test_moving_frames_agree_with_the_exact_solve_within_the_energy_rule_and_half_an_lsb(moving):
