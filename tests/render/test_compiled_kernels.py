@@ -226,34 +226,32 @@ def test_object_wins_gives_the_bits_of_the_numpy_merge():
 
 def test_cull_of_all_objects_in_one_call_is_each_objects_cull():
     # One compiled call culls every moving object of a chunk: object j's rows must be
-    # exactly cull_blocks_into_frame's for that object (its centre moved into the
-    # world the same way), whatever the other objects.
+    # exactly the single-object cull's (which is that call with one object), and
+    # hence cull_into_frame's, whatever the other objects.
     from scipy.spatial.transform import Rotation
 
     from twinsense.render import PinholeCamera
-    from twinsense.render.kernels import CONE_BLOCK, block_cones, cull_blocks_into_frame, cull_objects_into_frames
+    from twinsense.render.kernels import CONE_BLOCK, block_cones, cull_objects_into_frames
 
     rng = np.random.default_rng(5)
     m = 6
-    c_local = rng.normal(scale=0.1, size=(m, 3))
     radius = rng.uniform(0.2, 0.6, m)
     rots = Rotation.random(m, random_state=2).as_matrix()
     poss = rng.normal(scale=0.8, size=(m, 3)) + np.array([0.0, 0.0, 2.5])
     poss[0] = (0.0, 0.0, 0.1)  # the camera inside this one's sphere
+    c_local = rng.normal(scale=0.1, size=(m, 3))
     lo, hi = c_local - 0.25, c_local + 0.2
+    centres = np.einsum("kij,kj->ki", rots, c_local) + poss
     rays = PinholeCamera.from_fov(160, 120, 100.0, 80.0).rays(Pose.look_at((0, 0, 0), (0.1, 0.0, 1.0)))
     o, d = rays.origins, rays.directions
     t_max = np.where(np.arange(len(d)) % 4 == 0, 2.0, np.inf)
     cones = block_cones(d, CONE_BLOCK)
-    sel, o_local, d_local, off = cull_objects_into_frames(o, d, cones, CONE_BLOCK, c_local, radius, rots, poss,
+    sel, o_local, d_local, off = cull_objects_into_frames(o, d, cones, CONE_BLOCK, centres, radius, rots, poss,
                                                           lo, hi, t_max)
     assert off[0] == 0 and np.all(np.diff(off) >= 0) and off[-1] == len(sel)
     kept = 0
     for j in range(m):
-        centre = np.array([poss[j, a] + (rots[j][a, 0] * c_local[j, 0] + rots[j][a, 1] * c_local[j, 1]
-                                         + rots[j][a, 2] * c_local[j, 2]) for a in range(3)])
-        want = cull_blocks_into_frame(o, d, cones, CONE_BLOCK, centre, radius[j], rots[j], poss[j], lo[j], hi[j],
-                                      t_max)
+        want = cull_into_frame(o, d, centres[j], radius[j], rots[j], poss[j], lo[j], hi[j], t_max)
         part = slice(off[j], off[j + 1])
         for got, ref in zip((sel[part], o_local[part], d_local[part]), want):
             np.testing.assert_array_equal(got, ref)

@@ -31,7 +31,6 @@ from twinsense.render.hits import ALWAYS_FIELDS, HIT_FIELDS, Hits, allocate_fiel
 from twinsense.render.kernels import (
     CONE_BLOCK,
     block_cones,
-    cull_blocks_into_frame,
     cull_into_frame,
     cull_objects_into_frames,
     direction_cone,
@@ -241,13 +240,8 @@ class SceneCaster:
             lo, hi = self._moving_box[k]
             # Both culls and the move into the object's frame in one compiled
             # pass (the same tests as culling.rays_near_sphere / rays_hit_box).
-            if blocks is None:
-                sel, o_local, d_local = cull_into_frame(o, d, centre, self._moving_radius[k], rot, pos,
-                                                        lo, hi, dist)
-            else:
-                sel, o_local, d_local = cull_blocks_into_frame(o, d, blocks, CONE_BLOCK, centre,
-                                                               self._moving_radius[k], rot, pos, lo, hi,
-                                                               dist)
+            sel, o_local, d_local = cull_into_frame(o, d, centre, self._moving_radius[k], rot, pos,
+                                                    lo, hi, dist)
             if len(sel) == 0:
                 continue
             t_m, _, p, n_local = self._moving_bvh[k].intersect(o_local, d_local, threads=threads)
@@ -271,8 +265,11 @@ class SceneCaster:
         mv = self._moving
         rots = np.array([states[i].pose.rotation for i in mv])
         poss = np.array([states[i].pose.position for i in mv])
+        # Bounding-sphere centres in the world (only the culls read them: their
+        # radii carry a margin far above these products' rounding).
+        centres = np.matmul(rots, self._stacked_centre[:, :, None])[:, :, 0] + poss
         sel_all, ol_all, dl_all, off = cull_objects_into_frames(
-            o, d, blocks, CONE_BLOCK, self._stacked_centre, self._stacked_radius, rots, poss,
+            o, d, blocks, CONE_BLOCK, centres, self._stacked_radius, rots, poss,
             self._stacked_lo, self._stacked_hi, dist)
         changes = []
         for k in np.flatnonzero(off[1:] > off[:-1]).tolist():

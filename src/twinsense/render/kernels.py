@@ -274,54 +274,6 @@ def _box_cone(o, rot, pos, lo, hi):  # pragma: no cover
 
 
 @jit
-def cull_blocks_into_frame(o, d, cones, block, centre, radius, rot, pos, lo, hi, t_max):  # pragma: no cover
-    """:func:`cull_into_frame` for rays from one origin (o a stride-0 broadcast), skipping
-    the blocks of rays whose cone misses the object.
-
-    ``cones``: :func:`block_cones` of ``d`` with ``block`` rays per block. A ray
-    that meets the object lies within a cone from the origin that holds it
-    (half-angle beta: the bounding sphere's angular radius, or the box's, see
-    :func:`_box_cone`, whichever is narrower) and within its block's
-    half-angle of the block's axis, so the angle between the two axes is at
-    most half + beta (triangle inequality on the unit sphere); blocks beyond
-    that (with margins of _ANGLE_MARGIN on each angle) hold no ray that the sphere
-    and box tests keep. The rays of the other blocks take the sphere and box
-    tests of :func:`cull_into_frame`: the same rays, the same bits.
-    """
-    axis, half, cos_h, sin_h = cones
-    n = d.shape[0]
-    r2 = radius * radius
-    cand = np.empty(n, np.int64)
-    m = 0
-    if n == 0:
-        return _box_into_frame(o, d, cand, m, rot, pos, lo, hi, t_max)
-    w0, w1, w2 = centre[0] - o[0, 0], centre[1] - o[0, 1], centre[2] - o[0, 2]
-    ww = w0 * w0 + w1 * w1 + w2 * w2
-    inside = not ww > r2
-    cone = -np.inf if inside else math.sqrt(ww - r2)
-    # The cone from the origin that holds the object: around the sphere's centre
-    # with its angular radius, or (tighter for an origin inside the sphere but
-    # outside the box, a camera beside its own carrier's link) around the box.
-    u0, u1, u2, beta = _box_cone(o, rot, pos, lo, hi)
-    if not inside:
-        dist = math.sqrt(ww)
-        b_sphere = math.asin(min(1.0, radius / dist)) + _ANGLE_MARGIN
-        if b_sphere < beta:
-            u0, u1, u2, beta = w0 / dist, w1 / dist, w2 / dist, b_sphere
-    cb, sb = math.cos(beta), math.sin(beta)
-    for b in range(half.shape[0]):
-        i0 = b * block
-        i1 = min(n, i0 + block)
-        if half[b] + beta < math.pi:
-            # cos(angle from the block's axis to the object's cone axis) against cos(half + beta).
-            c = axis[b, 0] * u0 + axis[b, 1] * u1 + axis[b, 2] * u2
-            if c < cos_h[b] * cb - sin_h[b] * sb - 1e-12:
-                continue
-        m = _sphere_rays_shared(d, w0, w1, w2, cone, radius, t_max, i0, i1, cand, m)
-    return _box_into_frame(o, d, cand, m, rot, pos, lo, hi, t_max)
-
-
-@jit
 def object_wins(sel, t_m, prim, n_local, dist, d, rot, update):  # pragma: no cover
     """The traced rays on which a moving object is nearer than their current hit.
 
@@ -418,41 +370,95 @@ def direction_cone(d):  # pragma: no cover
 
 
 @jit
-def cull_objects_into_frames(o, d, cones, block, c_local, radius, rots, poss, lo, hi, t_max):  # pragma: no cover
-    """:func:`cull_blocks_into_frame` for every moving object in one call (rays from one origin).
+def cull_objects_into_frames(o, d, cones, block, centres, radius, rots, poss, lo, hi, t_max):  # pragma: no cover
+    """:func:`cull_into_frame` for every moving object in one call, for rays from one
+    origin (o a stride-0 broadcast), skipping the blocks of rays whose cone misses an object.
 
-    c_local (m, 3) the objects' bounding-sphere centres in their frames, radius
-    (m,), rots (m, 3, 3) and poss (m, 3) their poses (local -> world), lo, hi
-    (m, 3) their boxes; the other arguments as for :func:`cull_blocks_into_frame`.
-    Every object is culled against the same ``t_max``.
+    cones: :func:`block_cones` of ``d`` with ``block`` rays per block; centres
+    (m, 3) the objects' bounding-sphere centres in the world, radius (m,), rots
+    (m, 3, 3) and poss (m, 3) their poses (local -> world), lo, hi (m, 3) their
+    boxes in their frames; t_max (n,) as for :func:`cull_into_frame` (every
+    object is culled against the same ``t_max``).
+
+    A ray that meets an object lies within a cone from the origin that holds
+    it (half-angle beta: the bounding sphere's angular radius, or the box's,
+    see :func:`_box_cone`, whichever is narrower) and within its block's
+    half-angle of the block's axis, so the angle between the two axes is at
+    most half + beta (triangle inequality on the unit sphere); blocks beyond
+    that (with margins of _ANGLE_MARGIN on each angle) hold no ray that the
+    sphere and box tests keep. The rays of the other blocks take the sphere
+    and box tests of :func:`cull_into_frame`: the same rays, the same bits.
 
     Returns sel (k,), o_local, d_local (k, 3): the objects' kept rays one after
     the other, and offsets (m + 1,): object j's rows are offsets[j]:offsets[j + 1].
     """
+    axis, half, cos_h, sin_h = cones
+    n = d.shape[0]
     m = radius.shape[0]
     offsets = np.zeros(m + 1, np.int64)
-    sels = []
-    ols = []
-    dls = []
-    centre = np.empty(3)
+    cand = np.empty(n, np.int64)
+    # One growing buffer (no list of arrays: those make the compile much longer).
+    cap = 1024
+    sel_all = np.empty(cap, np.int64)
+    ol_all = np.empty((cap, 3))
+    dl_all = np.empty((cap, 3))
+    k = 0
     for j in range(m):
-        rot = rots[j]
-        for a in range(3):
-            centre[a] = poss[j, a] + (rot[a, 0] * c_local[j, 0] + rot[a, 1] * c_local[j, 1]
-                                      + rot[a, 2] * c_local[j, 2])
-        sel, ol, dl = cull_blocks_into_frame(o, d, cones, block, centre, radius[j], rot, poss[j], lo[j], hi[j],
-                                             t_max)
-        sels.append(sel)
-        ols.append(ol)
-        dls.append(dl)
-        offsets[j + 1] = offsets[j] + sel.shape[0]
-    k = offsets[m]
-    sel_all = np.empty(k, np.int64)
-    ol_all = np.empty((k, 3))
-    dl_all = np.empty((k, 3))
-    for j in range(m):
-        a, b = offsets[j], offsets[j + 1]
-        sel_all[a:b] = sels[j]
-        ol_all[a:b] = ols[j]
-        dl_all[a:b] = dls[j]
-    return sel_all, ol_all, dl_all, offsets
+        if n == 0:
+            break
+        r = radius[j]
+        r2 = r * r
+        w0, w1, w2 = centres[j, 0] - o[0, 0], centres[j, 1] - o[0, 1], centres[j, 2] - o[0, 2]
+        ww = w0 * w0 + w1 * w1 + w2 * w2
+        inside = not ww > r2
+        cone = -np.inf if inside else math.sqrt(ww - r2)
+        # The cone from the origin that holds the object: around the sphere's centre
+        # with its angular radius, or (tighter for an origin inside the sphere but
+        # outside the box, a camera beside its own carrier's link) around the box.
+        u0, u1, u2, beta = _box_cone(o, rots[j], poss[j], lo[j], hi[j])
+        if not inside:
+            dist = math.sqrt(ww)
+            b_sphere = math.asin(min(1.0, r / dist)) + _ANGLE_MARGIN
+            if b_sphere < beta:
+                u0, u1, u2, beta = w0 / dist, w1 / dist, w2 / dist, b_sphere
+        cb, sb = math.cos(beta), math.sin(beta)
+        c_count = 0
+        for b in range(half.shape[0]):
+            i0 = b * block
+            i1 = min(n, i0 + block)
+            if half[b] + beta < math.pi:
+                # cos(angle from the block's axis to the object's cone axis) against cos(half + beta).
+                c = axis[b, 0] * u0 + axis[b, 1] * u1 + axis[b, 2] * u2
+                if c < cos_h[b] * cb - sin_h[b] * sb - 1e-12:
+                    continue
+            c_count = _sphere_rays_shared(d, w0, w1, w2, cone, r, t_max, i0, i1, cand, c_count)
+        sel, ol, dl = _box_into_frame(o, d, cand, c_count, rots[j], poss[j], lo[j], hi[j], t_max)
+        need = k + sel.shape[0]
+        if need > cap:
+            cap = max(need, 2 * cap)
+            grown = np.empty(cap, np.int64)
+            grown[:k] = sel_all[:k]
+            sel_all = grown
+            grown3 = np.empty((cap, 3))
+            grown3[:k] = ol_all[:k]
+            ol_all = grown3
+            grown3 = np.empty((cap, 3))
+            grown3[:k] = dl_all[:k]
+            dl_all = grown3
+        sel_all[k:need] = sel
+        ol_all[k:need] = ol
+        dl_all[k:need] = dl
+        k = need
+        offsets[j + 1] = k
+    return sel_all[:k], ol_all[:k], dl_all[:k], offsets
+
+
+def cull_blocks_into_frame(o, d, cones, block, centre, radius, rot, pos, lo, hi, t_max):
+    """:func:`cull_objects_into_frames` for one object (centre (3,), radius, rot (3, 3),
+    pos, lo, hi (3,)): its (sel, o_local, d_local)."""
+    one = np.ascontiguousarray
+    sel, o_local, d_local, _ = cull_objects_into_frames(
+        o, d, cones, block, one(np.reshape(centre, (1, 3)), dtype=float), one([float(radius)]),
+        one(np.reshape(rot, (1, 3, 3)), dtype=float), one(np.reshape(pos, (1, 3)), dtype=float),
+        one(np.reshape(lo, (1, 3)), dtype=float), one(np.reshape(hi, (1, 3)), dtype=float), t_max)
+    return sel, o_local, d_local
