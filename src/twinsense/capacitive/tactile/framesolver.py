@@ -31,7 +31,7 @@ import scipy.sparse as sp
 from twinsense.capacitive.amg import BlockAMG
 from twinsense.capacitive.fem import reduce_floating
 from twinsense.capacitive.pcg import _EnergyTail
-from twinsense.capacitive.solver import MaxwellResult, SolverConfig
+from twinsense.capacitive.solver import MAX_ENERGY_TOL, MaxwellResult, SolverConfig
 from twinsense.capacitive.tactile.kernels import (
     amg_down,
     amg_up,
@@ -92,7 +92,11 @@ class FrameSolver:
 
     A drop-in for :class:`~twinsense.capacitive.solver.MaxwellSolver`
     without static condensation (the skin's mesh changes wherever the
-    contacts go). A configuration the loops do not cover (Jacobi
+    contacts go) and without its ``rebuild_rows`` rule: a moving contact
+    changes more than any useful share of the rows every frame, and a
+    rebuild (~27 ms of CPU on ``skin_patch_8x8``) costs far more than the
+    ~0.6 CG steps it saves (``bench_tactile.py --levers``); the hierarchy is
+    rebuilt by the iteration rule (``rebuild_factor``) only. A configuration the loops do not cover (Jacobi
     preconditioner, more than one smoothing step) runs the NumPy path's
     preconditioner inside the same loop.
 
@@ -120,6 +124,19 @@ class FrameSolver:
         """Forget the warm start and the preconditioner."""
         self._X = None
         self._ml = None
+
+    def _energy_tol(self, energy: np.ndarray) -> float:
+        """The energy rule's relative tolerance, as :class:`MaxwellSolver` sets it.
+
+        ``energy_tol``, or looser by ``capacitance_atol``: ``atol / max_j E_j``
+        (``E_j`` the column energies), never looser than ``MAX_ENERGY_TOL``.
+        """
+        cfg = self.config
+        atol = cfg.capacitance_atol or 0.0
+        top = float(np.max(energy)) if len(energy) else 0.0
+        if cfg.energy_tol == 0 or atol == 0 or not top > 0:
+            return cfg.energy_tol
+        return max(cfg.energy_tol, min(atol / top, MAX_ENERGY_TOL))
 
     def _preconditioner(self, A, free: np.ndarray):
         """(callable (R, rz) -> Z, rebuilt): the masked preconditioner and whether the AMG was rebuilt."""
@@ -163,7 +180,7 @@ class FrameSolver:
         KX = np.empty_like(X0)
         block_product(K.indptr, K.indices, K.data, X0, KX, energy)
         precond, rebuilt = self._preconditioner(A, ~fixed)
-        X, iters = _block_pcg(A, B, X0, precond, cfg.rtol, cfg.maxiter, energy, cfg.energy_tol)
+        X, iters = _block_pcg(A, B, X0, precond, cfg.rtol, cfg.maxiter, energy, self._energy_tol(energy))
         if rebuilt:
             self._reference_iters = max(int(iters.max()), 4)
             self._force_rebuild = False
