@@ -370,6 +370,20 @@ def direction_cone(d):  # pragma: no cover
 
 
 @jit
+def _grown(sel, ol, dl, k, cap):  # pragma: no cover
+    """Copies of the first k rows of sel (n,) and ol, dl (n, 3) in buffers of ``cap`` rows."""
+    sel2 = np.empty(cap, np.int64)
+    ol2 = np.empty((cap, 3))
+    dl2 = np.empty((cap, 3))
+    for q in range(k):
+        sel2[q] = sel[q]
+        for a in range(3):
+            ol2[q, a] = ol[q, a]
+            dl2[q, a] = dl[q, a]
+    return sel2, ol2, dl2
+
+
+@jit
 def cull_objects_into_frames(o, d, cones, block, centres, radius, rots, poss, lo, hi, t_max):  # pragma: no cover
     """:func:`cull_into_frame` for every moving object in one call, for rays from one
     origin (o a stride-0 broadcast), skipping the blocks of rays whose cone misses an object.
@@ -436,18 +450,13 @@ def cull_objects_into_frames(o, d, cones, block, centres, radius, rots, poss, lo
         need = k + sel.shape[0]
         if need > cap:
             cap = max(need, 2 * cap)
-            grown = np.empty(cap, np.int64)
-            grown[:k] = sel_all[:k]
-            sel_all = grown
-            grown3 = np.empty((cap, 3))
-            grown3[:k] = ol_all[:k]
-            ol_all = grown3
-            grown3 = np.empty((cap, 3))
-            grown3[:k] = dl_all[:k]
-            dl_all = grown3
-        sel_all[k:need] = sel
-        ol_all[k:need] = ol
-        dl_all[k:need] = dl
+            sel_all, ol_all, dl_all = _grown(sel_all, ol_all, dl_all, k, cap)
+        # Element by element: numba compiles these loops much faster than slice copies.
+        for q in range(sel.shape[0]):
+            sel_all[k + q] = sel[q]
+            for a in range(3):
+                ol_all[k + q, a] = ol[q, a]
+                dl_all[k + q, a] = dl[q, a]
         k = need
         offsets[j + 1] = k
     return sel_all[:k], ol_all[:k], dl_all[:k], offsets
