@@ -121,12 +121,14 @@ class SceneCaster:
         memo, ready = self._static_memo(o, d)
         # Tracing dominates a cold cast: chunks of rays on all workers, small
         # enough to keep their per-ray arrays in cache. With the static hits
-        # kept, a cast copies them and traces the rays near moving objects:
-        # one chunk per worker (whole blocks of rays), as the culls, Embree and
-        # the merges all run without the GIL (measured on the robot cell's wall
-        # camera at a load of 13: 41 against 56 ms wall, the same CPU time).
-        size = _CHUNK if not ready else max(1, -(-n // (workers * CONE_BLOCK))) * CONE_BLOCK
-        chunk_workers = workers if n >= _PARALLEL_MIN_RAYS else 1
+        # kept, a cast only copies them and traces the few rays near moving
+        # objects: the whole bundle is one chunk on this thread, whose ray
+        # tracing near moving objects may still use the workers. (Measured
+        # again with the compiled culls, at a load of 1: one chunk per worker
+        # gained nothing for the robot cell's wall camera, 31.0 against 30.3
+        # ms a frame, and lost 1-4 ms for the office camera.)
+        size = _CHUNK if not ready else max(n, 1)
+        chunk_workers = workers if n >= _PARALLEL_MIN_RAYS and not ready else 1
         trace_threads = 1 if chunk_workers > 1 else workers
         bounds = [(lo, min(lo + size, n)) for lo in range(0, n, size)] or [(0, 0)]
         # Rays from one origin: a cone around every block of rays lets each
