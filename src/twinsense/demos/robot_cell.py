@@ -69,6 +69,11 @@ RADAR_OVERRIDES = {"num_samples": 64, "num_chirps": 64, "chirp_repetition_time":
                    "ramp_end_time": 4.0e-5, "render_width": 96, "render_height": 48}
 #: The skin: flat, tangent to the forearm (radius 58 mm) 20 cm along it, its normal along the link's -y.
 SKIN_POSE = Pose.from_euler_deg((0.0, -0.062, 0.2), (90, -90, 0))
+#: The left hand's reach target [m]: the hand box's centre (what the arm's IK places; the 19 cm hand reaches
+#: 9.5 cm beyond it), 9.5 cm out along the skin's normal from the patch at the place pose (3.3 s). The hand
+#: holds there (3.3-3.8 s) while the arm lifts the skin 11 cm past it: closest 14.6 mm from the patch at
+#: 3.55 s, within 30 mm from 3.23 to 3.72 s, never inside the skin or a link (tests/demos/test_robot_cell.py).
+REACH_TARGET = (0.173, -0.380, 1.099)
 
 
 def build_cylinder_cell_scene() -> Scene:
@@ -109,7 +114,7 @@ def build_arm_cell_scene(person: bool = True, shapes: str = "collision") -> Scen
     s.add_articulated(ur5)
     if person:
         add_person(s, PERSON, 1.75, (1.3, -2.4), walk=Walk(1.2, path=((0.6, -0.8),), body="smooth"),
-                   reach=Reach((0.205, -0.349, 1.099), 2.6, 0.7, 0.5, "left"))
+                   reach=Reach(REACH_TARGET, 2.6, 0.7, 0.5, "left"))
     return s
 
 
