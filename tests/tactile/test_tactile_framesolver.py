@@ -5,12 +5,13 @@ import dataclasses
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from scipy.linalg import cho_factor, cho_solve
 
 from twinsense.capacitive.amg import BlockAMG
 from twinsense.capacitive.solver import MaxwellSolver, SolverConfig
 from twinsense.capacitive.tactile import TactileSensor
 from twinsense.capacitive.tactile.framesolver import FrameSolver, _CompiledCycle
-from twinsense.capacitive.tactile.kernels import amg_down, amg_up, block_product, split_system
+from twinsense.capacitive.tactile.kernels import amg_down, amg_up, block_product, cholesky_columns, split_system
 from twinsense.capacitive.tactile.readout import AD7147_READOUT
 from twinsense.errors import ConfigError
 
@@ -187,3 +188,51 @@ def test_compiled_switch_must_be_a_bool(moving):
         dataclasses.replace(moving[0].config, compiled_solver=1)
     numpy_skin = TactileSensor(dataclasses.replace(moving[0].config, compiled_solver=False))
     assert isinstance(numpy_skin.electrostatics.solver, MaxwellSolver)
+
+
+def test_one_and_two_threads_give_the_same_bytes(moving):
+    # The column groups are fixed (COLUMN_GROUPS), each its own CG block with
+    # its own stopping rule: the thread count only changes where they run.
+    config = moving[0].config
+    a = _capture(TactileSensor(dataclasses.replace(config, solver_threads=1), name="skin"), 2)
+    b = _capture(TactileSensor(dataclasses.replace(config, solver_threads=2), name="skin"), 2)
+    for fa, fb in zip(a, b, strict=True):
+        for key in fa:
+            assert fa[key].tobytes() == fb[key].tobytes(), key
+
+
+def test_any_thread_count_gives_the_bytes_of_one_block(moving):
+    # Each group of columns is its own CG block, and every compiled loop
+    # computes a column in the same order whatever block it is in.
+    sysm = moving[0].electrostatics.system
+    one = FrameSolver(sysm, threads=1).solve()
+    for threads in (2, 3):
+        res = FrameSolver(sysm, threads=threads).solve()
+        assert res.full.tobytes() == one.full.tobytes()
+        assert res.iterations.tobytes() == one.iterations.tobytes()
+
+
+def test_cholesky_columns_equal_scipy_and_do_not_depend_on_the_block():
+    # A well-conditioned SPD matrix (cond < 10): the two triangular solves
+    # agree with LAPACK's to ~m eps cond ~ 1e-14; 1e-12 leaves margin.
+    rng = np.random.default_rng(5)
+    m = 27
+    Q = rng.standard_normal((m, m))
+    A = Q @ Q.T / m + 2.0 * np.eye(m)
+    B = rng.standard_normal((m, 6)).astype(np.float32)
+    for lower in (False, True):
+        factor = cho_factor(A, lower=lower)
+        X = np.empty(B.shape)
+        cholesky_columns(factor[0], factor[1], B, X)
+        np.testing.assert_allclose(X, cho_solve(factor, B.astype(float)), rtol=0, atol=1e-12 * np.abs(X).max())
+        part = np.empty((m, 2))
+        cholesky_columns(factor[0], factor[1], np.ascontiguousarray(B[:, 3:5]), part)
+        assert part.tobytes() == np.ascontiguousarray(X[:, 3:5]).tobytes()
+
+
+@pytest.mark.parametrize("threads", [0, -1, 1.5, True, "2"])
+def test_thread_count_must_be_a_positive_integer(moving, threads):
+    with pytest.raises(ConfigError, match="FrameSolver.threads"):
+        FrameSolver(moving[0].electrostatics.system, threads=threads)
+    with pytest.raises(ConfigError, match="TactileConfig.solver_threads"):
+        dataclasses.replace(moving[0].config, solver_threads=threads)

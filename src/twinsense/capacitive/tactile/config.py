@@ -51,6 +51,10 @@ class TactileConfig:
         default) or in NumPy (:class:`~twinsense.capacitive.solver.MaxwellSolver`):
         the same algorithm and stopping rules, results equal to the solver's
         energy tolerance.
+    solver_threads : int or None
+        Threads of the compiled Maxwell solve, one group of columns each;
+        None: ``TWINSENSE_THREADS``, else the cores up to 4. The results do
+        not depend on it, to the byte.
     """
 
     layout: TactileLayout
@@ -63,6 +67,7 @@ class TactileConfig:
     pressure_threshold: float = 2e3
     max_contacts: int = 4
     compiled_solver: bool = True
+    solver_threads: int | None = None
 
     def __post_init__(self) -> None:
         checks = (("layout", TactileLayout), ("mesh", StackMeshSettings), ("self_readout", ReadoutConfig),
@@ -80,6 +85,8 @@ class TactileConfig:
         v.integer("TactileConfig.max_contacts", self.max_contacts, lo=1, hi=64)
         if not isinstance(self.compiled_solver, bool):
             raise ConfigError("TactileConfig.compiled_solver", self.compiled_solver, "True or False")
+        if self.solver_threads is not None:
+            v.integer("TactileConfig.solver_threads", self.solver_threads, lo=1, hi=64)
 
     @property
     def frame_rate(self) -> float:

@@ -101,11 +101,13 @@ class DeformedElectrostatics:
         (the PCG steps in compiled loops, the default) or with the NumPy
         :class:`~twinsense.capacitive.solver.MaxwellSolver`; the same
         algorithm, equal to the stopping tolerance.
+    threads : int, optional
+        Threads of the compiled solve (see :class:`FrameSolver`); None: the default.
     """
 
     def __init__(self, stack: StackMesh, solver: SolverConfig | None = None,
                  porous: PorousPermittivity | None = None, outer_boundary: str = "open",
-                 compiled: bool = True) -> None:
+                 compiled: bool = True, threads: int | None = None) -> None:
         if not isinstance(compiled, bool):
             raise ConfigError("DeformedElectrostatics.compiled", compiled, "True or False")
         self.stack = stack
@@ -117,7 +119,7 @@ class DeformedElectrostatics:
         self._rest_eps = eps
         self.system = _SkinSystem(mesh, stack.terminals, grounded=stack.ground,
                                   permittivity=eps, outer_boundary=outer_boundary, center=center)
-        self.solver = FrameSolver(self.system, solver) if compiled else MaxwellSolver(self.system, solver)
+        self.solver = FrameSolver(self.system, solver, threads) if compiled else MaxwellSolver(self.system, solver)
         self.porous = porous
         self.points0 = np.array(mesh.points)
         self.displacement = np.zeros_like(self.points0)

@@ -21,9 +21,19 @@ float64. It halves the bytes the cycle moves, ~13 % of a solve.
 
 Each column follows the same CG recurrence as the NumPy path; the two agree
 to the stopping tolerance (tests/tactile/test_tactile_framesolver.py).
+
+Columns are independent in this CG (each has its own step lengths and
+stopping rule), and every compiled loop, the coarsest level's Cholesky
+solve included, computes a column in the same order whatever block it is
+in; so with more than one thread the terminals are split into as many
+interleaved groups, each solved as its own block on its own thread (the
+compiled loops release the GIL), with the same bytes as one block.
 """
 
 from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import scipy.sparse as sp
@@ -38,11 +48,14 @@ from twinsense.capacitive.tactile.kernels import (
     block_product,
     block_residual,
     cg_update,
+    cholesky_columns,
     gram,
     new_direction,
     split_system,
     take_columns,
 )
+from twinsense.errors import ConfigError
+from twinsense.render.parallel import default_workers
 
 __all__ = ["FrameSolver"]
 
@@ -78,7 +91,9 @@ class _CompiledCycle:
             amg_down(*A, d, B, X, *P, Rc)
             down.append((B, X))
             B = Rc
-        Xc = np.ascontiguousarray(self.ml._cycle(B, len(self.levels)))
+        c_factor, lower = self.ml._chol
+        Xc = np.empty(B.shape)
+        cholesky_columns(c_factor, lower, B, Xc)
         scratch = np.empty(c)
         for (A, d, P, _), mask, (B, X) in zip(self.levels[::-1], self.masks[::-1], down[::-1], strict=True):
             amg_up(*A, d, B, X, *P, Xc, mask, np.empty(B.shape), scratch)
@@ -104,11 +119,22 @@ class FrameSolver:
     ----------
     system : ElectrostaticSystem
     config : SolverConfig, optional
+    threads : int, optional
+        Threads the columns are split over, one interleaved group each (with
+        the compiled V-cycle; the NumPy ones run one block); None:
+        :func:`~twinsense.render.parallel.default_workers`
+        (``TWINSENSE_THREADS``, else the cores up to 4). The results do not
+        depend on it, to the byte.
     """
 
-    def __init__(self, system, config: SolverConfig | None = None) -> None:
+    def __init__(self, system, config: SolverConfig | None = None, threads: int | None = None) -> None:
+        if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1):
+            raise ConfigError("FrameSolver.threads", threads, "None or an integer >= 1")
         self.system = system
         self.config = config or SolverConfig()
+        self.threads = default_workers() if threads is None else threads
+        self._pool: ThreadPoolExecutor | None = None
+        self._pool_pid = -1
         self._X: np.ndarray | None = None
         self._ml: BlockAMG | None = None
         self._n = -1
@@ -180,18 +206,59 @@ class FrameSolver:
         KX = np.empty_like(X0)
         block_product(K.indptr, K.indices, K.data, X0, KX, energy)
         precond, rebuilt = self._preconditioner(A, ~fixed)
-        X, iters = _block_pcg(A, B, X0, precond, cfg.rtol, cfg.maxiter, energy, self._energy_tol(energy))
+        energy_tol = self._energy_tol(energy)
+        X, KX, iters = self._solve_groups(A, K, B, X0, precond, energy, energy_tol)
         if rebuilt:
             self._reference_iters = max(int(iters.max()), 4)
             self._force_rebuild = False
         elif int(iters.max()) > max(8, cfg.rebuild_factor * self._reference_iters):
             self._force_rebuild = True
         self._X = X
-        block_product(K.indptr, K.indices, K.data, X, KX, energy)
         full = gram(X, KX)
         full = 0.5 * (full + full.T)
         mat = reduce_floating(full, len(sysm.terminals))
         return MaxwellResult(mat, full, iters, rebuilt)
+
+    def _solve_groups(self, A, K, B, X0, precond, energy, energy_tol):
+        """(X (n, t), K X (n, t), iterations (t,)): the column groups' PCG solves, on the solver's threads."""
+        cfg = self.config
+        t = B.shape[1]
+        # One group per thread (bytes equal to one block only through the
+        # compiled cycle's column-wise loops). Interleaved: the Tx rows come
+        # first and stop after 1-2 steps, the Rx columns after 4-5; every
+        # g-th column gives each group both.
+        g_count = min(self.threads, t) if isinstance(precond, _CompiledCycle) else 1
+        groups = [np.arange(g, t, g_count) for g in range(g_count)]
+        bnorm = np.sqrt(np.einsum("ij,ij->j", B, B))  # once: einsum's sums may depend on the block
+
+        def group(cols):
+            whole = len(cols) == t  # the one-thread case: the blocks as they are
+            Xg = X0 if whole else np.ascontiguousarray(X0[:, cols])
+            Xg, it = _block_pcg(A, B if whole else np.ascontiguousarray(B[:, cols]), Xg, precond, cfg.rtol, cfg.maxiter,
+                                energy[cols], energy_tol, bnorm[cols])
+            KXg = np.empty_like(Xg)
+            block_product(K.indptr, K.indices, K.data, Xg, KXg, np.empty(len(cols)))
+            return Xg, KXg, it
+
+        if len(groups) > 1:
+            parts = list(self._executor().map(group, groups))
+        else:
+            parts = [group(g) for g in groups]
+        if len(parts) == 1:
+            return parts[0]  # columns in order: no copies
+        X, KX, iters = np.empty_like(X0), np.empty_like(X0), np.empty(t, np.int64)
+        for cols, (Xg, KXg, it) in zip(groups, parts, strict=True):
+            X[:, cols], KX[:, cols], iters[cols] = Xg, KXg, it
+        return X, KX, iters
+
+    def _executor(self) -> ThreadPoolExecutor:
+        # The solver's own threads: a frame may itself run on a shared worker
+        # thread, which must not wait on tasks queued behind it in the same
+        # pool. A forked child inherits the pool without its threads.
+        if self._pool is None or self._pool_pid != os.getpid():
+            self._pool = ThreadPoolExecutor(self.threads, thread_name_prefix="twinsense-skin")
+            self._pool_pid = os.getpid()
+        return self._pool
 
 
 def _split(sysm, fixed: np.ndarray, column: np.ndarray, t: int):
@@ -216,10 +283,11 @@ def _dotted(Z: np.ndarray, R: np.ndarray, rz: np.ndarray) -> np.ndarray:
     return Z
 
 
-def _block_pcg(A, B, X0, precond, rtol: float, maxiter: int, energy: np.ndarray, energy_tol: float):
+def _block_pcg(A, B, X0, precond, rtol: float, maxiter: int, energy: np.ndarray, energy_tol: float,
+               bnorm: np.ndarray):
     """:func:`~twinsense.capacitive.pcg.block_pcg` on compact blocks; ``precond(R, rz)`` masks and dots.
 
-    ``X0`` (n, t) C-ordered is overwritten with the solution.
+    ``X0`` (n, t) C-ordered is overwritten with the solution; ``bnorm`` (t,): the norms of ``B``'s columns.
 
     Returns (X (n, t), iterations (t,) int).
     """
@@ -229,8 +297,7 @@ def _block_pcg(A, B, X0, precond, rtol: float, maxiter: int, energy: np.ndarray,
     R = np.empty_like(X)
     rr = np.empty(t)
     block_residual(A.indptr, A.indices, A.data, B, X, R, rr)
-    bnorm = np.sqrt(np.einsum("ij,ij->j", B, B))
-    bnorm[bnorm == 0] = 1.0
+    bnorm = np.where(bnorm == 0, 1.0, bnorm)
     cols = np.flatnonzero(np.sqrt(rr) > rtol * bnorm)
     if len(cols) == 0:
         return X, iters

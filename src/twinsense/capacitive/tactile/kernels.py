@@ -14,7 +14,8 @@ import numpy as np
 
 from twinsense.compiled import jit
 
-__all__ = ["amg_down", "amg_up", "block_product", "block_residual", "cg_update", "gram", "moved_cells",
+__all__ = ["amg_down", "amg_up", "block_product", "block_residual", "cg_update", "cholesky_columns", "gram",
+           "moved_cells",
            "new_direction", "restamp", "split_system", "take_columns", "tet_stiffness_nb", "update_cell_boxes"]
 
 
@@ -137,6 +138,31 @@ def block_product(indptr, indices, data, X, Y, w):  # pragma: no cover - compile
                 Y[i, k] += a * X[j, k]
         for k in range(c):
             w[k] += X[i, k] * Y[i, k]
+
+
+@jit
+def cholesky_columns(c, lower, B, X):  # pragma: no cover - compiled
+    """``X = A^-1 B`` (m, k) from ``scipy.linalg.cho_factor``'s ``(c, lower)`` of ``A`` (m, m).
+
+    Column by column, each in the same order whatever ``k``: unlike LAPACK's
+    blocked solve, a column's bytes do not depend on the block it is in.
+    """
+    m, k = B.shape
+    for col in range(k):
+        # Forward: F y = b with F = c's lower triangle (lower) or U^T (upper).
+        for i in range(m):
+            s = B[i, col] * 1.0
+            for j in range(i):
+                f = c[i, j] if lower else c[j, i]
+                s -= f * X[j, col]
+            X[i, col] = s / c[i, i]
+        # Back: F^T x = y.
+        for i in range(m - 1, -1, -1):
+            s = X[i, col]
+            for j in range(i + 1, m):
+                f = c[j, i] if lower else c[i, j]
+                s -= f * X[j, col]
+            X[i, col] = s / c[i, i]
 
 
 @jit

@@ -189,7 +189,8 @@ class TactileSensor:
     def electrostatics(self) -> DeformedElectrostatics:
         if self._es is None:
             self._es = DeformedElectrostatics(self.stack, self.config.solver, self.config.porous,
-                                              compiled=self.config.compiled_solver)
+                                              compiled=self.config.compiled_solver,
+                                              threads=self.config.solver_threads)
         return self._es
 
     @property
