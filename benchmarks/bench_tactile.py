@@ -96,14 +96,15 @@ def mechanics_section() -> None:
 def electrical_section() -> None:
     """Whole tactile frames of the ``skin_patch_8x8`` preset: contact solve, deformed electrostatics, readout.
 
-    Twice in the same run: with the Maxwell solve in NumPy (``compiled_solver=False``,
-    the path before the compiled loops) and in compiled loops (the default).
+    Three times in the same run: with the Maxwell solve in NumPy (``compiled_solver=False``),
+    and in compiled loops (the default) with its column groups on 1 and on 2 threads.
     """
     from twinsense.capacitive.tactile import make_tactile
 
     rows = {}
-    for label, compiled in (("NumPy solve", False), ("compiled solve", True)):
-        skin = make_tactile("skin_patch_8x8", compiled_solver=compiled)
+    for label, compiled, threads in (("NumPy solve", False, 1), ("compiled solve, 1 thread", True, 1),
+                                     ("compiled solve, 2 threads", True, 2)):
+        skin = make_tactile("skin_patch_8x8", compiled_solver=compiled, solver_threads=threads)
         rows[label] = _whole_frames(skin)
     stack = skin.stack
     m = stack.mesh
@@ -124,10 +125,13 @@ def electrical_section() -> None:
               f"{r['col_iters']:.1f} (all columns)")
         print(f"    electrostatics only, every soft cell moved {r['e_best'] * 1e3:7.1f} ms best "
               f"{r['e_med'] * 1e3:7.1f} ms median")
-    before, after = rows["NumPy solve"], rows["compiled solve"]
-    print(f"  compiled / NumPy, same run: whole moving frame {after['med'] / before['med']:.2f} (wall median), "
-          f"{after['cpu'] / before['cpu']:.2f} (CPU median); Maxwell solve "
-          f"{after['stages_cpu'][3] / before['stages_cpu'][3]:.2f} (CPU median)")
+    pairs = (("NumPy solve", "compiled solve, 1 thread"), ("compiled solve, 1 thread", "compiled solve, 2 threads"))
+    for a, b in pairs:
+        before, after = rows[a], rows[b]
+        print(f"  {b} / {a}, same run: whole moving frame {after['med'] / before['med']:.2f} (wall median), "
+              f"{after['cpu'] / before['cpu']:.2f} (CPU median); Maxwell solve "
+              f"{after['stages'][3] / before['stages'][3]:.2f} (wall median), "
+              f"{after['stages_cpu'][3] / before['stages_cpu'][3]:.2f} (CPU median)")
     anchor = skfem_pyamg_anchor(m.points, m.cells, stack.terminals, stack.ground, stack.permittivity)
     for label, r in rows.items():
         print_anchor(f"scikit-fem + pyamg cold solve, same mesh ({label})", anchor, r["med"])
