@@ -97,3 +97,209 @@ def moving_phases(p, v, pr, vr, tx_per_chirp, rx, centres, fc, slope, fs, half, 
                 ph[a, m, i] = np.float32(_reduce(phi0))
                 a2[a, m, i] = phi2 * h2
                 a3[a, m, i] = phi3 * h3
+
+
+@jit
+def leg_offsets(pos, vel, t_mid, element, t_span, d, r0, y):  # pragma: no cover
+    """One leg of the 2-D path's block (nufft._Leg): offsets d = pos + vel t_mid - element
+    (m, 3) [m], their lengths r0 (m,) [m] and y = t_span |vel| / r0 (m,), in one pass.
+
+    A point on an element gives y = inf or nan (NumPy's error model), which the
+    caller's check rejects.
+    """
+    for i in range(pos.shape[0]):
+        d0 = pos[i, 0] + vel[i, 0] * t_mid - element[0]
+        d1 = pos[i, 1] + vel[i, 1] * t_mid - element[1]
+        d2 = pos[i, 2] + vel[i, 2] * t_mid - element[2]
+        d[i, 0], d[i, 1], d[i, 2] = d0, d1, d2
+        r = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        r0[i] = r
+        s = math.sqrt(vel[i, 0] * vel[i, 0] + vel[i, 1] * vel[i, 1] + vel[i, 2] * vel[i, 2])
+        y[i] = t_span * s / r
+
+
+@jit
+def block_coefficients(d_tx, v_tx, d_rx, v_rx, order, inv_c, two_pi_fc, pi_s, two_pi_s,
+                       span, src, dst, factor, coeffs, acc):  # pragma: no cover
+    """Per scatterer of a 2-D block: both legs' Taylor series of |d + vel t| to ``order``
+    (nufft._leg_series), the delay tau = (tx + rx) / c, the bound
+    acc = sum_{k>=1} |tau_k| span[k] (m,) and the phase coefficients (nufft._monomial_coeffs):
+    coeffs[dst[q]] = sum of gh[src[q]] * factor[q] over the contributions q in their listed
+    order, gh = (g_0..g_K, h_0..h_K) with g_k = 2 pi fc tau_k - pi S (tau * tau)_k and
+    h_k = 2 pi S tau_k. ``coeffs`` (n_monomials, m).
+    """
+    n = order + 1
+    r_tx = np.empty(n)
+    r_rx = np.empty(n)
+    tau = np.empty(n)
+    gh = np.empty(2 * n)
+    loc = np.empty(coeffs.shape[0])
+    seen = np.empty(coeffs.shape[0], np.bool_)
+    for i in range(d_tx.shape[0]):
+        _series(d_tx[i, 0], d_tx[i, 1], d_tx[i, 2], v_tx[i, 0], v_tx[i, 1], v_tx[i, 2], order, r_tx)
+        _series(d_rx[i, 0], d_rx[i, 1], d_rx[i, 2], v_rx[i, 0], v_rx[i, 1], v_rx[i, 2], order, r_rx)
+        for k in range(n):
+            tau[k] = (r_tx[k] + r_rx[k]) * inv_c
+        a = abs(tau[1]) * span[1]
+        for k in range(2, n):
+            a += abs(tau[k]) * span[k]
+        acc[i] = a
+        for k in range(n):
+            sq = 0.0
+            for j in range(k + 1):
+                sq += tau[j] * tau[k - j]
+            gh[k] = two_pi_fc * tau[k] - pi_s * sq
+            gh[n + k] = two_pi_s * tau[k]
+        # NumPy's first contribution to a monomial is the product itself (0 + x = x
+        # exactly, so the sums are the same bits).
+        seen[:] = False
+        for q in range(src.shape[0]):
+            t = dst[q]
+            x = gh[src[q]] * factor[q]
+            if seen[t]:
+                loc[t] += x
+            else:
+                loc[t] = x
+                seen[t] = True
+        for t in range(loc.shape[0]):
+            coeffs[t, i] = loc[t]
+
+
+@jit
+def block_coefficients_low(d_tx, v_tx, d_rx, v_rx, order, inv_c, two_pi_fc, pi_s, two_pi_s,
+                           span, factor, coeffs, acc):  # pragma: no cover
+    """:func:`block_coefficients` for orders 1 to 3 (nearly every block) written out: the
+    same operations in the same order (the same bits) without the small per-scatterer
+    arrays and the contribution list, which make the generic loop ~8x slower.
+    ``factor``: the contributions' factors in :func:`block_coefficients`'s order;
+    the monomials in its order: (0,0), (0,1), (0,2), (1,0), (1,1), then from order 2
+    (0,3), (1,2), (2,0), (2,1), then from order 3 (0,4), (1,3), (2,2), (3,0), (3,1).
+    """
+    for i in range(d_tx.shape[0]):
+        d0, d1, d2 = d_tx[i, 0], d_tx[i, 1], d_tx[i, 2]
+        w0, w1, w2 = v_tx[i, 0], v_tx[i, 1], v_tx[i, 2]
+        e0 = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        half_inv = 0.5 / e0
+        e1 = (2.0 * (d0 * w0 + d1 * w1 + d2 * w2)) * half_inv
+        e2 = ((w0 * w0 + w1 * w1 + w2 * w2) - e1 * e1) * half_inv
+        e3 = (-(e1 * e2) - e2 * e1) * half_inv
+        d0, d1, d2 = d_rx[i, 0], d_rx[i, 1], d_rx[i, 2]
+        w0, w1, w2 = v_rx[i, 0], v_rx[i, 1], v_rx[i, 2]
+        f0 = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        half_inv = 0.5 / f0
+        f1 = (2.0 * (d0 * w0 + d1 * w1 + d2 * w2)) * half_inv
+        f2 = ((w0 * w0 + w1 * w1 + w2 * w2) - f1 * f1) * half_inv
+        f3 = (-(f1 * f2) - f2 * f1) * half_inv
+        t0 = (e0 + f0) * inv_c
+        t1 = (e1 + f1) * inv_c
+        t2 = (e2 + f2) * inv_c
+        t3 = (e3 + f3) * inv_c
+        g0 = two_pi_fc * t0 - pi_s * (t0 * t0)
+        g1 = two_pi_fc * t1 - pi_s * (t0 * t1 + t1 * t0)
+        g2 = two_pi_fc * t2 - pi_s * ((t0 * t2 + t1 * t1) + t2 * t0)
+        g3 = two_pi_fc * t3 - pi_s * (((t0 * t3 + t1 * t2) + t2 * t1) + t3 * t0)
+        h0 = two_pi_s * t0
+        h1 = two_pi_s * t1
+        h2 = two_pi_s * t2
+        h3 = two_pi_s * t3
+        coeffs[0, i] = g0 * factor[0]
+        coeffs[1, i] = h0 * factor[1] + g1 * factor[2]
+        coeffs[3, i] = g1 * factor[4]
+        if order == 1:
+            acc[i] = abs(t1) * span[1]
+            coeffs[2, i] = h1 * factor[3]
+            coeffs[4, i] = h1 * factor[5]
+            continue
+        coeffs[2, i] = h1 * factor[3] + g2 * factor[6]
+        coeffs[4, i] = h1 * factor[5] + g2 * factor[8]
+        coeffs[7, i] = g2 * factor[10]
+        if order == 2:
+            acc[i] = abs(t1) * span[1] + abs(t2) * span[2]
+            coeffs[5, i] = h2 * factor[7]
+            coeffs[6, i] = h2 * factor[9]
+            coeffs[8, i] = h2 * factor[11]
+            continue
+        acc[i] = (abs(t1) * span[1] + abs(t2) * span[2]) + abs(t3) * span[3]
+        coeffs[5, i] = h2 * factor[7] + g3 * factor[12]
+        coeffs[6, i] = h2 * factor[9] + g3 * factor[14]
+        coeffs[8, i] = h2 * factor[11] + g3 * factor[16]
+        coeffs[9, i] = h3 * factor[13]
+        coeffs[10, i] = h3 * factor[15]
+        coeffs[11, i] = h3 * factor[17]
+        coeffs[12, i] = g3 * factor[18]
+        coeffs[13, i] = h3 * factor[19]
+
+
+@jit
+def _series(d0, d1, d2, v0, v1, v2, order, r):  # pragma: no cover
+    """Taylor coefficients r (order + 1,) of |d + vel t| (nufft._leg_series, one scatterer)."""
+    r0 = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    q1 = 2.0 * (d0 * v0 + d1 * v1 + d2 * v2)
+    q2 = v0 * v0 + v1 * v1 + v2 * v2
+    r[0] = r0
+    half_inv = 0.5 / r0
+    for k in range(1, order + 1):
+        a = q1 if k == 1 else (q2 if k == 2 else 0.0)
+        for j in range(1, k):
+            a -= r[j] * r[k - j]
+        r[k] = a * half_inv
+
+
+# Operations of block_series' program (one row: op, destination, source, residual).
+OP_SET, OP_ACC, OP_SCALE, OP_SERIES_SET, OP_SERIES_ACC = 0, 1, 2, 3, 4
+_TILE = 256  # scatterers per tile: a tile's terms stay in the L1 cache
+
+
+@jit
+def block_series(resid, program, scale, out_slots, n_terms, n_series, out):  # pragma: no cover
+    """Series of a 2-D block (nufft._run_block): out[d, i] = the coefficient of the d-th
+    kept monomial of exp(j R) for scatterer i, R = sum_r resid[r, i] U^a V^b.
+
+    ``program`` (n_ops, 4) int64 lists the series' products as NumPy forms them
+    (nufft._series_numpy), so the results are its bits: OP_SET / OP_ACC:
+    term[dst] (+)= term[src] * (j resid[r]); OP_SCALE: term[dst] *= scale[op];
+    OP_SERIES_SET / OP_SERIES_ACC: series[dst] (+)= term[src]. Term 0 is 1.
+    ``out_slots`` (D,): the series slot of each output row; ``out`` (D, m) complex.
+    Each operation runs over a tile of scatterers (a loop the compiler vectorises).
+    """
+    m = resid.shape[1]
+    t_re = np.empty((n_terms, _TILE))
+    t_im = np.empty((n_terms, _TILE))
+    s_re = np.empty((n_series, _TILE))
+    s_im = np.empty((n_series, _TILE))
+    for lo in range(0, m, _TILE):
+        n = min(_TILE, m - lo)
+        for i in range(n):
+            t_re[0, i] = 1.0
+            t_im[0, i] = 0.0
+        for q in range(program.shape[0]):
+            op, dst, src, r = program[q, 0], program[q, 1], program[q, 2], program[q, 3]
+            if op == OP_SET:
+                for i in range(n):
+                    c = resid[r, lo + i]
+                    a, b = t_re[src, i], t_im[src, i]
+                    t_re[dst, i] = -(b * c)
+                    t_im[dst, i] = a * c
+            elif op == OP_ACC:
+                for i in range(n):
+                    c = resid[r, lo + i]
+                    a, b = t_re[src, i], t_im[src, i]
+                    t_re[dst, i] -= b * c
+                    t_im[dst, i] += a * c
+            elif op == OP_SCALE:
+                f = scale[q]
+                for i in range(n):
+                    t_re[dst, i] *= f
+                    t_im[dst, i] *= f
+            elif op == OP_SERIES_SET:
+                for i in range(n):
+                    s_re[dst, i] = t_re[src, i]
+                    s_im[dst, i] = t_im[src, i]
+            else:
+                for i in range(n):
+                    s_re[dst, i] += t_re[src, i]
+                    s_im[dst, i] += t_im[src, i]
+        for d in range(out_slots.shape[0]):
+            k = out_slots[d]
+            for i in range(n):
+                out[d, lo + i] = complex(s_re[k, i], s_im[k, i])

@@ -22,7 +22,18 @@ import numpy as np
 
 from twinsense.constants import SPEED_OF_LIGHT
 from twinsense.radar.config import RadarConfig
-from twinsense.radar.kernels import moving_phases
+from twinsense.radar.kernels import (
+    OP_ACC,
+    OP_SCALE,
+    OP_SERIES_ACC,
+    OP_SERIES_SET,
+    OP_SET,
+    block_coefficients,
+    block_coefficients_low,
+    block_series,
+    leg_offsets,
+    moving_phases,
+)
 
 _TWO_PI = 2.0 * math.pi
 
@@ -384,6 +395,12 @@ def moving_bounds(n: int) -> list[tuple[int, int]]:
 # in two dimensions). The per-scatterer work is then per group, not per chirp.
 
 
+def _dot3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise a . b of (m, 3) arrays, summed left to right (the compiled kernels' order;
+    einsum's order differs by an ulp now and then)."""
+    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
+
+
 def _leg_series(d: np.ndarray, vel: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray]:
     """Taylor coefficients (order + 1, m) of |d + vel t| in t, and |vel| / |d| (m,) [1/s].
 
@@ -391,9 +408,9 @@ def _leg_series(d: np.ndarray, vel: np.ndarray, order: int) -> tuple[np.ndarray,
     2 r0 r_k = Q_k - sum_{i=1}^{k-1} r_i r_{k-i}. The series converges for
     |t| < |d| / |vel| (the complex roots of r^2): see :func:`_leg_tail`.
     """
-    r0 = np.sqrt(np.einsum("ij,ij->i", d, d))
-    q1 = 2.0 * np.einsum("ij,ij->i", d, vel)
-    q2 = np.einsum("ij,ij->i", vel, vel)
+    r0 = np.sqrt(_dot3(d, d))
+    q1 = 2.0 * _dot3(d, vel)
+    q2 = _dot3(vel, vel)
     r = np.zeros((order + 1, len(d)))
     r[0] = r0
     half_inv = 0.5 / r0
@@ -519,14 +536,24 @@ class _Block2D:
 
 class _Leg:
     """One leg's offsets d (m, 3) from an element at the block's centre time, their
-    lengths r0 (m,), y = T |vel| / r0 (m,) and its Taylor series per order (kept)."""
+    lengths r0 (m,), y = T |vel| / r0 (m,) and its Taylor series per order (kept).
 
-    def __init__(self, pos, vel, t_mid, element, t_span):
-        self.d = pos + vel * t_mid - element
+    ``compiled``: d, r0 and y from one compiled pass
+    (:func:`twinsense.radar.kernels.leg_offsets`), else NumPy (the reference).
+    """
+
+    def __init__(self, pos, vel, t_mid, element, t_span, compiled: bool = True):
         self.vel = vel
-        self.r0 = np.sqrt(np.einsum("ij,ij->i", self.d, self.d))
-        with np.errstate(divide="ignore", invalid="ignore"):  # a point on an element: not 2-D
-            self.y = t_span * np.linalg.norm(vel, axis=1) / self.r0
+        if compiled:
+            m = len(pos)
+            self.d, self.r0, self.y = np.empty((m, 3)), np.empty(m), np.empty(m)
+            leg_offsets(pos, vel, float(t_mid), np.asarray(element, float), float(t_span),
+                        self.d, self.r0, self.y)
+        else:
+            self.d = pos + vel * t_mid - element
+            self.r0 = np.sqrt(_dot3(self.d, self.d))
+            with np.errstate(divide="ignore", invalid="ignore"):  # a point on an element: not 2-D
+                self.y = t_span * np.sqrt(_dot3(vel, vel)) / self.r0
         self._series: dict[int, np.ndarray] = {}
 
     def series(self, order: int) -> np.ndarray:
@@ -535,8 +562,46 @@ class _Leg:
         return self._series[order]
 
 
+def _coefficient_sources(order: int, a_step: float, b: float):
+    """The contributions of :func:`_monomial_coeffs` in its order, for the compiled pass:
+    monomials (list of (i, j)), and per contribution its source (k for g_k, K + 1 + k for
+    h_k), the monomial's index and the factor."""
+    index: dict[tuple[int, int], int] = {}
+    src, dst, factor = [], [], []
+    for k in range(order + 1):
+        for i in range(k + 1):
+            f = math.comb(k, i) * a_step**i * b ** (k - i)
+            for key, source, fac in (((i, k - i), k, f), ((i, k - i + 1), order + 1 + k, f * b)):
+                src.append(source)
+                dst.append(index.setdefault(key, len(index)))
+                factor.append(fac)
+    return list(index), np.array(src, np.int64), np.array(dst, np.int64), np.array(factor, float)
+
+
+def _coeffs_compiled(leg_tx: _Leg, leg_rx: _Leg, order: int, geo: Geometry, a_step: float,
+                     span: np.ndarray) -> tuple[dict, float, dict]:
+    """:func:`_monomial_coeffs` of the two legs' delay series, the bound dmax and each
+    monomial's (max, min) over the scatterers, from one compiled pass
+    (:func:`twinsense.radar.kernels.block_coefficients`): the same bits."""
+    keys, src, dst, factor = _coefficient_sources(order, a_step, 1.0 / geo.fs)
+    m = len(leg_tx.r0)
+    coeffs = np.empty((len(keys), m))
+    acc = np.empty(m)
+    args = (leg_tx.d, leg_tx.vel, leg_rx.d, leg_rx.vel, order, 1.0 / SPEED_OF_LIGHT,
+            _TWO_PI * geo.fc, math.pi * geo.slope, _TWO_PI * geo.slope, span)
+    if order <= 3:
+        block_coefficients_low(*args, factor, coeffs, acc)
+    else:
+        block_coefficients(*args, src, dst, factor, coeffs, acc)
+    # Each monomial's extremes (one pass each): the centres and bounds need them before
+    # any rest is formed.
+    extremes = {key: (float(a), float(b))
+                for key, a, b in zip(keys, coeffs.max(axis=1), coeffs.min(axis=1))}
+    return dict(zip(keys, coeffs)), float(np.max(acc)), extremes
+
+
 def _plan_block(p, v, pr, vr, tx, rx, chirps, t_mid, a_step, geo: Geometry,
-                eps: float, tx_leg: _Leg | None = None) -> _Block2D | None:
+                eps: float, tx_leg: _Leg | None = None, compiled: bool = True) -> _Block2D | None:
     """Expansion of movers (p, v; pr, vr) for one receiver ``rx`` and the chirps ``chirps``
     (sent by ``tx``, evenly ``a_step`` seconds apart; ``t_mid`` [s]: the time of the
     block's centre sample from the frame start). None when the delay's Taylor
@@ -549,13 +614,15 @@ def _plan_block(p, v, pr, vr, tx, rx, chirps, t_mid, a_step, geo: Geometry,
     the per-chirp path's budget (its series order and skipped terms, eps / 2
     each). ``tx_leg``: the transmit leg of the same movers, block and
     transmitter, shared by the receivers' blocks (computed here when None).
+    ``compiled``: the per-scatterer passes compiled (:mod:`twinsense.radar.kernels`),
+    else NumPy (the reference; the same bits).
     """
     n_samp = geo.n_samp
     jb = len(chirps)
     mu_half = jb // 2
     t_span = a_step * mu_half + (n_samp // 2) / geo.fs  # max |Delta| [s]
-    leg_tx = _Leg(p, v, t_mid, tx, t_span) if tx_leg is None else tx_leg
-    leg_rx = _Leg(pr, vr, t_mid, rx, t_span)
+    leg_tx = _Leg(p, v, t_mid, tx, t_span, compiled) if tx_leg is None else tx_leg
+    leg_rx = _Leg(pr, vr, t_mid, rx, t_span, compiled)
     r0_tx, r0_rx, y_tx, y_rx = leg_tx.r0, leg_rx.r0, leg_tx.y, leg_rx.y
     if not max(float(y_tx.max()), float(y_rx.max())) <= _Y_MAX:
         return None
@@ -576,42 +643,55 @@ def _plan_block(p, v, pr, vr, tx, rx, chirps, t_mid, a_step, geo: Geometry,
         order += 1
     if phase_per_m * tail > eps / 16:
         return None
-    tau = (leg_tx.series(order) + leg_rx.series(order)) * (1.0 / SPEED_OF_LIGHT)
     # Degrees of tau^2 above the order are dropped: at most pi S (sum_{k>=1} |tau_k| T^k)^2.
     span = t_span ** np.arange(order + 1)
-    # (A loop, not a (m, K) @ (K,) product: BLAS threads on tall, thin products
-    # cost far more than the arithmetic on shared cores.)
-    acc = np.abs(tau[1]) * span[1]
-    for k in range(2, order + 1):
-        acc += np.abs(tau[k]) * span[k]
-    dmax = float(np.max(acc))
+    if compiled:
+        coeffs, dmax, extremes = _coeffs_compiled(leg_tx, leg_rx, order, geo, a_step, span)
+    else:
+        tau = (leg_tx.series(order) + leg_rx.series(order)) * (1.0 / SPEED_OF_LIGHT)
+        # (A loop, not a (m, K) @ (K,) product: BLAS threads on tall, thin products
+        # cost far more than the arithmetic on shared cores.)
+        acc = np.abs(tau[1]) * span[1]
+        for k in range(2, order + 1):
+            acc += np.abs(tau[k]) * span[k]
+        dmax = float(np.max(acc))
     if math.pi * abs(geo.slope) * dmax**2 > eps / 16:
         return None
-    coeffs = _monomial_coeffs(tau, geo, a_step)
+    if not compiled:
+        coeffs = _monomial_coeffs(tau, geo, a_step)
     mu_s, nu_s = max(mu_half, 1), n_samp // 2
     phi0 = _reduce(coeffs.pop((0, 0)))
     w = _reduce(coeffs.pop((1, 0)))
     x = _reduce(coeffs.pop((0, 1)))
     common: dict = {}
-    resid: dict = {}
+    scales: dict = {}
     bounds: dict = {}
     for (i, j), c in coeffs.items():
         if i > 0 and mu_half == 0:
             continue  # a single chirp: mu = 0
-        c *= float(mu_s) ** i * float(nu_s) ** j  # c is this function's own array
-        hi, lo = float(c.max()), float(c.min())
-        mid = 0.5 * (hi + lo)
-        common[(i, j)] = mid
-        c -= mid
-        resid[(i, j)] = c
+        scale = float(mu_s) ** i * float(nu_s) ** j
+        # max(c scale) = max(c) scale exactly (rounding is monotone, scale > 0), so the
+        # compiled pass's extremes of the unscaled c give the same bits.
+        raw_hi, raw_lo = extremes[(i, j)] if compiled else (float(c.max()), float(c.min()))
+        hi, lo = raw_hi * scale, raw_lo * scale
+        common[(i, j)] = 0.5 * (hi + lo)
+        scales[(i, j)] = scale
         # max |c - mid| = (hi - lo) / 2; the factor covers the rounding of mid and of c - mid.
         bounds[(i, j)] = 0.5 * (hi - lo) * (1.0 + 1e-12)
-    # Drop the per-scatterer rest of the smallest monomials within eps / 8.
+    # Drop the per-scatterer rest of the smallest monomials within eps / 16 (before
+    # forming it: only the kept rests are scaled and centred).
     dropped = 0.0
     for key, b in sorted(bounds.items(), key=lambda kv: kv[1]):
         if dropped + b <= eps / 16:
             dropped += b
-            del resid[key]
+            del bounds[key]
+    resid: dict = {}
+    for key in common:
+        if key in bounds:
+            c = coeffs[key]  # this function's own array
+            c *= scales[key]
+            c -= common[key]
+            resid[key] = c
     bounds = {k: bounds[k] for k in resid}
     pmax = float(np.max(sum((np.abs(r) for r in resid.values()), np.zeros(len(p))))) if resid else 0.0
     exp_order = _taylor_order(pmax, _SERIES_TOL * eps)
@@ -619,24 +699,21 @@ def _plan_block(p, v, pr, vr, tx, rx, chirps, t_mid, a_step, geo: Geometry,
     return _Block2D(chirps, mu_s, nu_s, phi0, w, x, common, resid, keep, exp_order)
 
 
-def _run_block(blk: _Block2D, wt: np.ndarray, geo: Geometry, eps: float) -> np.ndarray:
-    """(J, N) IF rows of one planned block (weights ``wt`` (m,))."""
-    n_samp = geo.n_samp
-    jb = len(blk.chirps)
-    strength = np.empty(len(wt), dtype=complex)
-    ph32 = blk.phi0.astype(np.float32)
-    strength.real = np.cos(ph32)
-    strength.imag = np.sin(ph32)
-    strength *= wt
-    # exp(j R) as a polynomial in (U, V), only the kept monomials.
-    series = {(0, 0): np.ones(len(wt), dtype=complex)}
+def _needed(keep) -> set:
+    """Monomials a kept one can grow from: R's monomials have non-negative degrees, so a
+    term only feeds monomials at least as large in both (the others are never formed)."""
+    return {(i, j) for i in range(max(k[0] for k in keep) + 1)
+            for j in range(max(k[1] for k in keep) + 1)
+            if any(i <= ki and j <= kj for ki, kj in keep)}
+
+
+def _series_numpy(blk: _Block2D, n: int) -> dict:
+    """{monomial: (n,) complex} coefficients of exp(j R) kept by the block (the reference of
+    the compiled :func:`twinsense.radar.kernels.block_series`)."""
+    series = {(0, 0): np.ones(n, dtype=complex)}
     term = dict(series)
     r_poly = {k: 1j * r for k, r in blk.resid.items()}
-    # R's monomials have non-negative degrees, so a term only feeds monomials
-    # at least as large in both: the others are never formed.
-    needed = {(i, j) for i in range(max(k[0] for k in blk.keep) + 1)
-              for j in range(max(k[1] for k in blk.keep) + 1)
-              if any(i <= ki and j <= kj for ki, kj in blk.keep)}
+    needed = _needed(blk.keep)
     for k in range(1, blk.order + 1):
         term = _poly_mul(term, r_poly, needed)
         for key in term:
@@ -644,6 +721,83 @@ def _run_block(blk: _Block2D, wt: np.ndarray, geo: Geometry, eps: float) -> np.n
         for key, c in term.items():
             if key in blk.keep:
                 series[key] = series[key] + c if key in series else c.copy()
+    return series
+
+
+def _series_program(res_keys: list, keep, order: int):
+    """The compiled series' program (:func:`twinsense.radar.kernels.block_series`): the
+    products, scalings and sums of :func:`_series_numpy` in its order (dictionary
+    order of :func:`_poly_mul`). Returns (program (n_ops, 4), scale (n_ops,),
+    out_slots (D,) for the sorted kept monomials, n_terms, n_series)."""
+    needed = _needed(keep)
+    program, scale = [(OP_SERIES_SET, 0, 0, 0)], [1.0]
+    series_slot = {(0, 0): 0}
+    term = {(0, 0): 0}  # monomial -> term slot; slot 0 holds 1
+    n_terms = 1
+    for k in range(1, order + 1):
+        new: dict = {}
+        for (i1, j1), src in term.items():
+            for r, (i2, j2) in enumerate(res_keys):
+                key = (i1 + i2, j1 + j2)
+                if key not in needed:
+                    continue
+                if key in new:
+                    program.append((OP_ACC, new[key], src, r))
+                else:
+                    new[key] = n_terms
+                    n_terms += 1
+                    program.append((OP_SET, new[key], src, r))
+                scale.append(1.0)
+        for slot in new.values():
+            program.append((OP_SCALE, slot, 0, 0))
+            scale.append(1.0 / k)
+        term = new
+        for key, slot in term.items():
+            if key in keep:
+                if key in series_slot:
+                    program.append((OP_SERIES_ACC, series_slot[key], slot, 0))
+                else:
+                    series_slot[key] = len(series_slot)
+                    program.append((OP_SERIES_SET, series_slot[key], slot, 0))
+                scale.append(1.0)
+    out_slots = [series_slot[key] for key in sorted(keep)]
+    return (np.array(program, np.int64).reshape(-1, 4), np.array(scale), np.array(out_slots, np.int64),
+            n_terms, len(series_slot))
+
+
+def _block_strengths(blk: _Block2D, strength: np.ndarray, compiled: bool = True) -> dict:
+    """{monomial: (m,) complex} strength vectors of the kept monomials (sorted): strength
+    times their coefficient in exp(j R), from one compiled pass over the scatterers
+    (:func:`twinsense.radar.kernels.block_series`, the same bits) or NumPy
+    (``compiled`` False, the reference)."""
+    keys = sorted(blk.keep)
+    if not compiled:
+        series = _series_numpy(blk, len(strength))
+        return {key: series[key] * strength for key in keys}
+    res_keys = list(blk.resid)
+    resid = (np.array([blk.resid[k] for k in res_keys]) if res_keys
+             else np.zeros((0, len(strength))))  # (R, m)
+    program, scale, out_slots, n_terms, n_series = _series_program(res_keys, blk.keep, blk.order)
+    out = np.empty((len(keys), len(strength)), dtype=complex)
+    block_series(resid, program, scale, out_slots, n_terms, n_series, out)
+    # NumPy's complex product (its vector loop rounds as the reference does).
+    out *= strength
+    return dict(zip(keys, out))
+
+
+def _run_block(blk: _Block2D, wt: np.ndarray, geo: Geometry, eps: float,
+               compiled: bool = True) -> np.ndarray:
+    """(J, N) IF rows of one planned block (weights ``wt`` (m,)); ``compiled``: the strength
+    vectors from the compiled pass (else NumPy, the reference)."""
+    n_samp = geo.n_samp
+    jb = len(blk.chirps)
+    strength = np.empty(len(wt), dtype=complex)
+    ph32 = blk.phi0.astype(np.float32)
+    strength.real = np.cos(ph32)
+    strength.imag = np.sin(ph32)
+    strength *= wt
+    # exp(j R) as a polynomial in (U, V), only the kept monomials, times the strengths.
+    series = _block_strengths(blk, strength, compiled)
     # Each vector's NUFFT at its own tolerance: vector d has strengths of at
     # most beta_d |w| (its majorant), so at tolerance eps_d its error is about
     # eps_d beta_d sum |w|. The constant term (beta = 1) gets eps, the others
@@ -653,7 +807,7 @@ def _run_block(blk: _Block2D, wt: np.ndarray, geo: Geometry, eps: float) -> np.n
     # narrower kernels (finufft spreads ~(digits + 1)^2 grid points per point).
     others = max(len(series) - 1, 1)
     levels: dict[float, list] = {}
-    for key in sorted(series):
+    for key in series:
         tol = eps
         while key != (0, 0) and tol * 10.0 <= 1e-2 and tol * 10.0 * blk.keep[key] * others <= eps:
             tol *= 10.0
@@ -662,7 +816,7 @@ def _run_block(blk: _Block2D, wt: np.ndarray, geo: Geometry, eps: float) -> np.n
     for tol, group in sorted(levels.items()):
         strengths = np.empty((len(group), len(wt)), dtype=complex)
         for d, key in enumerate(group):
-            np.multiply(series[key], strength, out=strengths[d])
+            strengths[d] = series[key]
         plan = finufft.Plan(1, (jb, n_samp), n_trans=len(group), eps=tol, isign=1, nthreads=1,
                             modeord=0)
         plan.setpts(blk.w, blk.x)
