@@ -236,3 +236,11 @@ def test_thread_count_must_be_a_positive_integer(moving, threads):
         FrameSolver(moving[0].electrostatics.system, threads=threads)
     with pytest.raises(ConfigError, match="TactileConfig.solver_threads"):
         dataclasses.replace(moving[0].config, solver_threads=threads)
+
+
+def test_default_thread_count_is_one_unless_twinsense_threads_says(moving, monkeypatch):
+    sysm = moving[0].electrostatics.system
+    monkeypatch.delenv("TWINSENSE_THREADS", raising=False)
+    assert FrameSolver(sysm).threads == 1
+    monkeypatch.setenv("TWINSENSE_THREADS", "2")
+    assert FrameSolver(sysm).threads == 2

@@ -53,8 +53,9 @@ class TactileConfig:
         energy tolerance.
     solver_threads : int or None
         Threads of the compiled Maxwell solve, one group of columns each;
-        None: ``TWINSENSE_THREADS``, else the cores up to 4. The results do
-        not depend on it, to the byte.
+        None: ``TWINSENSE_THREADS`` when set, else 1 (2 threads cost ~1.3-1.4x
+        the CPU and pay only with a free core). The results do not depend on
+        it, to the byte.
     """
 
     layout: TactileLayout

@@ -122,9 +122,8 @@ class FrameSolver:
     threads : int, optional
         Threads the columns are split over, one interleaved group each (with
         the compiled V-cycle; the NumPy ones run one block); None:
-        :func:`~twinsense.render.parallel.default_workers`
-        (``TWINSENSE_THREADS``, else the cores up to 4). The results do not
-        depend on it, to the byte.
+        ``TWINSENSE_THREADS`` when set, else 1 (see :func:`_default_threads`).
+        The results do not depend on it, to the byte.
     """
 
     def __init__(self, system, config: SolverConfig | None = None, threads: int | None = None) -> None:
@@ -132,7 +131,7 @@ class FrameSolver:
             raise ConfigError("FrameSolver.threads", threads, "None or an integer >= 1")
         self.system = system
         self.config = config or SolverConfig()
-        self.threads = default_workers() if threads is None else threads
+        self.threads = _default_threads() if threads is None else threads
         self._pool: ThreadPoolExecutor | None = None
         self._pool_pid = -1
         self._X: np.ndarray | None = None
@@ -259,6 +258,19 @@ class FrameSolver:
             self._pool = ThreadPoolExecutor(self.threads, thread_name_prefix="twinsense-skin")
             self._pool_pid = os.getpid()
         return self._pool
+
+
+def _default_threads() -> int:
+    """``TWINSENSE_THREADS`` when set, else 1.
+
+    Not the cores, as the ray casts take: every group reads the matrix and
+    the hierarchy once per CG step, so two groups cost ~1.3-1.4x the CPU of
+    one block (a frame's blocks are only 4-8 columns wide once the Tx rows
+    have stopped), which pays only with a core the frame has to itself; on a
+    loaded machine two threads were 0.96-2.8x the wall time of one
+    (BENCHMARKS.md, tactile skin).
+    """
+    return default_workers() if os.environ.get("TWINSENSE_THREADS", "").strip() else 1
 
 
 def _split(sysm, fixed: np.ndarray, column: np.ndarray, t: int):
