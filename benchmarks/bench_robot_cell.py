@@ -112,17 +112,25 @@ def skin_frames(scene, skin, frames: int, t0: float = T0, label: str = "") -> No
 
 
 class Timed:
-    """A sensor whose captures are timed into ``spent`` (``prepare`` passed through, as simulate calls it)."""
+    """A sensor whose captures are timed into ``spent`` (wall) and ``cpu`` (CPU of the capturing thread).
 
-    def __init__(self, s, spent: dict):
-        self.s, self.name, self.kind, self.frame_rate, self.spent = s, s.name, s.kind, s.frame_rate, spent
+    ``prepare`` is passed through, as simulate calls it. The thread CPU leaves out work a capture hands to
+    other threads (the render's cast workers, the ToF cameras' background noise draws and half of their
+    chain): that is counted in the run's CPU outside the capture threads. The skin's frames run on the
+    capturing thread alone, so its thread CPU is its whole cost.
+    """
+
+    def __init__(self, s, spent: dict, cpu: dict):
+        self.s, self.name, self.kind, self.frame_rate = s, s.name, s.kind, s.frame_rate
+        self.spent, self.cpu = spent, cpu
         if callable(getattr(s, "prepare", None)):
             self.prepare = s.prepare
 
     def capture(self, scene, t, rng):
-        c0 = time.perf_counter()
+        c0, w0 = time.thread_time(), time.perf_counter()
         f = self.s.capture(scene, t, rng)
-        self.spent[self.name] += time.perf_counter() - c0
+        self.spent[self.name] += time.perf_counter() - w0
+        self.cpu[self.name] += time.thread_time() - c0
         return f
 
 
@@ -139,7 +147,8 @@ def whole_cell(seconds: float, t0: float = T0, label: str = "", repeats: int = 1
     """
     scene, sensors = build_arm_cell()
     spent = {s.name: 0.0 for s in sensors}
-    wrapped = [Timed(s, spent) for s in sensors]
+    tcpu = dict(spent)
+    wrapped = [Timed(s, spent, tcpu) for s in sensors]
     w0 = time.perf_counter()
     simulate(scene, wrapped, seconds, t0=t0)
     print(f"  whole cell{label}, {seconds:.1f} s from {t0:g} s, first run (skin mesh built for these times): "
@@ -147,6 +156,7 @@ def whole_cell(seconds: float, t0: float = T0, label: str = "", repeats: int = 1
     for _ in range(repeats):
         for workers in (1, None):
             spent.update({k: 0.0 for k in spent})
+            tcpu.update({k: 0.0 for k in tcpu})
             c0, w0 = time.process_time(), time.perf_counter()
             simulate(scene, wrapped, seconds, t0=t0, workers=workers)
             wall, cpu = time.perf_counter() - w0, time.process_time() - c0
@@ -160,7 +170,16 @@ def whole_cell(seconds: float, t0: float = T0, label: str = "", repeats: int = 1
                 n = round(seconds * s.frame_rate)
                 print(f"    {s.name:<10s} {s.frame_rate:4.0f} frames/s: {spent[s.name]:6.2f} s "
                       f"({spent[s.name] / max(n, 1) * 1e3:7.1f} ms per frame, "
-                      f"{spent[s.name] / total:5.1%} of capture time)")
+                      f"{spent[s.name] / total:5.1%} of capture time); thread CPU "
+                      f"{tcpu[s.name] / max(n, 1) * 1e3:7.1f} ms per frame")
+            # A sensor's frames run one after another on one thread: a lane's own thread CPU bounds the
+            # run's wall time from below whatever the threads, as does all the CPU shared over the cores.
+            lanes = sum(tcpu.values())
+            longest = max(tcpu, key=tcpu.get)
+            print(f"    CPU outside the capture threads (render workers, ToF background threads, kinematics, "
+                  f"simulate): {(cpu - lanes) / seconds:.2f} s per scene second; lower bound on the wall time on "
+                  f"{default_workers()} cores: longest lane ({longest}) {tcpu[longest] / seconds:.2f} s, all "
+                  f"CPU / cores {cpu / default_workers() / seconds:.2f} s per scene second")
 
 
 def cell_runs(seconds: float, repeats: int = 1) -> None:
