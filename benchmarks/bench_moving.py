@@ -230,7 +230,9 @@ def wrist_synthesis(radar: FMCWRadar, scene, t: float, anchor: float) -> None:
     and to the bare embreex cast; the preset's 16 chirps and the same frame
     with 64 chirps (where the 2-D path's share of the work grows)."""
     import dataclasses
+    import functools
 
+    import twinsense.radar.nufft as nufft_module
     import twinsense.radar.synthesis as synthesis_module
 
     scat = radar._renderer.render(scene, radar.mount.state_at(scene, t), t)
@@ -248,6 +250,15 @@ def wrist_synthesis(radar: FMCWRadar, scene, t: float, anchor: float) -> None:
             return synthesis_module.synthesize(p, v, w, cfg, eps=eps, workers=workers)
 
         after = timed(run, repeats)
+        # The 2-D path with its per-block expansion in NumPy (the compiled passes' reference).
+        saved = nufft_module._plan_block, nufft_module._run_block, nufft_module._Leg
+        nufft_module._plan_block = functools.partial(saved[0], compiled=False)
+        nufft_module._run_block = functools.partial(saved[1], compiled=False)
+        nufft_module._Leg = functools.partial(lambda *a, leg=saved[2]: leg(*a[:5], compiled=False))
+        try:
+            numpy_blocks = timed(run, repeats)
+        finally:
+            nufft_module._plan_block, nufft_module._run_block, nufft_module._Leg = saved
         two_d = synthesis_module.moving_chunk_2d
         synthesis_module.moving_chunk_2d = lambda *a, **k: None  # the per-chirp path everywhere
         try:
@@ -261,6 +272,7 @@ def wrist_synthesis(radar: FMCWRadar, scene, t: float, anchor: float) -> None:
         print(f"  wrist radar synthesis alone, {len(p)} scatterers, all moving, {num_chirps} chirps "
               f"(workers={workers}); after vs before: relative difference {err:.1e}")
         for label, (best, median, cpu) in (("per-chirp path only (before)", before),
+                                           ("2-D path, NumPy block expansion", numpy_blocks),
                                            ("2-D path where cheaper (after)", after),
                                            ("anchor: same scatterers static", static)):
             print(f"    {label:<36s} {best * 1e3:8.1f} ms best {median * 1e3:8.1f} ms median; "

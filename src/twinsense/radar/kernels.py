@@ -119,61 +119,20 @@ def leg_offsets(pos, vel, t_mid, element, t_span, d, r0, y):  # pragma: no cover
 
 
 @jit
-def block_coefficients(d_tx, v_tx, d_rx, v_rx, order, inv_c, two_pi_fc, pi_s, two_pi_s,
-                       span, src, dst, factor, coeffs, acc):  # pragma: no cover
-    """Per scatterer of a 2-D block: both legs' Taylor series of |d + vel t| to ``order``
-    (nufft._leg_series), the delay tau = (tx + rx) / c, the bound
-    acc = sum_{k>=1} |tau_k| span[k] (m,) and the phase coefficients (nufft._monomial_coeffs):
-    coeffs[dst[q]] = sum of gh[src[q]] * factor[q] over the contributions q in their listed
-    order, gh = (g_0..g_K, h_0..h_K) with g_k = 2 pi fc tau_k - pi S (tau * tau)_k and
-    h_k = 2 pi S tau_k. ``coeffs`` (n_monomials, m).
-    """
-    n = order + 1
-    r_tx = np.empty(n)
-    r_rx = np.empty(n)
-    tau = np.empty(n)
-    gh = np.empty(2 * n)
-    loc = np.empty(coeffs.shape[0])
-    seen = np.empty(coeffs.shape[0], np.bool_)
-    for i in range(d_tx.shape[0]):
-        _series(d_tx[i, 0], d_tx[i, 1], d_tx[i, 2], v_tx[i, 0], v_tx[i, 1], v_tx[i, 2], order, r_tx)
-        _series(d_rx[i, 0], d_rx[i, 1], d_rx[i, 2], v_rx[i, 0], v_rx[i, 1], v_rx[i, 2], order, r_rx)
-        for k in range(n):
-            tau[k] = (r_tx[k] + r_rx[k]) * inv_c
-        a = abs(tau[1]) * span[1]
-        for k in range(2, n):
-            a += abs(tau[k]) * span[k]
-        acc[i] = a
-        for k in range(n):
-            sq = 0.0
-            for j in range(k + 1):
-                sq += tau[j] * tau[k - j]
-            gh[k] = two_pi_fc * tau[k] - pi_s * sq
-            gh[n + k] = two_pi_s * tau[k]
-        # NumPy's first contribution to a monomial is the product itself (0 + x = x
-        # exactly, so the sums are the same bits).
-        seen[:] = False
-        for q in range(src.shape[0]):
-            t = dst[q]
-            x = gh[src[q]] * factor[q]
-            if seen[t]:
-                loc[t] += x
-            else:
-                loc[t] = x
-                seen[t] = True
-        for t in range(loc.shape[0]):
-            coeffs[t, i] = loc[t]
-
-
-@jit
 def block_coefficients_low(d_tx, v_tx, d_rx, v_rx, order, inv_c, two_pi_fc, pi_s, two_pi_s,
                            span, factor, coeffs, acc):  # pragma: no cover
-    """:func:`block_coefficients` for orders 1 to 3 (nearly every block) written out: the
-    same operations in the same order (the same bits) without the small per-scatterer
-    arrays and the contribution list, which make the generic loop ~8x slower.
-    ``factor``: the contributions' factors in :func:`block_coefficients`'s order;
-    the monomials in its order: (0,0), (0,1), (0,2), (1,0), (1,1), then from order 2
-    (0,3), (1,2), (2,0), (2,1), then from order 3 (0,4), (1,3), (2,2), (3,0), (3,1).
+    """Per scatterer of a 2-D block, for delay orders 1 to 3: both legs' Taylor series of
+    |d + vel t| (nufft._leg_series), the delay tau = (tx + rx) / c, the bound
+    acc = sum_{k>=1} |tau_k| span[k] (m,) and the phase coefficients of
+    nufft._monomial_coeffs, coeffs (n_monomials, m), with g_k = 2 pi fc tau_k -
+    pi S (tau * tau)_k and h_k = 2 pi S tau_k: the same operations in the same order.
+
+    Written out per order: a generic loop over the orders and the contributions
+    (small per-scatterer arrays) ran ~8x slower, slower than NumPy, which keeps
+    the higher orders. ``factor``: the contributions' factors
+    (nufft._coefficient_sources); the monomials in their order: (0,0), (0,1),
+    (0,2), (1,0), (1,1), then from order 2 (0,3), (1,2), (2,0), (2,1), then from
+    order 3 (0,4), (1,3), (2,2), (3,0), (3,1).
     """
     for i in range(d_tx.shape[0]):
         d0, d1, d2 = d_tx[i, 0], d_tx[i, 1], d_tx[i, 2]
@@ -228,21 +187,6 @@ def block_coefficients_low(d_tx, v_tx, d_rx, v_rx, order, inv_c, two_pi_fc, pi_s
         coeffs[11, i] = h3 * factor[17]
         coeffs[12, i] = g3 * factor[18]
         coeffs[13, i] = h3 * factor[19]
-
-
-@jit
-def _series(d0, d1, d2, v0, v1, v2, order, r):  # pragma: no cover
-    """Taylor coefficients r (order + 1,) of |d + vel t| (nufft._leg_series, one scatterer)."""
-    r0 = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-    q1 = 2.0 * (d0 * v0 + d1 * v1 + d2 * v2)
-    q2 = v0 * v0 + v1 * v1 + v2 * v2
-    r[0] = r0
-    half_inv = 0.5 / r0
-    for k in range(1, order + 1):
-        a = q1 if k == 1 else (q2 if k == 2 else 0.0)
-        for j in range(1, k):
-            a -= r[j] * r[k - j]
-        r[k] = a * half_inv
 
 
 # Operations of block_series' program (one row: op, destination, source, residual).

@@ -28,7 +28,6 @@ from twinsense.radar.kernels import (
     OP_SERIES_ACC,
     OP_SERIES_SET,
     OP_SET,
-    block_coefficients,
     block_coefficients_low,
     block_series,
     leg_offsets,
@@ -562,37 +561,34 @@ class _Leg:
         return self._series[order]
 
 
-def _coefficient_sources(order: int, a_step: float, b: float):
+def _coefficient_sources(order: int, a_step: float, b: float) -> tuple[list, np.ndarray]:
     """The contributions of :func:`_monomial_coeffs` in its order, for the compiled pass:
-    monomials (list of (i, j)), and per contribution its source (k for g_k, K + 1 + k for
-    h_k), the monomial's index and the factor."""
+    the monomials (list of (i, j), in order of first contribution) and each
+    contribution's factor (C(k, i) A^i B^(k-i) for g_k, times B for h_k)."""
     index: dict[tuple[int, int], int] = {}
-    src, dst, factor = [], [], []
+    factor = []
     for k in range(order + 1):
         for i in range(k + 1):
             f = math.comb(k, i) * a_step**i * b ** (k - i)
-            for key, source, fac in (((i, k - i), k, f), ((i, k - i + 1), order + 1 + k, f * b)):
-                src.append(source)
-                dst.append(index.setdefault(key, len(index)))
+            for key, fac in (((i, k - i), f), ((i, k - i + 1), f * b)):
+                index.setdefault(key, len(index))
                 factor.append(fac)
-    return list(index), np.array(src, np.int64), np.array(dst, np.int64), np.array(factor, float)
+    return list(index), np.array(factor, float)
 
 
 def _coeffs_compiled(leg_tx: _Leg, leg_rx: _Leg, order: int, geo: Geometry, a_step: float,
                      span: np.ndarray) -> tuple[dict, float, dict]:
     """:func:`_monomial_coeffs` of the two legs' delay series, the bound dmax and each
     monomial's (max, min) over the scatterers, from one compiled pass
-    (:func:`twinsense.radar.kernels.block_coefficients`): the same bits."""
-    keys, src, dst, factor = _coefficient_sources(order, a_step, 1.0 / geo.fs)
+    (:func:`twinsense.radar.kernels.block_coefficients_low`, delay orders 1 to 3): the
+    same bits."""
+    keys, factor = _coefficient_sources(order, a_step, 1.0 / geo.fs)
     m = len(leg_tx.r0)
     coeffs = np.empty((len(keys), m))
     acc = np.empty(m)
     args = (leg_tx.d, leg_tx.vel, leg_rx.d, leg_rx.vel, order, 1.0 / SPEED_OF_LIGHT,
             _TWO_PI * geo.fc, math.pi * geo.slope, _TWO_PI * geo.slope, span)
-    if order <= 3:
-        block_coefficients_low(*args, factor, coeffs, acc)
-    else:
-        block_coefficients(*args, src, dst, factor, coeffs, acc)
+    block_coefficients_low(*args, factor, coeffs, acc)
     # Each monomial's extremes (one pass each): the centres and bounds need them before
     # any rest is formed.
     extremes = {key: (float(a), float(b))
@@ -645,6 +641,8 @@ def _plan_block(p, v, pr, vr, tx, rx, chirps, t_mid, a_step, geo: Geometry,
         return None
     # Degrees of tau^2 above the order are dropped: at most pi S (sum_{k>=1} |tau_k| T^k)^2.
     span = t_span ** np.arange(order + 1)
+    # The compiled pass covers delay orders 1-3 (nearly every block); NumPy the others.
+    compiled = compiled and order <= 3
     if compiled:
         coeffs, dmax, extremes = _coeffs_compiled(leg_tx, leg_rx, order, geo, a_step, span)
     else:
