@@ -15,6 +15,12 @@ def run(*args, cwd=None):
     return subprocess.run([str(EXE), *args], capture_output=True, text=True, cwd=cwd, timeout=300)
 
 
+def test_python_dash_m_runs_the_same_command_line():
+    r = subprocess.run([sys.executable, "-m", "twinsense", "info"], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert "ray casting: embree" in r.stdout
+
+
 def test_info_lists_backend_and_extras():
     r = run("info")
     assert r.returncode == 0, r.stderr

@@ -41,7 +41,7 @@ LAYERS: list[tuple[str, frozenset[str]]] = [
     ("sweep", frozenset({"sweep"})),
     ("plotting", frozenset({"plotting"})),
     ("demos", frozenset({"demos"})),
-    ("cli", frozenset({"cli"})),
+    ("cli", frozenset({"cli", "__main__"})),
 ]
 #: Members of these layers are peers that must not import each other.
 INDEPENDENT = {"sensor packages"}
