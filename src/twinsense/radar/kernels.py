@@ -1,4 +1,4 @@
-"""Compiled per-mover kernel of the fast IF synthesis (numba).
+"""Compiled per-mover kernels of the fast IF synthesis (numba).
 
 A moving scatterer's phase is expanded around every chirp's centre
 (:mod:`twinsense.radar.nufft`): per receiver, chirp and scatterer, the
@@ -14,6 +14,12 @@ The operations are those of the NumPy reference
 fastmath; the results are the same bits
 (``tests/radar/test_synthesis_kernels.py``). The static scatterers stay
 NumPy: their few long passes over contiguous arrays run faster vectorised.
+
+The 2-D mover path (``nufft.moving_chunk_2d``) has its per-block passes
+here too: :func:`leg_offsets`, :func:`block_coefficients_low` (the delay
+series and the phase coefficients per monomial, delay orders 1-3) and
+:func:`block_series` (the exp series of the per-scatterer rests), each with
+the bits of its NumPy form (``tests/radar/test_synthesis_block_kernels.py``).
 """
 
 from __future__ import annotations

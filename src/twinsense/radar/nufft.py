@@ -7,7 +7,9 @@ terms as a short Taylor series of extra NUFFT strength vectors
 (:func:`moving_chunk`, its per-scatterer terms compiled in
 :mod:`twinsense.radar.kernels`), or, where its estimated cost is lower, one
 2-D NUFFT over (slow time, fast time) per receiver and chirp group with the
-cross and curvature terms as Taylor strength vectors (:func:`moving_chunk_2d`).
+cross and curvature terms as Taylor strength vectors (:func:`moving_chunk_2d`;
+its per-block passes over the movers compiled in :mod:`twinsense.radar.kernels`,
+their NumPy forms kept as references with ``compiled=False``).
 The model and the exact reference are in :mod:`twinsense.radar.synthesis`.
 """
 
