@@ -229,7 +229,7 @@ def levers_section(frames: int = 43) -> None:
     from twinsense.capacitive.amg import BlockAMG
     from twinsense.capacitive.pcg import block_pcg
     from twinsense.capacitive.tactile import make_tactile
-    from twinsense.capacitive.tactile.framesolver import _split
+    from twinsense.capacitive.tactile.framesolver import system_blocks
     from twinsense.capacitive.tactile.readout import AD7147_READOUT
 
     lsb = AD7147_READOUT.resolution
@@ -241,17 +241,7 @@ def levers_section(frames: int = 43) -> None:
     solve = es.solve
 
     def recording():
-        sysm = es.system
-        fixed = sysm.fixed_mask()
-        terms = sysm.all_terminals()
-        column = np.full(len(fixed), -1, np.int64)
-        for j, nodes in enumerate(terms):
-            column[nodes] = j
-        A, K, B = _split(sysm, fixed, column, len(terms))
-        X_fixed = np.zeros_like(B)
-        for j, nodes in enumerate(terms):
-            X_fixed[nodes, j] = 1.0
-        recorded.append((A, K, B, fixed, X_fixed))
+        recorded.append(system_blocks(es.system))
         return solve()
 
     es.solve = recording

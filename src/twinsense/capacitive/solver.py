@@ -23,7 +23,8 @@ from twinsense.capacitive.amg import BlockAMG
 from twinsense.capacitive.pcg import block_pcg
 from twinsense.errors import ConfigError
 
-__all__ = ["MAX_ENERGY_TOL", "PRECONDITIONERS", "PCGSolver", "SolveInfo", "SolverConfig", "block_pcg"]
+__all__ = ["MAX_ENERGY_TOL", "PRECONDITIONERS", "PCGSolver", "SolveInfo", "SolverConfig", "block_pcg",
+           "energy_tolerance"]
 
 PRECONDITIONERS = ("amg", "jacobi")
 
@@ -241,6 +242,20 @@ class MaxwellResult:
     rebuilt: bool
 
 
+
+def energy_tolerance(config: SolverConfig, energy: np.ndarray) -> float:
+    """The energy rule's relative tolerance: ``energy_tol``, or looser by ``capacitance_atol``.
+
+    Each column stops when its estimated error is below ``tol * E_j`` (``E_j``
+    its energy, the terminal's capacitance); with ``tol = atol / max_j E_j``
+    that is below ``atol`` for every column. Never looser than ``MAX_ENERGY_TOL``.
+    """
+    atol = config.capacitance_atol or 0.0
+    top = float(np.max(energy)) if len(energy) else 0.0
+    if config.energy_tol == 0 or atol == 0 or not top > 0:
+        return config.energy_tol
+    return max(config.energy_tol, min(atol / top, MAX_ENERGY_TOL))
+
 class MaxwellSolver:
     """Maxwell-matrix solves of an ElectrostaticSystem, warm-started frame to frame.
 
@@ -307,18 +322,7 @@ class MaxwellSolver:
         self.pcg.invalidate()
 
     def _energy_tol(self, energy: np.ndarray) -> float:
-        """The energy rule's relative tolerance: ``energy_tol``, or looser by ``capacitance_atol``.
-
-        Each column stops when its estimated error is below ``tol * E_j`` (``E_j``
-        its energy, the terminal's capacitance); with ``tol = atol / max_j E_j``
-        that is below ``atol`` for every column.
-        """
-        cfg = self.config
-        atol = cfg.capacitance_atol or 0.0
-        top = float(np.max(energy)) if len(energy) else 0.0
-        if cfg.energy_tol == 0 or atol == 0 or not top > 0:
-            return cfg.energy_tol
-        return max(cfg.energy_tol, min(atol / top, MAX_ENERGY_TOL))
+        return energy_tolerance(self.config, energy)
 
     def solve(self) -> MaxwellResult:
         """Solve for every terminal and return the capacitances."""

@@ -41,7 +41,7 @@ import scipy.sparse as sp
 from twinsense.capacitive.amg import BlockAMG
 from twinsense.capacitive.fem import reduce_floating
 from twinsense.capacitive.pcg import _EnergyTail
-from twinsense.capacitive.solver import MAX_ENERGY_TOL, MaxwellResult, SolverConfig
+from twinsense.capacitive.solver import MaxwellResult, SolverConfig, energy_tolerance
 from twinsense.capacitive.tactile.kernels import (
     amg_down,
     amg_up,
@@ -102,6 +102,23 @@ class _CompiledCycle:
         return Xc
 
 
+
+def system_blocks(sysm) -> tuple:
+    """(A, K, B, fixed, X_fixed) of an electrostatic system: the free block with
+    identity rows at the fixed nodes, the full stiffness, the right-hand sides
+    (one column per terminal), the fixed-node mask (n,) and the fixed potentials
+    (n, terminals) [V], each terminal at 1 V in its own column."""
+    fixed = sysm.fixed_mask()
+    terms = sysm.all_terminals()
+    column = np.full(len(fixed), -1, np.int64)
+    for j, nodes in enumerate(terms):
+        column[nodes] = j
+    A, K, B = _split(sysm, fixed, column, len(terms))
+    X_fixed = np.zeros_like(B)
+    for j, nodes in enumerate(terms):
+        X_fixed[nodes, j] = 1.0
+    return A, K, B, fixed, X_fixed
+
 class FrameSolver:
     """Maxwell-matrix solves of an ElectrostaticSystem, warm-started frame to frame, in compiled loops.
 
@@ -151,17 +168,8 @@ class FrameSolver:
         self._ml = None
 
     def _energy_tol(self, energy: np.ndarray) -> float:
-        """The energy rule's relative tolerance, as :class:`MaxwellSolver` sets it.
-
-        ``energy_tol``, or looser by ``capacitance_atol``: ``atol / max_j E_j``
-        (``E_j`` the column energies), never looser than ``MAX_ENERGY_TOL``.
-        """
-        cfg = self.config
-        atol = cfg.capacitance_atol or 0.0
-        top = float(np.max(energy)) if len(energy) else 0.0
-        if cfg.energy_tol == 0 or atol == 0 or not top > 0:
-            return cfg.energy_tol
-        return max(cfg.energy_tol, min(atol / top, MAX_ENERGY_TOL))
+        """The energy rule's relative tolerance, as :class:`MaxwellSolver` sets it."""
+        return energy_tolerance(self.config, energy)
 
     def _preconditioner(self, A, free: np.ndarray):
         """(callable (R, rz) -> Z, rebuilt): the masked preconditioner and whether the AMG was rebuilt."""
@@ -186,15 +194,7 @@ class FrameSolver:
         """Solve for every terminal and return the capacitances."""
         sysm = self.system
         cfg = self.config
-        fixed = sysm.fixed_mask()
-        terms = sysm.all_terminals()
-        column = np.full(len(fixed), -1, np.int64)
-        for j, nodes in enumerate(terms):
-            column[nodes] = j
-        A, K, B = _split(sysm, fixed, column, len(terms))
-        X_fixed = np.zeros_like(B)
-        for j, nodes in enumerate(terms):
-            X_fixed[nodes, j] = 1.0
+        A, K, B, fixed, X_fixed = system_blocks(sysm)
         t = B.shape[1]
         X0 = X_fixed.copy()
         if self._X is not None:
