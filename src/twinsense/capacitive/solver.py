@@ -24,7 +24,7 @@ from twinsense.capacitive.pcg import block_pcg
 from twinsense.errors import ConfigError
 
 __all__ = ["MAX_ENERGY_TOL", "PRECONDITIONERS", "PCGSolver", "SolveInfo", "SolverConfig", "block_pcg",
-           "energy_tolerance"]
+           "energy_tolerance", "warm_start"]
 
 PRECONDITIONERS = ("amg", "jacobi")
 
@@ -243,6 +243,18 @@ class MaxwellResult:
 
 
 
+def warm_start(X_fixed: np.ndarray, fixed: np.ndarray, previous: np.ndarray | None) -> np.ndarray:
+    """Start potentials (n, t) [V]: the previous solution's columns (as many as
+    both have) on the free nodes, the fixed potentials ``X_fixed`` on the fixed
+    nodes (mask ``fixed``, (n,)); ``X_fixed`` itself without a previous solution."""
+    X0 = X_fixed.copy()
+    if previous is not None:
+        k = min(X0.shape[1], previous.shape[1])
+        X0[:, :k] = previous[:, :k]
+        X0[fixed] = X_fixed[fixed]
+    return X0
+
+
 def energy_tolerance(config: SolverConfig, energy: np.ndarray) -> float:
     """The energy rule's relative tolerance: ``energy_tol``, or looser by ``capacitance_atol``.
 
@@ -343,12 +355,7 @@ class MaxwellSolver:
             A, B, fixed, X_fixed = cond.reduced_system()
         else:
             A, B, fixed, X_fixed = sysm.system()
-        t = B.shape[1]
-        X0 = X_fixed.copy()
-        if self._X is not None:
-            k = min(t, self._X.shape[1])
-            X0[:, :k] = self._X[:, :k]
-            X0[fixed] = X_fixed[fixed]
+        X0 = warm_start(X_fixed, fixed, self._X)
         if cond is not None:
             energy = cond.energies(X0)
         else:

@@ -41,7 +41,7 @@ import scipy.sparse as sp
 from twinsense.capacitive.amg import BlockAMG
 from twinsense.capacitive.fem import reduce_floating
 from twinsense.capacitive.pcg import _EnergyTail
-from twinsense.capacitive.solver import MaxwellResult, SolverConfig, energy_tolerance
+from twinsense.capacitive.solver import MaxwellResult, SolverConfig, energy_tolerance, warm_start
 from twinsense.capacitive.tactile.kernels import (
     amg_down,
     amg_up,
@@ -196,11 +196,7 @@ class FrameSolver:
         cfg = self.config
         A, K, B, fixed, X_fixed = system_blocks(sysm)
         t = B.shape[1]
-        X0 = X_fixed.copy()
-        if self._X is not None:
-            k = min(t, self._X.shape[1])
-            X0[:, :k] = self._X[:, :k]
-            X0[fixed] = X_fixed[fixed]
+        X0 = warm_start(X_fixed, fixed, self._X)
         energy = np.empty(t)
         KX = np.empty_like(X0)
         block_product(K.indptr, K.indices, K.data, X0, KX, energy)
