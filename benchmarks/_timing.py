@@ -28,6 +28,20 @@ def best_and_median(fn, repeats: int = 7) -> tuple[float, float]:
     return min(times), float(np.median(times))
 
 
+def timed_frames(fn, frames: int) -> tuple[float, float, float]:
+    """(best, median) wall seconds and the median process CPU seconds (every thread)
+    of fn(k) for k = 1..frames, after fn(0) as a warm-up (CPU time holds better
+    than wall time when other jobs share the cores)."""
+    fn(0)
+    wall, cpu = [], []
+    for k in range(1, frames + 1):
+        c0, t0 = time.process_time(), time.perf_counter()
+        fn(k)
+        wall.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
+    return min(wall), float(np.median(wall)), float(np.median(cpu))
+
+
 def print_machine() -> None:
     """Machine, versions and the load average (1, 5, 15 min) at the start of the run."""
     import scipy

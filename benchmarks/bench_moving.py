@@ -30,7 +30,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _timing import embree_anchor, print_anchor, print_load_at_end, print_machine
+from _timing import embree_anchor, print_anchor, print_load_at_end, print_machine, timed_frames
 
 from twinsense.demos.office import SENSOR_EYE, SENSOR_TARGET, build_office_scene, sensor_pose
 from twinsense.radar import FMCWRadar
@@ -39,19 +39,6 @@ from twinsense.scene import Mount, Pose
 from twinsense.tof import ToFCamera
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def timed(fn, frames: int) -> tuple[float, float, float]:
-    """(best, median) wall seconds and the median process CPU seconds (every thread)
-    of fn(k) for k = 1..frames after fn(0) as a warm-up."""
-    fn(0)
-    times, cpus = [], []
-    for k in range(1, frames + 1):
-        c0, t0 = time.process_time(), time.perf_counter()
-        fn(k)
-        times.append(time.perf_counter() - t0)
-        cpus.append(time.process_time() - c0)
-    return min(times), float(np.median(times)), float(np.median(cpus))
 
 
 def report(label: str, best: float, median: float, cpu: float, anchor: float) -> None:
@@ -79,13 +66,13 @@ def office(frames: int) -> None:
         cam.mount = Mount(Pose.look_at(SENSOR_EYE, np.add(SENSOR_TARGET, (0.0, 1e-3 * k, 0.0))))
         cam.capture(scene, 1.0 + k / 45.0, rng)
 
-    report("ToF pmd_pico_flexx, camera moving every frame", *timed(tof_frame, frames), anchor)
+    report("ToF pmd_pico_flexx, camera moving every frame", *timed_frames(tof_frame, frames), anchor)
 
     radar = FMCWRadar.preset("paper_bgt60tr13c", mount=Mount(sensor_pose()), reuse_static=False)
     r = radar_rays(radar, sensor_pose())
     _, anchor = embree_anchor(scene, "radar", 1.5, r.origins, r.directions, repeats=15)
     report("radar paper_bgt60tr13c, from scratch (nothing kept)",
-           *timed(lambda k: radar.capture(scene, 1.0 + k / 30.0, np.random.default_rng(k)), frames), anchor)
+           *timed_frames(lambda k: radar.capture(scene, 1.0 + k / 30.0, np.random.default_rng(k)), frames), anchor)
 
 
 def robot_cell(frames: int) -> None:
@@ -107,7 +94,7 @@ def robot_cell(frames: int) -> None:
     _, anchor = embree_anchor(scene, "tof", t_of[1], rays.origins, rays.directions, repeats=15)
     report(f"wrist ToF ({tof.config.width} x {tof.config.height}, {tof.config.supersample} x "
            f"{tof.config.supersample} sub-pixels), on the moving arm",
-           *timed(lambda k: tof.capture(scene, t_of[k], rng), frames), anchor)
+           *timed_frames(lambda k: tof.capture(scene, t_of[k], rng), frames), anchor)
     tof_stages(scene, tof, t_of[1:], anchor)
     movers_world_bvh(scene, tof, t_of[1:])
 
@@ -119,7 +106,7 @@ def robot_cell(frames: int) -> None:
     _, anchor = embree_anchor(scene, "radar", t_of[1], r.origins, r.directions, repeats=15)
     n = max(2, frames // 4)  # every scatterer moves with the arm: seconds per frame
     report(f"radar paper_bgt60tr13c on the moving wrist ({n} frames)",
-           *timed(lambda k: radar.capture(scene, t_of[k], np.random.default_rng(k)), n), anchor)
+           *timed_frames(lambda k: radar.capture(scene, t_of[k], np.random.default_rng(k)), n), anchor)
     wrist_synthesis(radar, scene, t_of[1], anchor)
 
 
@@ -249,25 +236,25 @@ def wrist_synthesis(radar: FMCWRadar, scene, t: float, anchor: float) -> None:
         def run(*_, cfg=cfg):
             return synthesis_module.synthesize(p, v, w, cfg, eps=eps, workers=workers)
 
-        after = timed(run, repeats)
+        after = timed_frames(run, repeats)
         # The 2-D path with its per-block expansion in NumPy (the compiled passes' reference).
         saved = nufft_module._plan_block, nufft_module._run_block, nufft_module._Leg
         nufft_module._plan_block = functools.partial(saved[0], compiled=False)
         nufft_module._run_block = functools.partial(saved[1], compiled=False)
         nufft_module._Leg = functools.partial(lambda *a, leg=saved[2]: leg(*a[:5], compiled=False))
         try:
-            numpy_blocks = timed(run, repeats)
+            numpy_blocks = timed_frames(run, repeats)
         finally:
             nufft_module._plan_block, nufft_module._run_block, nufft_module._Leg = saved
         two_d = synthesis_module.moving_chunk_2d
         synthesis_module.moving_chunk_2d = lambda *a, **k: None  # the per-chirp path everywhere
         try:
             ref = run()
-            before = timed(run, repeats)
+            before = timed_frames(run, repeats)
         finally:
             synthesis_module.moving_chunk_2d = two_d
         err = np.linalg.norm(run() - ref) / np.linalg.norm(ref)
-        static = timed(lambda *_, cfg=cfg: synthesis_module.synthesize(
+        static = timed_frames(lambda *_, cfg=cfg: synthesis_module.synthesize(
             p, None, w, cfg, eps=eps, workers=workers), repeats)
         print(f"  wrist radar synthesis alone, {len(p)} scatterers, all moving, {num_chirps} chirps "
               f"(workers={workers}); after vs before: relative difference {err:.1e}")

@@ -42,6 +42,7 @@ from _timing import (
     print_load_at_end,
     print_machine,
     skfem_pyamg_anchor,
+    timed_frames,
 )
 
 from twinsense.demos.robot_cell import PERSON, ROBOT, build_arm_cell, build_arm_cell_scene, build_arm_cell_sensors
@@ -57,18 +58,6 @@ T0 = 0.9  # [s] the arm between pick and lift, the person walking in
 T_REACH = 3.2  # [s] the person's hand at the forearm (3.2 to 3.7 s): the skin's map changes every frame
 
 
-def timed(fn, frames: int) -> tuple[float, float, float]:
-    """(best, median) wall seconds and median process CPU seconds of fn(k), k = 1..frames, after fn(0)."""
-    fn(0)
-    wall, cpu = [], []
-    for k in range(1, frames + 1):
-        c0, t0 = time.process_time(), time.perf_counter()
-        fn(k)
-        wall.append(time.perf_counter() - t0)
-        cpu.append(time.process_time() - c0)
-    return min(wall), float(np.median(wall)), float(np.median(cpu))
-
-
 def report(label: str, best: float, median: float, cpu: float, anchor: float, target: float) -> None:
     fps = 1 / median
     print(f"  {label:<52s} {best * 1e3:7.1f} ms best {median * 1e3:7.1f} ms median -> {fps:6.1f} frames/s "
@@ -82,7 +71,7 @@ def wrist_tof(scene, tof, frames: int, label: str) -> None:
     rays = tof._renderer.rays(pose.rotation, pose.position)
     _, anchor = embree_anchor(scene, "tof", times[1], rays.origins, rays.directions, repeats=9)
     rng = np.random.default_rng(0)
-    report(label, *timed(lambda k: tof.capture(scene, times[k], rng), frames), anchor, 60.0)
+    report(label, *timed_frames(lambda k: tof.capture(scene, times[k], rng), frames), anchor, 60.0)
 
 
 def wrist_radar(scene, frames: int) -> None:
@@ -94,14 +83,14 @@ def wrist_radar(scene, frames: int) -> None:
     rays = PinholeCamera.from_fov(cfg.render_width, cfg.render_height, cfg.hfov_deg, cfg.vfov_deg).rays(pose)
     _, anchor = embree_anchor(scene, "radar", times[1], rays.origins, rays.directions, repeats=9)
     report(f"radar paper_bgt60tr13c on the moving flange ({cfg.render_width} x {cfg.render_height} rays)",
-           *timed(lambda k: radar.capture(scene, times[k], np.random.default_rng(k)), frames), anchor, 30.0)
+           *timed_frames(lambda k: radar.capture(scene, times[k], np.random.default_rng(k)), frames), anchor, 30.0)
 
 
 def skin_frames(scene, skin, frames: int, t0: float = T0, label: str = "") -> None:
     """The forearm skin alone at its 20 frames/s from ``t0`` [s], prepared for those times as ``simulate`` does."""
     times = [t0 + k / 20.0 for k in range(frames + 1)]
     skin.prepare(scene, times)
-    best, med, cpu = timed(lambda k: skin.capture(scene, times[k], None), frames)
+    best, med, cpu = timed_frames(lambda k: skin.capture(scene, times[k], None), frames)
     lm = skin.layout_mesh
     print(f"  skin pad-grid on the moving forearm{label} ({lm.mesh.n_cells} cells): {best * 1e3:7.1f} ms best "
           f"{med * 1e3:7.1f} ms median -> {1 / med:6.1f} frames/s (its rate 20: "
