@@ -125,6 +125,19 @@ def leg_offsets(pos, vel, t_mid, element, t_span, d, r0, y):  # pragma: no cover
 
 
 @jit
+def _leg_terms(d, vel, i):  # pragma: no cover
+    """Row i's Taylor terms 0-3 of |d + vel t| (nufft._leg_series, same operations) [m, m/s, ...]."""
+    d0, d1, d2 = d[i, 0], d[i, 1], d[i, 2]
+    w0, w1, w2 = vel[i, 0], vel[i, 1], vel[i, 2]
+    l0 = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    half_inv = 0.5 / l0
+    l1 = (2.0 * (d0 * w0 + d1 * w1 + d2 * w2)) * half_inv
+    l2 = ((w0 * w0 + w1 * w1 + w2 * w2) - l1 * l1) * half_inv
+    l3 = (-(l1 * l2) - l2 * l1) * half_inv
+    return l0, l1, l2, l3
+
+
+@jit
 def block_coefficients_low(d_tx, v_tx, d_rx, v_rx, order, inv_c, two_pi_fc, pi_s, two_pi_s,
                            span, factor, coeffs, acc):  # pragma: no cover
     """Per scatterer of a 2-D block, for delay orders 1 to 3: both legs' Taylor series of
@@ -141,20 +154,8 @@ def block_coefficients_low(d_tx, v_tx, d_rx, v_rx, order, inv_c, two_pi_fc, pi_s
     order 3 (0,4), (1,3), (2,2), (3,0), (3,1).
     """
     for i in range(d_tx.shape[0]):
-        d0, d1, d2 = d_tx[i, 0], d_tx[i, 1], d_tx[i, 2]
-        w0, w1, w2 = v_tx[i, 0], v_tx[i, 1], v_tx[i, 2]
-        e0 = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        half_inv = 0.5 / e0
-        e1 = (2.0 * (d0 * w0 + d1 * w1 + d2 * w2)) * half_inv
-        e2 = ((w0 * w0 + w1 * w1 + w2 * w2) - e1 * e1) * half_inv
-        e3 = (-(e1 * e2) - e2 * e1) * half_inv
-        d0, d1, d2 = d_rx[i, 0], d_rx[i, 1], d_rx[i, 2]
-        w0, w1, w2 = v_rx[i, 0], v_rx[i, 1], v_rx[i, 2]
-        f0 = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        half_inv = 0.5 / f0
-        f1 = (2.0 * (d0 * w0 + d1 * w1 + d2 * w2)) * half_inv
-        f2 = ((w0 * w0 + w1 * w1 + w2 * w2) - f1 * f1) * half_inv
-        f3 = (-(f1 * f2) - f2 * f1) * half_inv
+        e0, e1, e2, e3 = _leg_terms(d_tx, v_tx, i)
+        f0, f1, f2, f3 = _leg_terms(d_rx, v_rx, i)
         t0 = (e0 + f0) * inv_c
         t1 = (e1 + f1) * inv_c
         t2 = (e2 + f2) * inv_c
