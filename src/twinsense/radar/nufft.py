@@ -487,7 +487,7 @@ def _poly_mul(p: dict, q: dict, keep: set | None = None) -> dict:
 
 
 def _exp_series_2d(bounds: dict[tuple[int, int], float], order: int,
-                   tol: float) -> tuple[set, float]:
+                   tol: float) -> tuple[dict[tuple[int, int], float], float]:
     """Monomials to keep of sum_{k<=order} (j R)^k / k!, R = sum r_ij U^i V^j with |r_ij| <= bounds.
 
     The majorant series (the same sums with |r_ij| replaced by their bounds)
