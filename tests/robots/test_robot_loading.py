@@ -168,6 +168,8 @@ def test_format_loaders_take_installed_names():
         load_urdf("panda-mjcf")  # an MJCF robot: load_mjcf or load_robot
     with pytest.raises(UnknownNameError, match="panda-mjcf, ur5e-mjcf"):
         load_mjcf("ur5")
+    with pytest.raises(ConfigError, match=r"urdf.path = 123.*ur3"):
+        load_urdf(123)  # neither a path nor a name
 
 
 def test_ray_hits_on_a_moving_robot_link_carry_its_analytic_velocity():

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from twinsense.errors import UnknownNameError
+from twinsense.errors import ConfigError, UnknownNameError
 from twinsense.robots.paths import example_robot_data_share, robosuite_robots_dir
 
 
@@ -58,4 +59,7 @@ def resolve(path_or_name, fmt: str) -> Path:
         if d.fmt != fmt:
             raise UnknownNameError(f"{fmt} robot", path_or_name, [n for n, r in ROBOTS.items() if r.fmt == fmt])
         return d.path()
+    if not isinstance(path_or_name, (str, os.PathLike)):  # Path() would raise a bare TypeError
+        raise ConfigError(f"{fmt}.path", path_or_name, f"a {fmt.upper()} file path or an installed robot's name: "
+                          + ", ".join(n for n, r in ROBOTS.items() if r.fmt == fmt))
     return Path(path_or_name)
