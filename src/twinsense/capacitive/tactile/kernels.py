@@ -166,18 +166,25 @@ def cholesky_columns(c, lower, B, X):  # pragma: no cover - compiled
 
 
 @jit
+def _residual_row(indptr, indices, data, B, X, i, R, row):  # pragma: no cover - compiled
+    """Row ``i`` of ``B - A X`` into ``R[row]``: the one residual loop of the kernels below."""
+    c = X.shape[1]
+    for k in range(c):
+        R[row, k] = B[i, k]
+    for p in range(indptr[i], indptr[i + 1]):
+        j = indices[p]
+        a = data[p]
+        for k in range(c):
+            R[row, k] -= a * X[j, k]
+
+
+@jit
 def block_residual(indptr, indices, data, B, X, R, rr):  # pragma: no cover - compiled
     """``R = B - A X`` for a CSR ``A`` (n, n) and blocks (n, c); ``rr[k] = |R[:, k]|^2``."""
     n, c = X.shape
     rr[:] = 0.0
     for i in range(n):
-        for k in range(c):
-            R[i, k] = B[i, k]
-        for p in range(indptr[i], indptr[i + 1]):
-            j = indices[p]
-            a = data[p]
-            for k in range(c):
-                R[i, k] -= a * X[j, k]
+        _residual_row(indptr, indices, data, B, X, i, R, i)
         for k in range(c):
             rr[k] += R[i, k] * R[i, k]
 
@@ -240,20 +247,14 @@ def amg_down(indptr, indices, data, d, B, X, p_indptr, p_indices, p_data, Rc):  
         for k in range(c):
             X[i, k] = d[i] * B[i, k]
     Rc[:] = 0.0
-    r = np.empty(c)
+    r = np.empty((1, c))
     for i in range(n):
-        for k in range(c):
-            r[k] = B[i, k]
-        for p in range(indptr[i], indptr[i + 1]):
-            j = indices[p]
-            a = data[p]
-            for k in range(c):
-                r[k] -= a * X[j, k]
+        _residual_row(indptr, indices, data, B, X, i, r, 0)
         for q in range(p_indptr[i], p_indptr[i + 1]):
             col = p_indices[q]
             w = p_data[q]
             for k in range(c):
-                Rc[col, k] += w * r[k]
+                Rc[col, k] += w * r[0, k]
 
 
 @jit
@@ -271,13 +272,7 @@ def amg_up(indptr, indices, data, d, B, X, p_indptr, p_indices, p_data, Xc, mask
             for k in range(c):
                 X[i, k] += w * Xc[col, k]
     for i in range(n):
-        for k in range(c):
-            T[i, k] = B[i, k]
-        for p in range(indptr[i], indptr[i + 1]):
-            j = indices[p]
-            a = data[p]
-            for k in range(c):
-                T[i, k] -= a * X[j, k]
+        _residual_row(indptr, indices, data, B, X, i, T, i)
     rz[:] = 0.0
     for i in range(n):
         for k in range(c):
