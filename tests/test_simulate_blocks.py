@@ -13,6 +13,7 @@ import h5py
 import numpy as np
 import pytest
 
+from twinsense.errors import ConfigError
 from twinsense.magnetic import HallSwitch, MagneticSensor
 from twinsense.scene import Box, ConstantVelocity, Keyframes, Magnet, Mount, Oscillation, Pose, Scene
 from twinsense.simulate import _runs, simulate
@@ -102,3 +103,14 @@ def test_a_stop_request_inside_a_block_keeps_the_frames_before_it():
     with pytest.raises(KeyboardInterrupt):
         simulate(scene(), sensors(MagneticSensor)[:1], 0.01, None, stop=stop, on_frame=lambda s, f: kept.append(f))
     assert len(kept) == 4  # the frames before the fifth stop check, as one capture after another
+
+
+def test_a_block_of_the_wrong_length_is_refused():
+    # A capture_frames that gives fewer frames than times would otherwise lose frames without a word.
+    class Short(MagneticSensor):
+        def capture_frames(self, scene, times, rng):
+            return super().capture_frames(scene, times, rng)[:-1]
+
+    s = Short.preset("hall_array8", name="array", mount=Mount(Pose()), frame_rate=10_000.0)
+    with pytest.raises(ConfigError, match=r"array.capture_frames = '1 frames'.*2 times"):
+        simulate(scene(), [s], 2e-4, None, seed=1)

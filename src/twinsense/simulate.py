@@ -338,7 +338,11 @@ def _capture(scene: Scene, sensor, times: list[float], rng) -> list:
     ``capture_frames`` (the same frames and random draws as one capture after another).
     """
     if len(times) > 1:
-        return sensor.capture_frames(scene, times, rng)
+        frames = sensor.capture_frames(scene, times, rng)
+        if len(frames) != len(times):  # the writer pairs frames with times: a short block would lose frames
+            raise ConfigError(f"{sensor.name}.capture_frames", f"{len(frames)} frames",
+                              f"one frame per time ({len(times)} times)")
+        return frames
     return [sensor.capture(scene, times[0], rng)]
 
 
