@@ -97,20 +97,11 @@ def test_rotate_rows_gives_the_bits_of_the_numpy_form():
     np.testing.assert_array_equal(rotate_rows(v, m), numpy_rotate(v, m))
 
 
-def test_direction_cone_holds_every_direction():
-    from twinsense.render.kernels import direction_cone
-
-    _, d = _rays(2000, True)
-    axis, cos_half = direction_cone(d)
-    assert abs(np.linalg.norm(axis) - 1.0) < 1e-12
-    assert np.all(d @ axis >= cos_half) and cos_half > 0.0  # the bundle is within a hemisphere
-
-
 def test_chunks_skipped_by_their_cone_give_the_hits_of_the_same_objects_at_rest():
     # Small moving objects all around a wide camera (in front, beside, behind,
-    # one passing the camera itself): the caster skips a (chunk, object) pair
-    # when the object's bounding sphere lies outside the cone of the chunk's
-    # rays. The hits must be those of a scene with the same objects fixed at
+    # one passing the camera itself): the caster skips a (block of rays, object)
+    # pair when the object's cone lies outside the cone of the block's rays
+    # (kernels.cull_objects_into_frames). The hits must be those of a scene with the same objects fixed at
     # their poses at t (no culling at all for static objects): same objects
     # hit, distances within float64 rounding of the two frames (1e-9 m).
     from twinsense import Box, ConstantVelocity, PinholeCamera, Scene, Sphere, cast

@@ -18,7 +18,6 @@ static hits.
 
 from __future__ import annotations
 
-import math
 import weakref
 from collections.abc import Iterable
 from concurrent.futures import Future
@@ -33,7 +32,6 @@ from twinsense.render.kernels import (
     block_cones,
     cull_into_frame,
     cull_objects_into_frames,
-    direction_cone,
     object_wins,
 )
 from twinsense.render.parallel import default_workers, pool
@@ -215,11 +213,10 @@ class SceneCaster:
                     obj, np.take(self._mat_lut, obj + 1), tri, velocity)
         return rows, hits
 
-    def _moving_changes(self, o, d, states, dist, threads, update=True, cone=None,
+    def _moving_changes(self, o, d, states, dist, threads, update=True,
                         blocks=None) -> list[tuple]:
         """Trace the rays near each moving object; ``dist`` is updated where one is
         nearer (unless ``update`` is False: one object, nothing to cull against).
-        ``cone``: (axis, cos half-angle) around all of ``d`` (rays from one origin), or None;
         ``blocks``: :func:`~twinsense.render.kernels.block_cones` of ``d`` (rays from one
         origin), or None.
 
@@ -237,8 +234,6 @@ class SceneCaster:
             # Cull: only rays that pass through the object's bounding sphere
             # before their current closest hit can hit it.
             centre = pos + rot @ self._moving_centre[k]
-            if cone is not None and _outside_cone(centre - o[0], self._moving_radius[k], *cone):
-                continue
             lo, hi = self._moving_box[k]
             # Both culls and the move into the object's frame in one compiled
             # pass (the same tests as culling.rays_near_sphere / rays_hit_box).
@@ -343,10 +338,8 @@ class SceneCaster:
         dist[:] = dist_s
         obj[:] = obj_s
         # Moving objects, in order; a later one that is nearer overwrites.
-        # From one origin, the cones around blocks of rays (or, without them, the
-        # cone around this chunk's directions) let most objects skip most rays.
-        cone = direction_cone(d) if states and len(d) and o.strides[0] == 0 and blocks is None else None
-        changes = self._moving_changes(o, d, states, dist, threads, cone=cone, blocks=blocks) if states else []
+        # From one origin, the cones around blocks of rays let most objects skip most rays.
+        changes = self._moving_changes(o, d, states, dist, threads, blocks=blocks) if states else []
         for rows, i, *_ in changes:
             obj[rows] = i
         if "triangle_id" in out:
@@ -390,6 +383,8 @@ class SceneCaster:
 _MEMOS = 4  # ray bundles whose static hits are kept
 _CHUNK = 16384  # rays per task: a chunk's per-ray arrays stay in a core's L2 cache
 _PARALLEL_MIN_RAYS = 2 * _CHUNK
+
+
 def _resolve(future: Future, fn) -> None:
     """Set ``future`` to ``fn()``, or to the exception it raises (the waiting chunks raise it)."""
     try:
@@ -405,18 +400,6 @@ def _frozen(a: np.ndarray) -> bool:
             return False
         a = a.base
     return True
-
-
-def _outside_cone(w: np.ndarray, radius: float, axis: np.ndarray, cos_half: float) -> bool:
-    """True if no ray from the origin within the cone (axis, cos half-angle) can meet the
-    sphere of ``radius`` around the origin + ``w``: the angle from the axis to w exceeds
-    the cone's half-angle plus the sphere's angular radius (a margin of 1e-9 rad)."""
-    dist = math.sqrt(float(w @ w))
-    if dist <= radius * (1.0 + 1e-9) or cos_half <= -1.0:
-        return False
-    to_centre = math.acos(max(-1.0, min(1.0, float(w @ axis) / dist)))
-    half = math.acos(max(-1.0, min(1.0, cos_half)))
-    return to_centre > half + math.asin(min(1.0, radius / dist)) + 1e-9
 
 
 def _dot_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:

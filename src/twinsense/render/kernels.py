@@ -341,35 +341,6 @@ def rotate_rows(v, m):  # pragma: no cover
 
 
 @jit
-def direction_cone(d):  # pragma: no cover
-    """A cone around unit directions d (n, 3): its axis (3,) and the cosine of its half-angle.
-
-    Every direction is within the half-angle of the axis (the minimum of d . axis,
-    lowered by 1e-12 to cover rounding). An empty bundle gives a zero cone (cosine 2).
-    """
-    n = d.shape[0]
-    s0 = s1 = s2 = 0.0
-    for i in range(n):
-        s0 += d[i, 0]
-        s1 += d[i, 1]
-        s2 += d[i, 2]
-    norm = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
-    axis = np.zeros(3)
-    if n == 0:
-        return axis, 2.0
-    if norm == 0.0:  # directions that cancel: the whole sphere
-        axis[2] = 1.0
-        return axis, -1.0
-    axis[0], axis[1], axis[2] = s0 / norm, s1 / norm, s2 / norm
-    lowest = 1.0
-    for i in range(n):
-        c = d[i, 0] * axis[0] + d[i, 1] * axis[1] + d[i, 2] * axis[2]
-        if c < lowest:
-            lowest = c
-    return axis, lowest - 1e-12
-
-
-@jit
 def _grown(sel, ol, dl, k, cap):  # pragma: no cover
     """Copies of the first k rows of sel (n,) and ol, dl (n, 3) in buffers of ``cap`` rows."""
     sel2 = np.empty(cap, np.int64)
