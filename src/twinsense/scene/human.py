@@ -654,8 +654,9 @@ class PersonMotion:
         """
         t = check_time(t)
         key = (t, reach)
-        if self._last is not None and self._last[0] == key:
-            return self._last[1]
+        last = self._last  # read once: another thread may replace it between the test and the read
+        if last is not None and last[0] == key:
+            return last[1]
         plan = self._plan(t, reach)
         rz = _rot_z(plan.yaw)
         rot = rz @ _rot_x(plan.roll)
