@@ -30,9 +30,9 @@ class TactileConfig:
         frame rate (both must agree).
     solver : SolverConfig
         Default: the energy rule at 1e-5 of each terminal's capacitance, about
-        0.1 fF on the ~10 pF Tx rows over their shield and below 0.1 fF on the
+        0.2 fF on the 20-23 pF Tx rows over their shield and below 0.1 fF on the
         mutual channels (the geometric mean of the two diagonal errors), a
-        fifth of the converter noise; 1e-6 costs ~40 % more per moving frame.
+        fourth of the converter noise; 1e-6 costs ~40 % more per moving frame.
         The AMG hierarchy is rebuilt by the iteration rule only
         (``rebuild_rows=1``): a moving contact changes most rows every frame,
         and a rebuild per frame costs ~27 ms of CPU to save ~0.6 CG steps.
