@@ -242,7 +242,6 @@ class MaxwellResult:
     rebuilt: bool
 
 
-
 def warm_start(X_fixed: np.ndarray, fixed: np.ndarray, previous: np.ndarray | None) -> np.ndarray:
     """Start potentials (n, t) [V]: the previous solution's columns (as many as
     both have) on the free nodes, the fixed potentials ``X_fixed`` on the fixed
@@ -267,6 +266,7 @@ def energy_tolerance(config: SolverConfig, energy: np.ndarray) -> float:
     if config.energy_tol == 0 or atol == 0 or not top > 0:
         return config.energy_tol
     return max(config.energy_tol, min(atol / top, MAX_ENERGY_TOL))
+
 
 class MaxwellSolver:
     """Maxwell-matrix solves of an ElectrostaticSystem, warm-started frame to frame.

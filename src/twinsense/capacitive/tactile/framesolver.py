@@ -102,7 +102,6 @@ class _CompiledCycle:
         return Xc
 
 
-
 def system_blocks(sysm) -> tuple:
     """(A, K, B, fixed, X_fixed) of an electrostatic system: the free block with
     identity rows at the fixed nodes, the full stiffness, the right-hand sides
@@ -118,6 +117,7 @@ def system_blocks(sysm) -> tuple:
     for j, nodes in enumerate(terms):
         X_fixed[nodes, j] = 1.0
     return A, K, B, fixed, X_fixed
+
 
 class FrameSolver:
     """Maxwell-matrix solves of an ElectrostaticSystem, warm-started frame to frame, in compiled loops.
