@@ -157,7 +157,7 @@ LOOSEST_EPS = 1e-3  # the noise-derived tolerance never goes beyond this
 
 
 def noise_tolerance(points: np.ndarray, weights: np.ndarray, config: RadarConfig,
-                    eps: float = 1e-6, *, points_rx: np.ndarray | None = None,
+                    eps: float = DEFAULT_EPS, *, points_rx: np.ndarray | None = None,
                     noise_power: float | None = None, share: float = NOISE_SHARE,
                     workers: int = 1) -> float:
     """The synthesis tolerance the frame's receiver noise allows (never tighter than ``eps``).
