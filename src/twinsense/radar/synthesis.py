@@ -334,7 +334,11 @@ def synthesize(points: np.ndarray, velocities: np.ndarray | None, weights: np.nd
             # chunk then only covers the small spread of its chirp-phase
             # curvature around the chunk's mid-range (S x range rate), which
             # lowers its order when the whole scene moves (a moving radar).
-            mv = mv[np.argsort(_range_rate(p, v, mv) + _range_rate(pr, vr, mv), kind="stable")]
+            # (Monostatic: both legs' rates are the same, and 2 x a rate sorts as the rate.)
+            rate = _range_rate(p, v, mv)
+            if pr is not p or vr is not v:
+                rate = rate + _range_rate(pr, vr, mv)
+            mv = mv[np.argsort(rate, kind="stable")]
         pm, vm, wm = np.take(p, mv, axis=0), np.take(v, mv, axis=0), np.take(w, mv)
         prm = np.take(pr, mv, axis=0) if bistatic else None
         vrm = np.take(vr, mv, axis=0) if bistatic else None
