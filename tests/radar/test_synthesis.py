@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from twinsense.constants import SPEED_OF_LIGHT
+from twinsense.errors import ConfigError
 from twinsense.radar import (
     AntennaArray,
     ChirpConfig,
@@ -147,10 +148,18 @@ def test_receiver_phase_difference_gives_the_angle():
 
 def test_input_shapes_are_checked():
     cfg = _config()
-    with pytest.raises(ValueError, match=r"points must have shape \(n, 3\)"):
+    with pytest.raises(ConfigError, match=r"synthesize.points .*shape \(n, 3\)"):
         synthesize(np.zeros((2, 2)), None, np.ones(2), cfg)
-    with pytest.raises(ValueError, match=r"weights must have shape \(2,\)"):
+    with pytest.raises(ConfigError, match=r"synthesize.weights .*shape \(2,\)"):
         synthesize(np.ones((2, 3)), None, np.ones(3), cfg)
+    with pytest.raises(ConfigError, match=r"synthesize.velocities .*NaN"):
+        synthesize(np.ones((2, 3)), np.full((2, 3), np.nan), np.ones(2), cfg)
+    with pytest.raises(ConfigError, match=r"synthesize.points .*finite numbers"):
+        synthesize([["a", "b", "c"]], None, np.ones(1), cfg)
+    with pytest.raises(ConfigError, match=r"synthesize.velocities_rx"):
+        synthesize(np.ones((2, 3)), None, np.ones(2), cfg, velocities_rx=np.zeros((2, 3)))
+    with pytest.raises(ConfigError, match=r"synthesize.points_rx .*shape \(2, 3\)"):
+        synthesize(np.ones((2, 3)), None, np.ones(2), cfg, points_rx=np.zeros((3, 3)))
 
 
 def test_threaded_synthesis_gives_the_same_cube():
