@@ -204,3 +204,19 @@ def test_foxglove_bad_inputs_and_missing_extra(monkeypatch):
     monkeypatch.setitem(sys.modules, "foxglove", None)
     with pytest.raises(ImportError, match=r"twinsense\[stream\]"):
         FoxgloveSink(port=0).open(scenario(0.1).scene, [])
+
+
+def test_transforms_ride_on_the_next_frame_when_their_frame_is_dropped():
+    # Not opened: no sender thread takes frames off the queue (size 1), so a second send is dropped.
+    class S:
+        name, kind = "s", "x"
+
+    sink = FoxgloveSink(port=0, queue_size=1)
+    assert sink.send(S(), 0.0, "a") is True  # frame at 0 s carries that time's transforms
+    assert sink.send(S(), 0.1, "b") is False and sink.dropped == {"s": 1}  # dropped with 0.1 s's transforms
+    sink._queue.get_nowait()
+    assert sink.send(S(), 0.1, "c") is True
+    _, t, (frame, poses) = sink._queue.get_nowait()
+    # The frame that made it at 0.1 s carries the transforms (an empty list: no moving objects), not None.
+    assert (t, frame) == (0.1, "c") and poses == []
+    assert sink.send(S(), 0.1, "d") is True and sink._queue.get_nowait()[2][1] is None  # once per time

@@ -204,7 +204,7 @@ class FoxgloveSink(QueuedSink):
         return m.PointCloud(timestamp=self._stamp(ns), frame_id=frame_id, pose=pose,
                             point_stride=pts.dtype.itemsize, fields=fields, data=pts.tobytes())
 
-    def send(self, sensor, t: float, frame) -> None:
+    def send(self, sensor, t: float, frame) -> bool:
         # The moving objects' poses are taken here, on the simulation thread: the sender thread never
         # reads the scene (a motion may keep per-time state that is not safe to share between threads).
         t = float(t)
@@ -212,7 +212,11 @@ class FoxgloveSink(QueuedSink):
         if t != self._posed_t:
             poses = [(WORLD_FRAME, o.name, o.pose_at(t)) for o in getattr(self, "_moving", ())]
             self._posed_t = t
-        super().send(sensor, t, (frame, poses))
+        queued = super().send(sensor, t, (frame, poses))
+        if not queued and poses is not None:
+            # The frame that carried this time's transforms was dropped: the next frame at this time carries them.
+            self._posed_t = None
+        return queued
 
     def _transforms(self, poses: list, ns: int):
         m = self._m

@@ -76,14 +76,17 @@ class QueuedSink:
         self._thread = threading.Thread(target=self._run, name=f"twinsense-{self.name}-sender", daemon=True)
         self._thread.start()
 
-    def send(self, sensor, t: float, frame) -> None:
+    def send(self, sensor, t: float, frame) -> bool:
+        """Queue the frame for the sender thread; False (and counted) when it was dropped."""
         if self._closed or self.error is not None:
             self.dropped[sensor.name] = self.dropped.get(sensor.name, 0) + 1
-            return
+            return False
         try:
             self._queue.put_nowait((sensor, float(t), frame))
         except queue.Full:
             self.dropped[sensor.name] = self.dropped.get(sensor.name, 0) + 1
+            return False
+        return True
 
     def close(self) -> None:
         if self._closed:
