@@ -210,7 +210,7 @@ def test_exp_series_2d_skips_within_its_tolerance():
         assert np.max(np.abs(np.exp(1j * r) - series)) <= remainder + skipped + 1e-15
 
 
-@pytest.mark.parametrize("workers", [1, 2])
+@pytest.mark.parametrize("workers", [2, 3])
 def test_synthesize_with_the_2d_path_does_not_depend_on_workers(workers):
     cfg = _config(num_chirps=32, num_samples=64)
     rng = np.random.default_rng(3)
