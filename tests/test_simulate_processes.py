@@ -9,6 +9,7 @@ import multiprocessing
 import os
 import signal
 import threading
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -180,4 +181,129 @@ def test_a_frame_that_cannot_be_handed_on_is_an_error_naming_the_sensor():
     with pytest.raises(CaptureProcessError, match=r"sensor 'b''s frame at t = 0 s cannot be handed on from a "
                                                   r"capture process \(.*\); use processes=1"):
         simulate(plain_scene(), [Probe("a"), Local("b")], 0.2, processes=2)
+    assert multiprocessing.active_children() == []
+
+
+# --- Robustness: a failing or hanging prepare, a hanging capture, the children's BLAS threads ---------------
+
+
+def test_a_failing_prepare_leaves_no_file_as_one_after_another(tmp_path):
+    # Both fail (equal costs: a in process 0, b in process 1): the first in sensor order is raised, the same
+    # error and the same empty folder as with processes=1.
+    for processes in (1, 2):
+        out = tmp_path / f"p{processes}"
+        out.mkdir()
+        with pytest.raises(ValueError, match="a cannot be prepared"):
+            simulate(plain_scene(), [Prepared("a", fail=True), Prepared("b", fail=True)], 0.2, out / "run.h5",
+                     processes=processes)
+        assert list(out.iterdir()) == [], processes
+        # Only the later sensor fails: its error, still before any file is opened.
+        with pytest.raises(ValueError, match="b cannot be prepared"):
+            simulate(plain_scene(), [Probe("a", 20.0), Prepared("b", fail=True)], 0.3, out / "run.h5",
+                     processes=processes)
+        assert list(out.iterdir()) == [], processes
+    assert multiprocessing.active_children() == []
+
+
+class Hangs(Probe):
+    """A sensor whose capture (at ``hang_at``) or prepare hangs: alive, never answering."""
+
+    def __init__(self, name, hang_at=-1.0, hang_prepare=False):
+        super().__init__(name)
+        self.hang_at = hang_at
+        if hang_prepare:
+            self.prepare = lambda scene, times: time.sleep(3600.0)
+
+    def capture(self, scene, t, rng=None):
+        if t == self.hang_at:
+            time.sleep(3600.0)  # ended by the parent's kill, long before
+        return super().capture(scene, t, rng)
+
+
+def test_a_hung_capture_process_is_ended_after_the_timeout(tmp_path):
+    seen = []
+    with pytest.raises(CaptureProcessError, match=r"capture process \d \(sensors 'b'\) handed back no frame of "
+                                                  r"sensor 'b' at t = 0.1 s within 0.5 s \(process_timeout = 0.5 s "
+                                                  r"per frame\); the capture processes were ended"):
+        simulate(plain_scene(), [Probe("a", 20.0), Hangs("b", hang_at=0.1)], 0.3, tmp_path / "run.h5",
+                 processes=2, process_timeout=0.5, on_frame=lambda s, f: seen.append((s.name, f.t)))
+    # The frames before it are kept in the partial recording, as when a process dies; no child is left.
+    assert seen == [("a", 0.0), ("b", 0.0), ("a", 0.05), ("a", 0.1)]
+    assert (tmp_path / "run.partial.h5").exists() and not (tmp_path / "run.h5").exists()
+    assert multiprocessing.active_children() == []
+
+
+def test_a_hung_prepare_is_ended_after_the_timeout_and_leaves_no_file(tmp_path):
+    with pytest.raises(CaptureProcessError, match=r"capture process \d \(sensors 'b'\) did not prepare its sensors "
+                                                  r"within 0.4 s \(process_timeout\)"):
+        simulate(plain_scene(), [Probe("a", 20.0), Hangs("b", hang_prepare=True)], 0.3, tmp_path / "run.h5",
+                 processes=2, process_timeout=0.4)
+    assert list(tmp_path.iterdir()) == [] and multiprocessing.active_children() == []
+
+
+def test_the_default_wait_follows_the_slowest_frame():
+    from twinsense.simulate import process_wait
+
+    # Given: process_timeout per frame, times the frames of a block, whatever the frames so far.
+    assert process_wait(2.0, 10.0) == 2.0 and process_wait(2.0, 0.0, frames=3, first=True) == 6.0
+    # Default: max(60 s, 50 x slowest); a first frame or a prepare: max(300 s, 50 x slowest).
+    assert process_wait(None, 0.1) == 60.0 and process_wait(None, 2.0) == 100.0
+    assert process_wait(None, 2.0, first=True) == 300.0 and process_wait(None, 10.0, first=True) == 500.0
+    assert process_wait(None, 2.0, frames=4) == 400.0
+
+
+class Slow(Probe):
+    def capture(self, scene, t, rng=None):
+        time.sleep(0.03)
+        return super().capture(scene, t, rng)
+
+
+def test_the_slowest_frame_is_measured_in_the_child():
+    from twinsense.simulate import _Processes, _runs
+
+    sensors = [Probe("a"), Slow("b")]
+    rngs = [np.random.default_rng(0), np.random.default_rng(1)]
+
+    def make_runs():
+        return _runs(iter([(0.0, 0), (0.0, 1), (0.1, 0), (0.1, 1)]), [False, False])
+
+    procs = _Processes(plain_scene(), sensors, rngs, make_runs, 2, lambda i: None)
+    try:
+        assert [get()[0].t for _, _, get in procs] == [0.0, 0.0, 0.1, 0.1]
+    finally:
+        procs.close(finished=True)
+    # The child's wall time of b's capture: at least its 0.03 s sleep (time.sleep never returns early).
+    assert procs._slowest >= 0.03
+
+
+class Blas(Probe):
+    """A sensor whose frames tell the BLAS/OpenMP thread counts of the process that captured them."""
+
+    def capture(self, scene, t, rng=None):
+        from threadpoolctl import threadpool_info
+
+        f = super().capture(scene, t, rng)
+        return Where(t, f.pid, str(sorted({(i["internal_api"], i["num_threads"]) for i in threadpool_info()})))
+
+
+def test_each_process_limits_its_blas_threads_to_its_share(monkeypatch):
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    # Two processes with TWINSENSE_THREADS=2: one thread each. The parent's BLAS is set to 3 during the run,
+    # what a child would inherit unlimited; after the run it is as it was.
+    monkeypatch.setenv("TWINSENSE_THREADS", "2")
+    with threadpool_limits(limits=3):
+        res = simulate(plain_scene(), [Blas("a"), Blas("b")], 0.2, processes=2)
+        parent = {i["num_threads"] for i in threadpool_info()}
+    apis = {i["internal_api"] for i in threadpool_info()}
+    assert apis and parent == {3}  # the parent's own limit is untouched by the children
+    for frames in res.frames.values():
+        for f in frames:
+            assert f.threads == str(sorted((api, 1) for api in apis)), f.threads
+
+
+@pytest.mark.parametrize("bad", [0, -1.0, float("nan"), float("inf"), "1", True, [0.5]])
+def test_bad_process_timeouts_are_refused(bad):
+    with pytest.raises(ConfigError, match="process_timeout"):
+        simulate(plain_scene(), [Probe("a"), Probe("b")], 0.1, processes=2, process_timeout=bad)
     assert multiprocessing.active_children() == []

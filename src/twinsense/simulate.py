@@ -189,7 +189,8 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
              on_frame: Callable[[Any, Any], None] | None = None,
              limits: RunLimits | None = None,
              stop: Callable[[], BaseException | None] | None = None,
-             workers: int | None = None, processes: int | None = None) -> SimulationResult:
+             workers: int | None = None, processes: int | None = None,
+             process_timeout: float | None = None) -> SimulationResult:
     """Run ``sensors`` over ``[t0, t0 + duration)`` on one shared clock.
 
     Parameters
@@ -241,11 +242,21 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
         the sensors and their caches inherited, not pickled), each capturing its sensors' frames in
         clock order with ``TWINSENSE_THREADS`` = cores / N inner threads; the frames come back over
         pipes and reach the recording, ``keep_frames`` and ``on_frame`` here in clock order: the same
-        bytes as one after another. Lanes go to processes by frame_rate x a per-kind cost (see
-        :func:`lane_groups`); ``workers`` is then unused. The sensors' state after the run (a skin's
-        last frame, caches built meanwhile) is not copied back. A process that dies raises
-        :class:`CaptureProcessError` naming its sensors and the frame. Needs the fork start method
-        (Linux, macOS); elsewhere N > 1 is a ConfigError.
+        bytes as one after another. The BLAS/OpenMP pools of each process are limited to the same share
+        (threadpoolctl). The processes prepare their sensors before the recording is opened: a prepare
+        that fails raises its error and leaves no file, as one after another. Lanes go to processes
+        by frame_rate x a per-kind cost (see :func:`lane_groups`); ``workers`` is then unused. The
+        sensors' state after the run (a skin's last frame, caches built meanwhile) is not copied back.
+        A process that dies or hangs (see ``process_timeout``) raises :class:`CaptureProcessError`
+        naming its sensors and the frame. Needs the fork start method (Linux, macOS); elsewhere N > 1
+        is a ConfigError.
+    process_timeout : float, optional
+        [s] With ``processes`` > 1: the longest the run waits for one frame from a capture process (a
+        block of n frames: n times it); past it the processes are ended and a
+        :class:`CaptureProcessError` names the sensor, the scene time and the wait. Default None:
+        max(60 s, 50 x the slowest frame handed back so far), and max(300 s, that) for each sensor's
+        first frame and for the prepares (kernels compiled, caches filled); see
+        :func:`process_wait`. A process that is alive but hangs is then found, not waited on forever.
     """
     if not isinstance(scene, Scene):
         raise ConfigError("scene", scene, "a twinsense.Scene")
@@ -258,6 +269,8 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
         V.integer("workers", workers, lo=1, hi=64)
     if processes is not None:
         check_processes(processes)
+    if process_timeout is not None:
+        V.positive("process_timeout", process_timeout, "s")
     problems = run_size_problems(sensors, duration, limits)
     if problems:
         raise ConfigError(*problems[0])
@@ -283,9 +296,9 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
     n_procs = min(processes or 1, len(sensors))
     if n_procs > 1:
         # Forked before the recording is opened (no HDF5 file is shared with a child) and before the
-        # progress bar's refresh thread starts. Each process prepares its own sensors, beside the
-        # other processes' captures.
-        procs = _Processes(scene, sensors, rngs, make_runs, n_procs, prepare)
+        # progress bar's refresh thread starts. Each process prepares its own sensors; the recording is
+        # opened once all are prepared, so a prepare that fails leaves no file (as one after another).
+        procs = _Processes(scene, sensors, rngs, make_runs, n_procs, prepare, process_timeout)
     else:
         procs = None
         for i in range(len(sensors)):
@@ -568,37 +581,92 @@ def _receive(conn):
     return pickle.loads(data, buffers=buffers)
 
 
+# [s] The default floor of the wait for one frame from a capture process, and of the wait for a sensor's
+# first frame in its process and for the prepares, which may compile kernels (numba, when the disk cache
+# is cold: tens of seconds on a busy 2-core machine) and fill caches (a skin's mesh).
+PROCESS_TIMEOUT_FLOOR = 60.0
+PROCESS_TIMEOUT_FIRST = 300.0
+# The default wait is this many times the slowest frame handed back so far: a frame that slow is
+# far outside anything a load swing gives; a process past it is taken as hung.
+PROCESS_TIMEOUT_FACTOR = 50.0
+
+
+def process_wait(process_timeout: float | None, slowest: float, frames: int = 1, first: bool = False) -> float:
+    """[s] The longest wait for ``frames`` frames (or prepares) of a capture process.
+
+    ``process_timeout`` [s] per frame when given; else max(60 s, 50 x ``slowest``), the slowest frame
+    handed back so far [s], with a floor of 300 s instead when ``first`` (a sensor's first frame in its
+    process, the prepares).
+    """
+    if process_timeout is not None:
+        per = float(process_timeout)
+    else:
+        per = max(PROCESS_TIMEOUT_FIRST if first else PROCESS_TIMEOUT_FLOOR, PROCESS_TIMEOUT_FACTOR * slowest)
+    return per * max(int(frames), 1)
+
+
+def _limit_threads(threads: int) -> None:
+    """Limit this (forked) process's inner threads to ``threads``: twinsense's pools and BLAS/OpenMP.
+
+    BLAS and OpenMP read their thread variables when they are loaded, which happened in the parent
+    before the fork: the libraries already loaded are limited through threadpoolctl, and the variables
+    are set for any loaded later in this process.
+    """
+    from threadpoolctl import threadpool_limits
+
+    for var in ("TWINSENSE_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ[var] = str(threads)
+    threadpool_limits(limits=threads)  # kept for the process's life (not used as a context)
+
+
+def _send_error(conn, exc: BaseException, what: str = "error", where: Any = None) -> None:
+    """``(what, (where, exc))`` over ``conn``; an exception that does not pickle goes as its type and text."""
+    try:
+        _send(conn, (what, (where, exc)))
+    except Exception:
+        _send(conn, (what, (where, RuntimeError(f"{type(exc).__name__}: {exc}"))))
+
+
 def _lane_child(conn, scene: Scene, sensors: list, rngs: list, runs: Iterator, mine: frozenset,
                 threads: int, prepare: Callable[[int], None]) -> None:
     """A capture process: ``prepare(i)`` of the sensors ``mine``, then their runs in clock order, each
-    sent back as it is done. An error (of a prepare or a capture) is sent in place of the next run."""
+    sent back as it is done.
+
+    Messages: ``("prepared", None)`` once every prepare is done (``("prepare-error", (i, exc))`` in its
+    place when sensor i's fails), then ``("frames", (seconds, frames))`` per run (the capture's wall
+    time [s] and its frames), or ``("error", (None, exc))`` in place of the run whose capture failed.
+    """
     # The parent alone decides when the run stops (its stop callback sees Ctrl-C); a child killed by the
     # parent needs no handler of the caller's inherited through the fork.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    # Inner threads per capture (render chunks, ToF bands, skin solves): the cores shared by the processes.
-    os.environ["TWINSENSE_THREADS"] = str(threads)
     try:
-        todo = sorted(mine)
+        # Inner threads per capture (render chunks, ToF bands, skin solves, BLAS): the cores shared by the
+        # processes.
+        _limit_threads(threads)
+        for i in sorted(mine):
+            try:
+                prepare(i)
+            except BaseException as exc:  # raised in the parent before the recording is opened
+                _send_error(conn, exc, "prepare-error", i)
+                return
+        _send(conn, ("prepared", None))
         for i, times in runs:
             if i not in mine:
                 continue
             try:
-                while todo:  # before the first run (a prepare that fails is raised at that run)
-                    prepare(todo.pop(0))
+                start = time.perf_counter()
                 block = _capture(scene, sensors[i], times, rngs[i])
+                seconds = time.perf_counter() - start
             except BaseException as exc:  # raised in the parent at this run, in clock order
-                try:
-                    _send(conn, ("error", exc))
-                except Exception:  # an exception that does not pickle: its type and text
-                    _send(conn, ("error", RuntimeError(f"{type(exc).__name__}: {exc}")))
+                _send_error(conn, exc)
                 return
             try:
-                message = _pickled(("frames", block))
+                message = _pickled(("frames", (seconds, block)))
             except Exception as exc:  # pickling fails before anything is sent: the stream stays whole
-                _send(conn, ("error", CaptureProcessError(
+                _send_error(conn, CaptureProcessError(
                     f"sensor {sensors[i].name!r}'s frame at t = {times[0]:.6g} s cannot be handed on from a "
-                    f"capture process ({type(exc).__name__}: {exc}); use processes=1 for this sensor")))
+                    f"capture process ({type(exc).__name__}: {exc}); use processes=1 for this sensor"))
                 return
             _send_pickled(conn, message)
     except (BrokenPipeError, ConnectionResetError):  # the parent stopped reading: the run has ended
@@ -613,19 +681,24 @@ class _Processes:
     The processes are forked with the scene, the sensors (their caches, compiled kernels) and the
     run's random streams as they are now; each prepares its own sensors (a skin's mesh for the run's
     times), walks the same clock and captures its own sensors' runs in clock order, sending each back
-    over a pipe. A reader thread per
-    process receives them into a bounded queue (``depth`` runs: the frames held in memory and how far
-    a process runs ahead); iterating hands them out in clock order like :class:`_Ahead`.
+    over a pipe. A reader thread per process receives them into a bounded queue (``depth`` runs: the
+    frames held in memory and how far a process runs ahead); iterating hands them out in clock order
+    like :class:`_Ahead`. The constructor returns once every process has prepared its sensors (or
+    raises the first failing sensor's error, in sensor order, with the processes ended). Every wait
+    for a process is bounded (:func:`process_wait`).
     """
 
     def __init__(self, scene: Scene, sensors: list, rngs: list, make_runs: Callable[[], Iterator],
-                 processes: int, prepare: Callable[[int], None]):
+                 processes: int, prepare: Callable[[int], None], timeout: float | None = None):
         ctx = multiprocessing.get_context("fork")
         self._sensors = sensors
         self._groups = lane_groups(sensors, processes)
         self._owner = {i: k for k, g in enumerate(self._groups) for i in g}
         self._runs = make_runs()
         self._closed = threading.Event()
+        self._timeout = timeout
+        self._slowest = 0.0  # [s] the slowest frame handed back so far
+        self._seen: set[int] = set()  # sensors whose first frame was handed back
         threads = max(1, default_workers() // len(self._groups))
         depth = 2 * len(sensors)
         self._procs, self._queues, self._readers, self._conns = [], [], [], []
@@ -647,6 +720,7 @@ class _Processes:
                 r.start()
                 self._queues.append(q)
                 self._readers.append(r)
+            self._wait_prepared(prepare)
         except BaseException:
             self.close()
             raise
@@ -658,15 +732,47 @@ class _Processes:
             except (EOFError, OSError):
                 msg = ("ended", None)
             except BaseException as exc:  # a frame that does not unpickle
-                msg = ("error", exc)
+                msg = ("error", (None, exc))
             while not self._closed.is_set():
                 try:
                     q.put(msg, timeout=0.1)
                     break
                 except queue.Full:
                     continue
-            if msg[0] != "frames":
+            if msg[0] not in ("frames", "prepared"):
                 return
+
+    def _names(self, k: int) -> str:
+        return ", ".join(repr(self._sensors[j].name) for j in self._groups[k])
+
+    def _ended(self, k: int) -> str:
+        """How process ``k`` ended (it closed its pipe), once it has."""
+        p = self._procs[k]
+        p.join(timeout=5.0)
+        code = p.exitcode
+        return (f"killed by signal {-code} ({signal.Signals(-code).name})" if code is not None and code < 0
+                else f"exit code {code}")
+
+    def _wait_prepared(self, prepare) -> None:
+        """Wait for every process's prepares; raise the first failing sensor's error (in sensor order)."""
+        failed: dict[int, BaseException] = {}
+        start = time.monotonic()
+        for k, group in enumerate(self._groups):
+            n = sum(callable(getattr(self._sensors[i], "prepare", None)) for i in group)
+            wait = process_wait(self._timeout, 0.0, n, first=True)
+            try:
+                what, payload = self._queues[k].get(timeout=max(start + wait - time.monotonic(), 0.0))
+            except queue.Empty:
+                raise CaptureProcessError(
+                    f"capture process {k} (sensors {self._names(k)}) did not prepare its sensors within "
+                    f"{wait:.3g} s (process_timeout); the capture processes were ended") from None
+            if what == "prepare-error":
+                failed[payload[0]] = payload[1]
+            elif what != "prepared":
+                raise CaptureProcessError(f"capture process {k} (sensors {self._names(k)}) ended "
+                                          f"({self._ended(k)}) before its sensors were prepared")
+        if failed:
+            raise failed[min(failed)]
 
     def __iter__(self):
         for i, times in self._runs:
@@ -674,26 +780,33 @@ class _Processes:
 
     def _get(self, i: int, times: list[float]) -> list:
         k = self._owner[i]
-        what, payload = self._queues[k].get()
+        wait = process_wait(self._timeout, self._slowest, len(times), first=i not in self._seen)
+        try:
+            what, payload = self._queues[k].get(timeout=wait)
+        except queue.Empty:
+            # Alive but silent past the deadline (a capture stuck in a lock, a library that never
+            # returns): the caller's error path ends the processes.
+            raise CaptureProcessError(
+                f"capture process {k} (sensors {self._names(k)}) handed back no frame of sensor "
+                f"{self._sensors[i].name!r} at t = {times[0]:.6g} s within {wait:.3g} s (process_timeout"
+                f"{'' if self._timeout is None else f' = {self._timeout:g} s per frame'}); the capture "
+                "processes were ended") from None
         if what == "frames":
-            return payload
+            seconds, block = payload
+            self._seen.add(i)
+            self._slowest = max(self._slowest, seconds / max(len(times), 1))
+            return block
         if what == "error":
-            raise payload
-        p = self._procs[k]
-        p.join(timeout=5.0)
-        code = p.exitcode
-        how = (f"killed by signal {-code} ({signal.Signals(-code).name})" if code is not None and code < 0
-               else f"exit code {code}")
-        names = ", ".join(repr(self._sensors[j].name) for j in self._groups[k])
+            raise payload[1]
         raise CaptureProcessError(
-            f"capture process {k} (sensors {names}) ended ({how}) before sensor {self._sensors[i].name!r}'s "
-            f"frame at t = {times[0]:.6g} s")
+            f"capture process {k} (sensors {self._names(k)}) ended ({self._ended(k)}) before sensor "
+            f"{self._sensors[i].name!r}'s frame at t = {times[0]:.6g} s")
 
     def close(self, finished: bool = False) -> None:
         """End the processes and the readers.
 
-        ``finished``: every run was handed out, the processes end by themselves; otherwise (a stop or an
-        error) they are killed and the runs they captured ahead are dropped.
+        ``finished``: every run was handed out, the processes end by themselves; otherwise (a stop, an
+        error or a timeout) they are killed and the runs they captured ahead are dropped.
         """
         self._closed.set()
         for p in self._procs:
