@@ -39,6 +39,7 @@ from twinsense.radar.kernels import (
     leg_offsets,
     moving_phases,
 )
+from twinsense.radar.spreader import kernel_for
 
 _TWO_PI = 2.0 * math.pi
 
@@ -497,6 +498,7 @@ _SLOW_REST_MAX = 1.0
 # over 19 tolerances from 1e-6 to 1e-3: 0.13-0.43 eps (1-D), 0.2-1.25 eps (2-D).
 _TOL_1D = 0.25
 _TOL_2D = 0.5
+SPREAD_1D = True  # the 1-D vectors by the compiled spreader (False: finufft, as before)
 _MAX_ORDER = 16
 
 
@@ -912,13 +914,21 @@ def _run_block(blk: _Block2D, wt: np.ndarray, geo: Geometry, eps: float,
         while key != (0, 0) and tol * 10.0 <= 1e-2 and tol * 10.0 * blk.keep[key] * others <= first:
             tol *= 10.0
         levels.setdefault(tol, []).append(key)
+    if blk.w is None and SPREAD_1D:
+        # 1-D along the samples: every vector on the same points, so one compiled spread
+        # evaluates each point's kernel weights once for all of them (at the constant
+        # vector's tolerance: a narrower kernel for the others would save little).
+        levels = {first: list(series)}
     keys, outs = [], []
     for tol, group in sorted(levels.items()):
         strengths = np.empty((len(group), len(wt)), dtype=complex)
         for d, key in enumerate(group):
             strengths[d] = series[key]
         if blk.w is None:  # 1-D along the samples; the chirps' dependence is in the monomials
-            outs.append(_thread_plans(n_samp, tol).rows(blk.x, strengths).reshape(len(group), n_samp))
+            if SPREAD_1D:
+                outs.append(kernel_for(n_samp, tol).transform(blk.x, strengths))
+            else:
+                outs.append(_thread_plans(n_samp, tol).rows(blk.x, strengths).reshape(len(group), n_samp))
             keys += group
             continue
         plan = finufft.Plan(1, (jb, n_samp), n_trans=len(group), eps=tol, isign=1, nthreads=1,

@@ -1,0 +1,88 @@
+"""The compiled 1-D type-1 NUFFT (twinsense.radar.spreader) against the exact sum and finufft."""
+
+from __future__ import annotations
+
+import finufft
+import numpy as np
+import pytest
+
+from twinsense.radar.spreader import Kernel, kernel_for, kernel_shape, nufft1d
+
+
+def _exact(x, s, n):
+    k = np.arange(n) - n // 2
+    return s @ np.exp(1j * np.outer(x, k))
+
+
+def _rel(a, b):
+    return float(np.linalg.norm(a - b) / np.linalg.norm(b))
+
+
+@pytest.mark.parametrize("tol", [1e-3, 1e-4, 3e-5, 1e-6, 1e-9])
+def test_against_exact_sum_and_finufft(tol):
+    rng = np.random.default_rng(7)
+    n, m, d = 128, 800, 5
+    x = rng.uniform(-np.pi, np.pi, m)
+    s = rng.normal(size=(d, m)) + 1j * rng.normal(size=(d, m))
+    exact = _exact(x, s, n)
+    mine = nufft1d(x, s, n, tol)
+    ref = finufft.nufft1d1(x, s, n, eps=tol, isign=1, modeord=0)
+    # finufft's width rule aims at a relative l2 error ~tol; it meets it only to within
+    # ~2x (the width moves in whole points, one per decade of tol): measured 0.7-1.3 tol
+    # here and on the radar's blocks. Limit 2 tol; finufft itself is held to the same.
+    assert _rel(mine, exact) <= 2.0 * tol
+    assert _rel(ref, exact) <= 2.0 * tol
+    # Each within 2 tol of the exact sum, so within 4 tol of each other.
+    assert _rel(mine, ref) <= 4.0 * tol
+
+
+def test_single_vector_and_batch_agree():
+    rng = np.random.default_rng(3)
+    x = rng.uniform(-np.pi, np.pi, 300)
+    s = rng.normal(size=(3, 300)) + 1j * rng.normal(size=(3, 300))
+    batch = nufft1d(x, s, 64, 1e-6)
+    for d in range(3):
+        # The same spread and FFT per vector: equal to rounding (the grid's sums run in the
+        # same order; only the FFT's batch layout may differ) -> 1e-13 relative.
+        one = nufft1d(x, s[d], 64, 1e-6)
+        assert one.shape == (64,)
+        np.testing.assert_allclose(one, batch[d], rtol=0, atol=1e-13 * np.abs(batch[d]).max())
+
+
+def test_points_at_the_ends_and_the_deconvolution():
+    # A point at x = 0 with unit strength: every mode is 1 exactly; at x = +-pi the modes
+    # alternate (-1)^k: the grid's wrap-around at both ends. l2 limit 2 tol (as above).
+    tol = 1e-7
+    n = 32
+    for x0 in (0.0, np.pi, -np.pi, np.pi - 1e-12):
+        out = nufft1d(np.array([x0]), np.array([1.0 + 0j]), n, tol)
+        exact = np.exp(1j * x0 * (np.arange(n) - n // 2))
+        assert _rel(out, exact) <= 2.0 * tol
+
+
+def test_kernel_shape_is_finuffts_rule():
+    # finufft (upsampling 2): w = ceil(log10(10 / tol)), beta = 2.30 w (2.20, 2.26, 2.38
+    # for w = 2, 3, 4).
+    assert kernel_shape(1e-6) == (7, pytest.approx(16.1, rel=1e-12, abs=1e-12))
+    assert kernel_shape(1e-3)[0] == 4 and kernel_shape(1e-3)[1] == pytest.approx(4 * 2.38, rel=1e-12, abs=1e-12)
+    assert kernel_shape(0.05)[0] == 3
+    assert kernel_for(64, 1e-6) is kernel_for(64, 1e-6)  # one setup per size and tolerance
+
+
+def test_horner_table_fits_the_kernel():
+    # The kernel weights come from the fitted polynomials: within 0.05 tol of exp(beta
+    # (sqrt(1 - (2z/w)^2) - 1)) at every offset (the fit's own stopping rule).
+    k = Kernel(64, 1e-5)
+    w, beta = k.width, k.beta
+    s = np.linspace(0.0, 1.0, 997, endpoint=False)
+    u = 2.0 * s - 1.0
+    for j in range(w):
+        z = s + j - 0.5 * w
+        exact = np.exp(beta * (np.sqrt(np.maximum(1.0 - (2.0 * z / w) ** 2, 0.0)) - 1.0))
+        fit = np.polynomial.polynomial.polyval(u, k.coef[::-1, j])
+        assert np.max(np.abs(fit - exact)) <= 0.05 * 1e-5
+
+
+def test_odd_mode_count_refused():
+    with pytest.raises(ValueError, match="even"):
+        Kernel(63, 1e-6)
