@@ -89,7 +89,10 @@ def run(scenario: Path = typer.Argument(..., help="scenario YAML file"),
         duration: float = _DURATION, seed: int = _SEED, max_frames: int = _MAX_FRAMES,
         max_frame_bytes: int = _MAX_FRAME_BYTES,
         fmt: str = typer.Option("h5", "--format",
-                                help="h5, mcap (also write the ROS 2 MCAP file) or rrd (also the Rerun file)")) -> None:
+                                help="h5, mcap (also write the ROS 2 MCAP file) or rrd (also the Rerun file)"),
+        processes: int = typer.Option(None, "--processes",
+                                      help="capture processes (1-64, more than 1 where fork exists), replaces "
+                                           "the scenario's processes; the recording is the same bytes")) -> None:
     """Simulate a scenario and write its recording under OUT.
 
     Ctrl-C, SIGTERM and SIGHUP stop the run after the frame in progress and
@@ -98,13 +101,21 @@ def run(scenario: Path = typer.Argument(..., help="scenario YAML file"),
     """
     if fmt not in ("h5", "mcap", "rrd"):
         _fail(ValueError(f"--format {fmt!r}: expected h5, mcap or rrd"))
+    if processes is not None:
+        from twinsense.errors import ConfigError
+        from twinsense.simulate import check_processes
+
+        try:
+            check_processes(processes)
+        except ConfigError as exc:  # before the scenario is built, named as the option
+            _fail(ConfigError("--processes", exc.value, exc.allowed))
     try:
         sc = _load(scenario, duration, seed, max_frames, max_frame_bytes)
     except TwinsenseError as exc:
         _fail(exc)
     stop = _StopRequests()
     try:
-        res = sc.run(out, progress=progress, stop=stop)
+        res = sc.run(out, progress=progress, stop=stop, processes=processes)
     except TwinsenseError as exc:
         _fail(exc)
     except KeyboardInterrupt as exc:

@@ -349,6 +349,8 @@ class ScenarioSpec(_Model):
     name: str = "scenario"
     duration: Pos = 1.0
     seed: Int = Field(0, ge=0, lt=2**64)
+    # Capture processes of the run, checked by twinsense.simulate.check_processes (one rule with simulate).
+    processes: Any = 1
     materials: list[MaterialSpec] = []
     objects: list[ObjectSpec] = []
     robots: list[RobotSpec] = []
@@ -380,22 +382,24 @@ class Scenario:
     source: str = "<dict>"
     raw: dict = field(default_factory=dict)
     limits: Any = None  # twinsense.simulate.RunLimits the scenario was checked against (None: the defaults)
+    processes: int = 1  # capture processes of the run (simulate's processes=)
 
     def recording_path(self, out_dir) -> Path | None:
         """Where :meth:`run` writes the recording (None when ``outputs.recording`` is null)."""
         return Path(out_dir) / self.outputs.recording if self.outputs.recording else None
 
-    def run(self, out_dir, progress: bool = False, stop=None):
+    def run(self, out_dir, progress: bool = False, stop=None, processes: int | None = None):
         """Simulate and write the recording under ``out_dir``; returns the SimulationResult.
 
         With ``outputs.recording: null`` nothing is written (``result.path`` is None).
-        ``stop``: see :func:`twinsense.simulate.simulate`.
+        ``stop``: see :func:`twinsense.simulate.simulate`. ``processes``: capture processes, in place of
+        the scenario's ``processes`` (the recording is the same bytes either way).
         """
         from twinsense.simulate import simulate
 
         return simulate(self.scene, self.sensors, self.duration, out=self.recording_path(out_dir), seed=self.seed,
                         progress=progress, scenario=self.raw, keep_frames=False, limits=self.limits,
-                        stop=stop)
+                        stop=stop, processes=self.processes if processes is None else processes)
 
 
 def _loc(loc: tuple) -> str:
@@ -588,13 +592,18 @@ def scenario_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None 
         except (TypeError, ValueError, OverflowError) as e:
             # An override of the wrong type that the sensor's config did not catch itself.
             problems.append((f"sensors[{i}].overrides", ss.overrides, f"values the {ss.kind} config accepts ({e})"))
-    if not problems:
-        from twinsense.simulate import run_size_problems
+    from twinsense.simulate import check_processes, run_size_problems
 
+    try:
+        check_processes(spec.processes)
+    except ConfigError as e:
+        problems.append((e.field, e.value, e.allowed))
+    if not problems:
         problems += run_size_problems(sensors, spec.duration, limits)
     if problems:
         raise ScenarioError(source, problems)
-    return Scenario(spec.name, scene, sensors, spec.duration, spec.seed, spec.outputs, source, data, limits)
+    return Scenario(spec.name, scene, sensors, spec.duration, spec.seed, spec.outputs, source, data, limits,
+                    spec.processes)
 
 
 def _add_robots(spec: ScenarioSpec, scene: Scene, base_dir: Path) -> list:
