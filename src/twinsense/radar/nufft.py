@@ -39,7 +39,7 @@ from twinsense.radar.kernels import (
     leg_offsets,
     moving_phases,
 )
-from twinsense.radar.spreader import kernel_for
+from twinsense.radar.spreader import kernel_for, spread_series_1d
 
 _TWO_PI = 2.0 * math.pi
 
@@ -499,6 +499,7 @@ _SLOW_REST_MAX = 1.0
 _TOL_1D = 0.25
 _TOL_2D = 0.5
 SPREAD_1D = True  # the 1-D vectors by the compiled spreader (False: finufft, as before)
+_TOL_SPREAD = 0.5
 _MAX_ORDER = 16
 
 
@@ -897,6 +898,17 @@ def _run_block(blk: _Block2D, wt: np.ndarray, geo: Geometry, eps: float,
     strength.real = np.cos(ph32)
     strength.imag = np.sin(ph32)
     strength *= wt
+    if blk.w is None and SPREAD_1D:
+        # The 1-D variant: every vector on the same points (the compiled spreader, all at
+        # one tolerance; NumPy's series and the unfused spreader as the reference).
+        tol = eps * _TOL_SPREAD
+        if compiled:
+            keys, out = _spread_block_1d(blk, strength, n_samp, tol)
+        else:
+            series = _block_strengths(blk, strength, compiled=False)
+            keys = sorted(series)
+            out = kernel_for(n_samp, tol).transform(blk.x, np.array([series[k] for k in keys]))
+        return _block_rows(blk, keys, out, jb, n_samp)
     # exp(j R) as a polynomial in (U, V), only the kept monomials, times the strengths.
     series = _block_strengths(blk, strength, compiled)
     # Each vector's NUFFT at its own tolerance: vector d has strengths of at
@@ -936,7 +948,29 @@ def _run_block(blk: _Block2D, wt: np.ndarray, geo: Geometry, eps: float,
         plan.setpts(blk.w, blk.x)
         outs.append(plan.execute(strengths).reshape(len(group), jb, n_samp))
         keys += group
-    out = np.concatenate(outs)  # (D, J, N), or (D, N) for 1-D vectors
+    return _block_rows(blk, keys, np.concatenate(outs), jb, n_samp)
+
+
+def _spread_block_1d(blk: _Block2D, strength: np.ndarray, n_samp: int, tol: float):
+    """The 1-D variant's strength vectors and their transforms in one compiled pass
+    (:func:`twinsense.radar.spreader.spread_series_1d`: the series of
+    :func:`_block_strengths`, times ``strength``, spread with each mover's kernel
+    weights evaluated once). Returns the sorted kept monomials and their (D, N) modes."""
+    keys = sorted(blk.keep)
+    res_keys = list(blk.resid)
+    resid = (np.array([blk.resid[k] for k in res_keys]) if res_keys
+             else np.zeros((0, len(strength))))  # (R, m)
+    program, scale, out_slots, n_terms, n_series = _series_program(res_keys, blk.keep, blk.order)
+    kern = kernel_for(n_samp, tol)
+    g_re, g_im = kern.grids(len(keys))
+    spread_series_1d(resid, program, scale, out_slots, n_terms, n_series, strength,
+                     np.ascontiguousarray(blk.x, dtype=float), kern.coef, kern.nf, g_re, g_im)
+    return keys, kern.finish(g_re, g_im)
+
+
+def _block_rows(blk: _Block2D, keys: list, out: np.ndarray, jb: int, n_samp: int) -> np.ndarray:
+    """(J, N) rows of a block from its vectors' transforms ``out`` (D, J, N), or (D, N)
+    for 1-D ones, of the monomials ``keys``: their sum times the chunk-wide factor."""
     uu = (np.arange(jb) - jb // 2) / blk.mu_scale
     vv = (np.arange(n_samp) - n_samp // 2) / blk.nu_scale
     rows = np.zeros((jb, n_samp), dtype=complex)

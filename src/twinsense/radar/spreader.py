@@ -35,6 +35,7 @@ import math
 import numpy as np
 
 from twinsense.compiled import jit
+from twinsense.radar.kernels import OP_ACC, OP_SCALE, OP_SERIES_SET, OP_SET
 
 _TWO_PI = 2.0 * math.pi
 UPSAMPLE = 2  # fine grid over modes: finufft's classic factor (its width rule below is for it)
@@ -99,12 +100,19 @@ class Kernel:
         """(D, N) complex: out[d, n] = sum_i strengths[d, i] exp(1j x_i (n - N/2)).
 
         ``x`` (m,) float in [-pi, pi]; ``strengths`` (D, m) complex."""
-        d = strengths.shape[0]
-        w = self.width
-        g_re = np.zeros((self.nf + 2 * w, d))
-        g_im = np.zeros((self.nf + 2 * w, d))
+        g_re, g_im = self.grids(strengths.shape[0])
         spread_1d(np.ascontiguousarray(x, dtype=float), np.ascontiguousarray(strengths), self.coef,
                   self.nf, g_re, g_im)
+        return self.finish(g_re, g_im)
+
+    def grids(self, n_vectors: int) -> tuple[np.ndarray, np.ndarray]:
+        """Zeroed real and imaginary padded grids (nf + 2 w, D) for :func:`spread_1d`."""
+        shape = (self.nf + 2 * self.width, n_vectors)
+        return np.zeros(shape), np.zeros(shape)
+
+    def finish(self, g_re: np.ndarray, g_im: np.ndarray) -> np.ndarray:
+        """(D, N) modes of spread grids: wrapped, Fourier transformed and deconvolved."""
+        w = self.width
         grid = g_re + 1j * g_im
         fine = grid[w:w + self.nf]
         fine[:w] += grid[w + self.nf:]   # wrap the padding onto the periodic grid
@@ -176,3 +184,86 @@ def spread_1d(x, strengths, coef, nf, g_re, g_im):  # pragma: no cover
                 for d in range(n_vec):
                     g_re[r, d] += a_re[d] * k
                     g_im[r, d] += a_im[d] * k
+
+
+@jit
+def spread_series_1d(resid, program, scale, out_slots, n_terms, n_series, strength, x, coef, nf,
+                     g_re, g_im):  # pragma: no cover
+    """:func:`twinsense.radar.kernels.block_series` and :func:`spread_1d` in one pass: per
+    tile of points the kept monomials' coefficients of exp(j R) (the same program and
+    operations), times ``strength`` (m,) complex, spread at once with the tile's kernel
+    weights; the (D, m) strength vectors are never stored. Arguments as there."""
+    n_deg, w = coef.shape
+    m = resid.shape[1]
+    n_vec = out_slots.shape[0]
+    t_re = np.empty((n_terms, _TILE))
+    t_im = np.empty((n_terms, _TILE))
+    s_re = np.empty((n_series, _TILE))
+    s_im = np.empty((n_series, _TILE))
+    sc = nf / _TWO_PI
+    off = 0.5 * nf - 0.5 * w
+    ker = np.empty((w, _TILE))
+    u = np.empty(_TILE)
+    first = np.empty(_TILE, np.int64)
+    a_re = np.empty(n_vec)
+    a_im = np.empty(n_vec)
+    for lo in range(0, m, _TILE):
+        n = min(_TILE, m - lo)
+        for i in range(n):
+            t_re[0, i] = 1.0
+            t_im[0, i] = 0.0
+        for q in range(program.shape[0]):
+            op, dst, src, r = program[q, 0], program[q, 1], program[q, 2], program[q, 3]
+            if op == OP_SET:
+                for i in range(n):
+                    c = resid[r, lo + i]
+                    a, b = t_re[src, i], t_im[src, i]
+                    t_re[dst, i] = -(b * c)
+                    t_im[dst, i] = a * c
+            elif op == OP_ACC:
+                for i in range(n):
+                    c = resid[r, lo + i]
+                    a, b = t_re[src, i], t_im[src, i]
+                    t_re[dst, i] -= b * c
+                    t_im[dst, i] += a * c
+            elif op == OP_SCALE:
+                f = scale[q]
+                for i in range(n):
+                    t_re[dst, i] *= f
+                    t_im[dst, i] *= f
+            elif op == OP_SERIES_SET:
+                for i in range(n):
+                    s_re[dst, i] = t_re[src, i]
+                    s_im[dst, i] = t_im[src, i]
+            else:
+                for i in range(n):
+                    s_re[dst, i] += t_re[src, i]
+                    s_im[dst, i] += t_im[src, i]
+        for i in range(n):
+            t = x[lo + i] * sc + off
+            c = math.ceil(t)
+            first[i] = int(c) + w
+            u[i] = 2.0 * (c - t) - 1.0
+        for j in range(w):
+            c0 = coef[0, j]
+            for i in range(n):
+                ker[j, i] = c0
+            for q in range(1, n_deg):
+                cq = coef[q, j]
+                for i in range(n):
+                    ker[j, i] = ker[j, i] * u[i] + cq
+        for i in range(n):
+            st = strength[lo + i]
+            p_re, p_im = st.real, st.imag
+            for d in range(n_vec):
+                k = out_slots[d]
+                e_re, e_im = s_re[k, i], s_im[k, i]
+                a_re[d] = e_re * p_re - e_im * p_im
+                a_im[d] = e_re * p_im + e_im * p_re
+            b = first[i]
+            for j in range(w):
+                kj = ker[j, i]
+                row = b + j
+                for d in range(n_vec):
+                    g_re[row, d] += a_re[d] * kj
+                    g_im[row, d] += a_im[d] * kj
