@@ -985,11 +985,21 @@ def _block_rows(blk: _Block2D, keys: list, out: np.ndarray, jb: int, n_samp: int
     else:
         for d, (i, j) in enumerate(keys):
             rows += out[d] * np.outer(uu**i, vv**j)
-    common = np.zeros((jb, n_samp))
+    # The chunk-wide phase sum_ij c_ij U^i V^j, grouped by i as above (one (J, N) pass per
+    # power of U), and its phasor by cos and sin (a third of the time of a complex exp).
+    poly: dict = {}
     for (i, j), c in blk.common.items():
         if c != 0.0:
-            common += c * np.outer(uu**i, vv**j)
-    rows *= np.exp(1j * common)
+            term = c * vv**j
+            poly[i] = poly[i] + term if i in poly else term
+    if poly:
+        common = np.zeros((jb, n_samp))
+        for i, acc in sorted(poly.items()):
+            common += np.outer(uu**i, acc)
+        phasor = np.empty((jb, n_samp), dtype=complex)
+        phasor.real = np.cos(common)
+        phasor.imag = np.sin(common)
+        rows *= phasor
     return rows
 
 
