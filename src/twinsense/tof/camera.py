@@ -150,13 +150,15 @@ class ToFCamera:
         mine = self._work_lock.acquire(blocking=False)
         try:
             noise = self._start_noise(rng, mine)
+            # The camera's pose at t: once per capture (on a robot: a product of poses and a velocity).
+            pose = self.mount.pose_at(scene, t)
             if cfg.motion_artifacts:
                 times = cfg.raw_frame_times(t) + 0.5 * cfg.exposure_time
                 phasors: PixelPhasors | list[PixelPhasors] = [
                     self._render_phasors(scene, float(ti)) for ti in times]
             else:
-                phasors = self._render_phasors(scene, t)
-            return self._frame(phasors, noise, self.mount.pose_at(scene, t), t, mine)
+                phasors = self._render_phasors(scene, t, pose)
+            return self._frame(phasors, noise, pose, t, mine)
         finally:
             if mine:
                 self._work_lock.release()
@@ -218,10 +220,11 @@ class ToFCamera:
         samples, _ = self._renderer.samples(scene, pose.rotation, pose.position, t)
         return samples
 
-    def _render_phasors(self, scene: Scene, t: float) -> PixelPhasors:
-        """Expected pixel phasors at time ``t``."""
+    def _render_phasors(self, scene: Scene, t: float, pose: Pose | None = None) -> PixelPhasors:
+        """Expected pixel phasors at time ``t`` (``pose``: the camera's at ``t``, if known)."""
         cfg = self.config
-        pose = self.mount.pose_at(scene, t)
+        if pose is None:
+            pose = self.mount.pose_at(scene, t)
         if not cfg.multipath:
             return self._renderer.phasors(scene, pose.rotation, pose.position, t)
         samples, normals = self._renderer.samples(scene, pose.rotation, pose.position, t, normals=True)
