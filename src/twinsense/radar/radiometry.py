@@ -64,7 +64,7 @@ def radar_equation_amplitude(tx_power: float, wavelength: float, gain: np.ndarra
         monostatic path (R_r = R_t). A zero-length leg gives no return (0).
     """
     amp = np.multiply(gain, rcs)
-    amp *= 2.0 * tx_power * wavelength**2 / _FOUR_PI_CUBED
+    amp *= amplitude_scale(tx_power, wavelength)
     # sqrt first: then the ranges enter once, R_t R_r, not squared (no overflow, fewer products).
     np.sqrt(amp, out=amp)
     den = range_tx * range_tx if range_rx is None else range_tx * range_rx
@@ -72,6 +72,18 @@ def radar_equation_amplitude(tx_power: float, wavelength: float, gain: np.ndarra
     np.divide(amp, den, out=amp, where=ok)
     amp[~ok] = 0.0
     return amp
+
+
+def amplitude_scale(tx_power: float, wavelength: float) -> float:
+    """2 P_t lambda^2 / (4 pi)^3 [W m^2]: sqrt(scale G_t G_r sigma) / (R_t R_r) is the
+    peak amplitude of :func:`radar_equation_amplitude` (one home for the compiled pass too)."""
+    return 2.0 * tx_power * wavelength**2 / _FOUR_PI_CUBED
+
+
+def lobe_factors(lobe_rad: float) -> tuple[float, float]:
+    """(1 / theta_s [1/rad], 2 / (3 theta_s^2) [1/rad^2]) of the specular lobe
+    L(theta) = 2 / (3 theta_s^2) exp(-(theta / theta_s)^2) (module docstring)."""
+    return 1.0 / lobe_rad, 2.0 / (3.0 * lobe_rad**2)
 
 
 def received_amplitude(scatterers, config: RadarConfig) -> np.ndarray:
@@ -124,11 +136,12 @@ def backscatter_rcs(distance: np.ndarray, cos_incidence: np.ndarray, solid_angle
     # sigma = A sigma0 with A = Omega R^2 / cos: the diffuse cos^2 keeps one cos.
     per_sr = (1.0 - spec) * c
     if np.any(spec):  # the specular lobe only where a material has one
+        inv_lobe, lobe_scale = lobe_factors(lobe_rad)
         theta = np.arccos(c)
-        theta *= 1.0 / lobe_rad
+        theta *= inv_lobe
         np.square(theta, out=theta)
         lobe = np.exp(np.negative(theta, out=theta), out=theta)
-        lobe *= 2.0 / (3.0 * lobe_rad**2)
+        lobe *= lobe_scale
         lobe *= spec
         lobe /= c
         per_sr += lobe

@@ -31,14 +31,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from twinsense.errors import ConfigError
 from twinsense.radar.config import RadarConfig
 from twinsense.radar.radiometry import (
+    amplitude_scale,
     backscatter_rcs,
+    lobe_factors,
     radar_equation_amplitude,
     received_amplitude,
     second_bounce_rcs,
 )
+from twinsense.radar.scatterer_kernels import direct_scatterers, hit_rows, world_directions
 from twinsense.render import PinholeCamera, Rays, cast, caster_for
+from twinsense.render.parallel import default_workers, map_ordered
 
 __all__ = ["ScatterRenderer", "Scatterers", "backscatter_rcs", "received_amplitude"]
 
@@ -150,6 +155,20 @@ class _Snapshot:
     object_id: np.ndarray | None = None  # (n,)
 
 
+_ZERO3 = np.zeros(3)
+_NO_OBJECT = np.zeros(1, dtype=bool)
+#: Pixels per block of the compiled passes: a block's rows stay in a core's L2 cache.
+_BLOCK = 32768
+
+
+def _in_blocks(n: int, workers: int, run) -> None:
+    """``run(lo, hi)`` over blocks of ``n`` rows, on ``workers`` threads when more than one
+    block (the compiled passes release the GIL); every row's result is the same whatever
+    the blocks."""
+    bounds = [(lo, min(lo + _BLOCK, n)) for lo in range(0, n, _BLOCK)] or [(0, 0)]
+    map_ordered(lambda b: run(*b), bounds, workers)
+
+
 def _times(rows: np.ndarray, matrix: np.ndarray) -> np.ndarray:
     """(n, 3) @ (3, 3) without BLAS.
 
@@ -171,14 +190,21 @@ class ScatterRenderer:
     scatterer arrays and replaces only the rows moving objects win (the same
     numbers as a full render). ``workers``: ray cast threads (None: the
     cores, at most 4).
+
+    ``compiled`` (default True): the world rays and the per-scatterer work
+    after the cast (points, velocities relative to the sensor, RCS,
+    amplitudes) run as compiled passes over blocks of pixels on the worker
+    threads (:mod:`twinsense.radar.scatterer_kernels`); False runs their NumPy
+    form, the reference they equal bit for bit.
     """
 
     def __init__(self, config: RadarConfig, backend: str = "embree", workers: int | None = None,
-                 reuse_static_hits: bool = True):
+                 reuse_static_hits: bool = True, compiled: bool = True):
         self.config = config
         self.backend = backend
         self.workers = workers
         self.reuse_static_hits = reuse_static_hits
+        self.compiled = compiled
         self.camera = PinholeCamera.from_fov(config.render_width, config.render_height,
                                              config.hfov_deg, config.vfov_deg)
         d = self.camera.directions().reshape(-1, 3)
@@ -200,17 +226,36 @@ class ScatterRenderer:
         self._rays: Rays | None = None
         self._snap: _Snapshot | None = None
 
+    @property
+    def compiled(self) -> bool:
+        """Compiled passes (True) or their NumPy reference form (False); see the class docstring."""
+        return self._compiled
+
+    @compiled.setter
+    def compiled(self, value: bool) -> None:
+        if not isinstance(value, (bool, np.bool_)):
+            raise ConfigError("ScatterRenderer.compiled", value, "True or False")
+        self._compiled = bool(value)
+
+    def _threads(self) -> int:
+        return default_workers() if self.workers is None else self.workers
+
     def _world_rays(self, pose) -> Rays:
         """World rays of the render from ``pose`` (kept while the pose does not change)."""
         key = np.concatenate([pose.position, pose.rotation.ravel()]).tobytes()
         if key != self._rays_key:
             world = np.empty_like(self._dirs)
             rot = pose.rotation
-            for k in range(3):  # world = R d, column by column from the (3, n) copy
-                col = world[:, k]
-                np.multiply(self._dirs_cols[0], rot[k, 0], out=col)
-                col += rot[k, 1] * self._dirs_cols[1]
-                col += rot[k, 2] * self._dirs_cols[2]
+            if self._compiled:
+                r = np.ascontiguousarray(rot, dtype=float)
+                _in_blocks(len(world), self._threads(),
+                           lambda lo, hi: world_directions(lo, hi, self._dirs_cols, r, world))
+            else:
+                for k in range(3):  # world = R d, column by column from the (3, n) copy
+                    col = world[:, k]
+                    np.multiply(self._dirs_cols[0], rot[k, 0], out=col)
+                    col += rot[k, 1] * self._dirs_cols[1]
+                    col += rot[k, 2] * self._dirs_cols[2]
             # Read-only rays (and a private origin): the caster may then keep
             # the static hits between frames while the pose does not change.
             origin = np.array(pose.position, dtype=float)
@@ -236,6 +281,23 @@ class ScatterRenderer:
         fields = _DIRECT_FIELDS + (("point", "normal") if self.config.multipath else ())
         hits = cast(scene, rays, t, kind="radar", backend=self.backend, fields=fields,
                     workers=self.workers)
+        want_amp = not self.config.multipath
+        if self._compiled:
+            idx, direct, amp = self._direct_compiled(scene, sensor_state, hits, want_amp)
+        else:
+            idx, direct, amp = self._direct_numpy(scene, sensor_state, hits, want_amp)
+        if want_amp:
+            self._last = (weakref.ref(direct), amp)
+            return direct
+        refl, spec = self._scene_luts(scene)
+        idx = np.arange(len(hits)) if idx is None else idx
+        second = self._second_bounce(scene, sensor_state, t, hits, idx,
+                                     np.take(rays.directions, idx, axis=0), refl, spec)
+        return Scatterers.concatenate([direct, second]) if len(second) else direct
+
+    def _direct_numpy(self, scene, sensor_state, hits, want_amp: bool):
+        """(hit rows or None if every ray hit, direct Scatterers, amplitudes or None): the
+        NumPy form of :meth:`_direct_compiled`, its reference."""
         obj = hits.object_id
         hit = obj >= 0
         # In a closed room every ray hits: then nothing is gathered.
@@ -255,16 +317,45 @@ class ScatterRenderer:
         rcs = backscatter_rcs(dist, take(hits.cos_incidence), take(self._solid_angle),
                               np.take(refl, mid), np.take(spec, mid),
                               math.radians(self.config.specular_lobe_deg))
-        direct = Scatterers(points, velocities, rcs, obj_hit)
-        if not self.config.multipath:
+        amp = None
+        if want_amp:
             amp = radar_equation_amplitude(self.config.tx_power, self.config.chirp.wavelength,
                                            take(self._gain), rcs, dist)
-            self._last = (weakref.ref(direct), amp)
-            return direct
-        idx = np.arange(len(hit)) if idx is None else idx
-        second = self._second_bounce(scene, sensor_state, t, hits, idx,
-                                     np.take(rays.directions, idx, axis=0), refl, spec)
-        return Scatterers.concatenate([direct, second]) if len(second) else direct
+        return idx, Scatterers(points, velocities, rcs, obj_hit), amp
+
+    def _direct_compiled(self, scene, sensor_state, hits, want_amp: bool):
+        """(hit rows or None if every ray hit, direct Scatterers, amplitudes or None) of the
+        cast ``hits``: one compiled pass over blocks of pixels on the worker threads
+        (:func:`~twinsense.radar.scatterer_kernels.direct_scatterers`), the bits of
+        :meth:`_direct_numpy`."""
+        obj = hits.object_id
+        rows, k = hit_rows(obj)
+        idx = None if k == len(obj) else rows
+        refl, spec = self._scene_luts(scene)
+        inv_lobe, lobe_scale = lobe_factors(math.radians(self.config.specular_lobe_deg))
+        scale = amplitude_scale(self.config.tx_power, self.config.chirp.wavelength)
+        rot = np.ascontiguousarray(sensor_state.pose.rotation, dtype=float)
+        moves = bool(np.any(sensor_state.linear_velocity) or np.any(sensor_state.angular_velocity))
+        if moves:
+            # The sensor's own velocities in its frame, as _hit_velocities forms them.
+            v_o = np.asarray(sensor_state.linear_velocity, float) @ rot
+            w_s = np.asarray(sensor_state.angular_velocity, float) @ rot
+            moving_obj = _NO_OBJECT
+        else:
+            v_o = w_s = _ZERO3
+            moving_obj = np.array([not o.is_static for o in scene.objects] + [False])
+        points, vel, rcs = np.empty((k, 3)), np.empty((k, 3)), np.empty(k)
+        amp = np.empty(k if want_amp else 0)
+
+        def run(lo, hi):
+            direct_scatterers(lo, hi, rows, self._dirs_cols, self._solid_angle, self._gain,
+                              hits.distance, hits.cos_incidence, hits.material_id, obj,
+                              hits.velocity, refl, spec, inv_lobe, lobe_scale, scale, rot, v_o,
+                              w_s, moves, moving_obj, points, vel, rcs, amp)
+
+        _in_blocks(k, self._threads(), run)
+        obj_hit = obj if idx is None else np.take(obj, idx)
+        return idx, Scatterers(points, vel, rcs, obj_hit), amp if want_amp else None
 
     def amplitude(self, scatterers: Scatterers) -> np.ndarray | None:
         """(n,) peak IF amplitudes [sqrt(W)] of the scatterers of the last :meth:`render`,

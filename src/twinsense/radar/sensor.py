@@ -23,6 +23,7 @@ from twinsense.radar.interference import Interferer, interference
 from twinsense.radar.presets import preset_config
 from twinsense.radar.processing import ProcessingResult, ProcessingSettings, process_cube
 from twinsense.radar.radiometry import received_amplitude
+from twinsense.radar.scatterer_kernels import count_weighted, moving_mask
 from twinsense.radar.scatterers import Scatterers, ScatterRenderer
 from twinsense.radar.synthesis import DEFAULT_EPS, noise_tolerance, synthesize
 from twinsense.render.parallel import default_workers
@@ -296,7 +297,9 @@ class FMCWRadar:
             return synthesize(p, v, w, cfg, points_rx=s.points_rx, velocities_rx=s.velocities_rx,
                               eps=self._tolerance(p, w, s.points_rx, n_moving=_count_moving(s)),
                               workers=self.workers)
-        moving = (v[:, 0] != 0) | (v[:, 1] != 0) | (v[:, 2] != 0)
+        # (v[:, 0] != 0) | (v[:, 1] != 0) | (v[:, 2] != 0) in one compiled pass.
+        moving = np.empty(len(p), dtype=bool)
+        n_moving = moving_mask(v, moving)
         base = self._static_base
         if base is not None and base.matches(cfg, self.eps, len(p)):
             # Rows that may differ from the base: movers (now or then) and any
@@ -327,7 +330,7 @@ class FMCWRadar:
         # A new base from this frame: the static scatterers. When every scatterer
         # moves (a moving radar) there is none, and the frame is one synthesis.
         w = self._weights(s)
-        if moving.all():
+        if n_moving == len(p):
             return self._moving_signal(p, v, w, moving, self._tolerance(p, w, n_moving=len(p)))
         # Two cubes now (static and movers), the kept one and a change later.
         eps = self._tolerance(p, w, parts=2, n_moving=int(np.count_nonzero(moving)))
@@ -377,6 +380,9 @@ class FMCWRadar:
 
     def _moving_signal(self, p, v, w, moving, eps):
         # Zero weights (behind the antennas) add nothing; only movers cost per point.
+        if len(w) and count_weighted(moving, w) == len(w):
+            # Every scatterer (a moving radar's usual frame): no copies.
+            return synthesize(p, v, w, self.config, eps=eps, workers=self.workers)
         mv = np.flatnonzero(moving & (w != 0))
         if len(mv) == 0:
             return np.zeros(self.config.cube_shape, complex if self.config.if_chain.complex_if
