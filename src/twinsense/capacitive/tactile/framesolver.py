@@ -55,6 +55,7 @@ from twinsense.capacitive.solver import (
     MaxwellResult,
     SolverConfig,
     check_solver_config,
+    check_system,
     energy_tolerance,
     split_system,
 )
@@ -107,7 +108,7 @@ class FrameSolver:
             raise ConfigError("FrameSolver.local_correction", local_correction, "True or False")
         self.local_correction = local_correction
         self.local_nodes = 0  # the last solve's subdomain (0: no local correction)
-        self.system = system
+        self.system = check_system("FrameSolver.system", system)
         self.config = check_solver_config(config)
         self.threads = _default_threads() if threads is None else threads
         self._pool: ThreadPoolExecutor | None = None
