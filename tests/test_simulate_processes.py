@@ -235,7 +235,7 @@ def test_a_hung_capture_process_is_ended_after_the_timeout(tmp_path):
 
 def test_a_hung_prepare_is_ended_after_the_timeout_and_leaves_no_file(tmp_path):
     with pytest.raises(CaptureProcessError, match=r"capture process \d \(sensors 'b'\) did not prepare its sensors "
-                                                  r"within 0.4 s \(process_timeout\)"):
+                                                  r"within 0.4 s \(process_timeout = 0.4 s per frame\)"):
         simulate(plain_scene(), [Probe("a", 20.0), Hangs("b", hang_prepare=True)], 0.3, tmp_path / "run.h5",
                  processes=2, process_timeout=0.4)
     assert list(tmp_path.iterdir()) == [] and multiprocessing.active_children() == []

@@ -742,6 +742,13 @@ class _Processes:
             if msg[0] not in ("frames", "prepared"):
                 return
 
+    def _rule(self) -> str:
+        """The wait's rule, for messages."""
+        if self._timeout is not None:
+            return f"process_timeout = {self._timeout:g} s per frame"
+        return (f"process_timeout None: max({PROCESS_TIMEOUT_FLOOR:g} s, {PROCESS_TIMEOUT_FACTOR:g} x the slowest "
+                f"frame so far), {PROCESS_TIMEOUT_FIRST:g} s for a first frame or a prepare")
+
     def _names(self, k: int) -> str:
         return ", ".join(repr(self._sensors[j].name) for j in self._groups[k])
 
@@ -765,7 +772,7 @@ class _Processes:
             except queue.Empty:
                 raise CaptureProcessError(
                     f"capture process {k} (sensors {self._names(k)}) did not prepare its sensors within "
-                    f"{wait:.3g} s (process_timeout); the capture processes were ended") from None
+                    f"{wait:.3g} s ({self._rule()}); the capture processes were ended") from None
             if what == "prepare-error":
                 failed[payload[0]] = payload[1]
             elif what != "prepared":
@@ -788,9 +795,8 @@ class _Processes:
             # returns): the caller's error path ends the processes.
             raise CaptureProcessError(
                 f"capture process {k} (sensors {self._names(k)}) handed back no frame of sensor "
-                f"{self._sensors[i].name!r} at t = {times[0]:.6g} s within {wait:.3g} s (process_timeout"
-                f"{'' if self._timeout is None else f' = {self._timeout:g} s per frame'}); the capture "
-                "processes were ended") from None
+                f"{self._sensors[i].name!r} at t = {times[0]:.6g} s within {wait:.3g} s ({self._rule()}); "
+                "the capture processes were ended") from None
         if what == "frames":
             seconds, block = payload
             self._seen.add(i)
