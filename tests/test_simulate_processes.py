@@ -307,3 +307,18 @@ def test_bad_process_timeouts_are_refused(bad):
     with pytest.raises(ConfigError, match="process_timeout"):
         simulate(plain_scene(), [Probe("a"), Probe("b")], 0.1, processes=2, process_timeout=bad)
     assert multiprocessing.active_children() == []
+
+
+def _in_a_pool_worker(_):
+    try:
+        simulate(plain_scene(), [Probe("a"), Probe("b")], 0.1, processes=2)
+    except ConfigError as exc:
+        return str(exc)
+    return "ran"
+
+
+def test_more_than_one_process_inside_a_daemonic_process_is_refused():
+    # A real multiprocessing.Pool worker (daemonic), which multiprocessing forbids to start children.
+    with multiprocessing.get_context("fork").Pool(1) as pool:
+        got = pool.map(_in_a_pool_worker, [0])[0]
+    assert "processes = 2 is invalid: expected 1 inside a daemonic process" in got, got

@@ -180,6 +180,11 @@ def check_processes(processes) -> int:
     if processes > 1 and not fork_available():
         raise ConfigError("processes", processes, "1 on a platform without the fork start method "
                           "(capture processes inherit the scene and sensors by forking)")
+    if processes > 1 and multiprocessing.current_process().daemon:
+        # multiprocessing refuses children of a daemonic process (a multiprocessing.Pool worker) with an
+        # AssertionError from deep inside; said here instead.
+        raise ConfigError("processes", processes, "1 inside a daemonic process (a multiprocessing.Pool worker), "
+                          "which may not start capture processes")
     return processes
 
 
