@@ -24,8 +24,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["AMG_SEED", "BlockAMG", "CompactCycle", "CompiledCycle", "coarse_patterns", "smoothed_aggregation_hierarchy",
-           "spectral_radius"]
+__all__ = ["AMG_SEED", "BlockAMG", "CompactCycle", "CompiledCycle", "coarse_patterns", "compiled_spectral_radius",
+           "smoothed_aggregation_hierarchy", "spectral_radius"]
 
 AMG_SEED = 0
 """Seed of the Generator that starts every spectral-radius estimate of the hierarchy."""
@@ -34,6 +34,12 @@ AMG_SEED = 0
 LANCZOS_STEPS = 20
 """Lanczos steps of :func:`spectral_radius`: on the robot-cell skin's 32k-node stiffness the
 largest Ritz value lies 0.5 % under scipy's ``eigsh`` (pyamg's own estimate stops at a 1 % change)."""
+
+REFRESH_LANCZOS_STEPS = 10
+"""Lanczos steps of a refresh's estimate of each coarse level's spectral radius (every frame): on the
+robot-cell skin's 2,846-unknown level of three reaching frames, 1.0-1.7 % under scipy's ``eigsh``
+(20 steps: 0.05-0.5 %) at half the cost. The smoother's damping ``4 / (3.3 rho)`` keeps ``omega rho``
+at most 1.212 x 1.017 = 1.23 with it, far from Jacobi's limit of 2."""
 
 
 def _norm(x: np.ndarray) -> float:
@@ -67,9 +73,35 @@ def spectral_radius(A: sp.csr_matrix, rng: np.random.Generator, steps: int = LAN
             break
         betas.append(beta)
         v_prev, v = v, w / beta
+    return _largest_ritz(np.array(alphas), np.array(betas))
+
+
+def _largest_ritz(alphas: np.ndarray, betas: np.ndarray) -> float:
+    """Largest eigenvalue of the symmetric tridiagonal with diagonal ``alphas`` (k,) and off-diagonal
+    ``betas[:k - 1]``."""
     k = len(alphas)
     T = np.diag(alphas) + np.diag(betas[: k - 1], 1) + np.diag(betas[: k - 1], -1)
     return float(np.linalg.eigvalsh(T)[-1])
+
+
+def compiled_spectral_radius(A: sp.csr_matrix, rng: np.random.Generator, steps: int = LANCZOS_STEPS) -> float:
+    """:func:`spectral_radius` with its steps in one compiled loop
+    (:func:`~twinsense.capacitive.kernels.lanczos_tridiagonal`): the same start drawn from ``rng``,
+    the same recurrence; its sums run in another order, so the estimate differs in the last digits.
+    A refresh estimates a coarse level every frame with it (2 ms in NumPy on the robot-cell skin,
+    0.2 ms here); a build keeps :func:`spectral_radius`.
+    """
+    from twinsense.capacitive.kernels import lanczos_tridiagonal
+
+    d = A.diagonal()
+    v = rng.random(A.shape[0]) * (d > 0)
+    nv = _norm(v)
+    if nv == 0.0:
+        return 1.0
+    v /= nv
+    alphas, betas = np.empty(steps), np.empty(steps)
+    k = lanczos_tridiagonal(A.indptr, A.indices, np.asarray(A.data, float), v, alphas, betas)
+    return _largest_ritz(alphas[:k], betas[: max(k - 1, 0)])
 
 
 def smoothed_aggregation_hierarchy(
@@ -193,6 +225,7 @@ class BlockAMG:
         self._factor_coarse()
         self._patterns = None if pattern is None else coarse_patterns(pattern, self.P, self.R)
         self._cycle_work = None  # CompiledCycle's blocks, reused from call to call
+        self._cycle_prolongators = None  # CompiledCycle's copies of the prolongators, made once
         self._first = None if pattern is None or not self.P else self._first_level(A)
 
     def _first_level(self, A: sp.csr_matrix) -> tuple:
@@ -268,7 +301,7 @@ class BlockAMG:
         first = self._first_coarse(keep) if same_base else None
         for lvl, (_, (c_ptr, c_ind)) in enumerate(self._patterns):
             if lvl == 0 and first is not None:
-                ops.append(_pruned(first))
+                ops.append(first)  # pruned by the update itself
                 keep = np.ones(len(c_ptr) - 1, bool)
                 continue
             c = self._galerkin(lvl, ops[-1], keep)
@@ -279,7 +312,7 @@ class BlockAMG:
         rng = np.random.default_rng(AMG_SEED)
         self.A = ops
         self.scaled_dinv = [(self._omega0 / A.diagonal())[:, None]] + [
-            self._jacobi(a, spectral_radius(a, rng)) for a in ops[1:-1]]
+            self._jacobi(a, compiled_spectral_radius(a, rng, REFRESH_LANCZOS_STEPS)) for a in ops[1:-1]]
         self._factor_coarse()
         return True
 
@@ -316,9 +349,9 @@ class BlockAMG:
 
     def _first_coarse(self, free: np.ndarray) -> sp.csr_matrix | None:
         """``P^T M A M P`` from the build's first coarse operator and the newly prescribed rows
-        (see :meth:`refresh`); None when the update cancels too far to trust (the caller then
-        forms the product directly)."""
-        from twinsense.capacitive.kernels import dropped_rows_product
+        (see :meth:`refresh`), pruned like :func:`_pruned`; None when the update cancels too far to
+        trust (the caller then forms the product directly)."""
+        from twinsense.capacitive.kernels import dropped_rows_product, first_coarse_update
 
         A0, free0, c0, tslot, rows, diag = self._first
         c_ptr, c_ind = self._patterns[0][1]
@@ -329,17 +362,13 @@ class BlockAMG:
         p = self.P[0]
         dropped_rows_product(np.flatnonzero(dropped), dropped, A0.indptr, A0.indices, A0.data, p.indptr, p.indices,
                              p.data, c_ptr, c_ind, g, h)
-        c = c0 - g - g[tslot] + h
-        # A coarse unknown whose every fine support node is prescribed has an exactly zero row and
-        # column (the direct product's), not the rounding left of c0 - g - g^T + h.
-        alive = np.zeros(nc, bool)
-        alive[p.indices[np.repeat(free & free0, np.diff(p.indptr))]] = True
-        c[~(alive[rows] & alive[c_ind])] = 0.0
-        d, d0 = c[diag], c0[diag]
-        # The update's rounding is ~1e-16 of c0: where a diagonal fell below 1e-9 of its build value
-        # (a coarse function with almost all of its support prescribed) it would be ~1e-7 relative
-        # or worse, so the direct product takes over.
-        if np.any(alive & (d <= 1e-9 * d0)):
+        # In one compiled pass: c0 - g - g^T + h; a coarse unknown whose every fine support node is
+        # prescribed gets an exactly zero row and column (the direct product's), not the rounding
+        # left of the update. The update's rounding is ~1e-16 of c0: where a diagonal fell below 1e-9
+        # of its build value (a coarse function with almost all of its support prescribed) it would
+        # be ~1e-7 relative or worse, so the direct product takes over.
+        c = np.empty(len(c0))
+        if not first_coarse_update(c0, g, h, tslot, rows, c_ind, diag, p.indptr, p.indices, free & free0, PRUNE, c):
             return None
         return sp.csr_matrix((c, c_ind, c_ptr), shape=(nc, nc))
 
@@ -409,27 +438,34 @@ class CompiledCycle:
             raise ValueError("CompiledCycle needs one smoothing step and at least two levels")
         t = CYCLE_DTYPE
         self.ml = ml
-        self.levels = _cycle_levels(ml, t)
+        # The prolongators never change after the build (a refresh keeps them): their copies are
+        # kept on the hierarchy, and only the operators and damping are copied per frame.
+        if ml._cycle_prolongators is None:
+            ml._cycle_prolongators = [(p.indptr, p.indices, p.data.astype(t)) for p in ml.P]
+        self.levels = [((a.indptr, a.indices, a.data.astype(t)), d[:, 0].astype(t), p, pm.shape[1])
+                       for a, d, p, pm in zip(ml.A[:-1], ml.scaled_dinv, ml._cycle_prolongators, ml.P, strict=True)]
         self.masks = [np.asarray(free, t)] + [np.ones(a.shape[0], t) for a in ml.A[1:-1]]
 
     def __call__(self, B: np.ndarray, rz: np.ndarray) -> np.ndarray:
-        """The masked V-cycle of ``B`` (n, 8); ``rz`` (8,) receives ``B[:, k] . Z[:, k]``.
+        """The masked V-cycle of ``B`` (n, c), c one of the fixed widths (8 or 6,
+        :data:`~twinsense.capacitive.kernels.FIXED_WIDTH`); ``rz`` (c,) receives ``B[:, k] . Z[:, k]``.
 
-        Returns Z (n, 8), a block of the cycle's own that the next call overwrites.
+        Returns Z (n, c), a block of the cycle's own that the next call overwrites.
         """
-        from twinsense.capacitive.kernels import cycle_down8, cycle_up8
+        from twinsense.capacitive.kernels import FIXED_WIDTH
 
+        _, _, cycle_down, cycle_up = FIXED_WIDTH[B.shape[1]]
         work = self._workspace(B.shape[1])
         down = []
         for (A, d, P, _), (X, Bc, _) in zip(self.levels, work, strict=True):
-            cycle_down8(*A, d, B, X, *P, Bc)
+            cycle_down(*A, d, B, X, *P, Bc)
             down.append((B, X))
             B = Bc
         Xc = self.ml._cho_solve(self.ml._chol, B.astype(float)).astype(CYCLE_DTYPE)
         scratch = np.empty(B.shape[1])
         for (A, d, P, _), mask, (B, X), (_, _, T) in zip(self.levels[::-1], self.masks[::-1], down[::-1], work[::-1],
                                                          strict=True):
-            cycle_up8(*A, d, B, X, *P, Xc, mask, T, scratch)
+            cycle_up(*A, d, B, X, *P, Xc, mask, T, scratch)
             Xc = X
         rz[:] = scratch  # the finest level's, computed last
         return Xc

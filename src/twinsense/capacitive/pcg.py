@@ -164,23 +164,25 @@ def compiled_block_pcg(
     """:func:`block_pcg` with its steps in compiled loops; the same recurrence column by column.
 
     The columns go in groups of :data:`~twinsense.capacitive.kernels.WIDTH`
-    (8), each a block of exactly that width (zero columns pad the last):
-    the fixed width lets the sparse products keep a row's sums in
-    registers. A step is one sparse product, the column inner products,
-    one fused update of ``X`` and ``R`` with the residual norms, the
-    preconditioner and one pass for the new directions. A converged column
-    stays in its block with zero step lengths (its values frozen), so no
-    step copies the block.
+    (8), each a block of a fixed width (6 when the group has at most 6
+    columns, else 8; zero columns pad it): the fixed width lets the sparse
+    products keep a row's sums in registers. A step is one sparse product,
+    the column inner products, one fused update of ``X`` and ``R`` with the
+    residual norms, the preconditioner and one pass for the new directions.
+    A converged column stays in its block with zero step lengths (its values
+    frozen), so no step copies the block. A group that fills its width
+    exactly (6 terminals: one block of 6) runs on ``B`` and the solution
+    without copies in or out.
 
     Parameters
     ----------
     A : (n, n) csr_matrix, SPD.
     B, X0 : (n, t) float.
-    precond : callable ``(R (n, 8), rz (8,)) -> Z (n, 8)`` that also writes ``rz[k] = R[:, k] . Z[:, k]``
+    precond : callable ``(R (n, c), rz (c,)) -> Z (n, c)`` that also writes ``rz[k] = R[:, k] . Z[:, k]``
         and masks the prescribed unknowns itself (:class:`~twinsense.capacitive.amg.CompiledCycle`).
     rtol, maxiter, energy, energy_tol : as :func:`block_pcg`.
     workspace : dict, optional
-        The (n, 8) blocks of a step, kept from call to call (the caller's
+        The (n, c) blocks of a step, kept from call to call (the caller's
         dict, one solve at a time): fresh blocks of megabytes are fresh
         pages, whose faults cost a noticeable share of a frame.
 
@@ -188,55 +190,71 @@ def compiled_block_pcg(
     -------
     X : (n, t) float; iterations : (t,) int.
     """
-    from twinsense.capacitive.kernels import WIDTH
+    from twinsense.capacitive.kernels import WIDTH, group_width
 
     X = np.array(X0, dtype=float, order="C", copy=True)
     t = B.shape[1]
     iters = np.zeros(t, dtype=np.int64)
     bnorm = np.sqrt(np.einsum("ij,ij->j", B, B))
     bnorm[bnorm == 0] = 1.0
+    work = {} if workspace is None else workspace
+    if t == group_width(t) and B.flags.c_contiguous and B.dtype == float:
+        e = None if energy is None else np.asarray(energy, float)
+        iters[:] = _pcg_group(A, B, X, precond, rtol, maxiter, e, energy_tol, bnorm, work, in_place=True)
+        return X, iters
     for g in range(0, t, WIDTH):
         cols = np.arange(g, min(g + WIDTH, t))
         e = None if energy is None else np.asarray(energy, float)[cols]
-        X[:, cols], iters[cols] = _pcg_group(A, B[:, cols], X[:, cols], precond, rtol, maxiter, e, energy_tol,
-                                             bnorm[cols], {} if workspace is None else workspace)
+        Xg = np.ascontiguousarray(X[:, cols])
+        iters[cols] = _pcg_group(A, np.ascontiguousarray(B[:, cols]), Xg, precond, rtol, maxiter, e, energy_tol,
+                                 bnorm[cols], work)
+        X[:, cols] = Xg
     return X, iters
 
 
 def _pcg_group(A, B, X0, precond, rtol: float, maxiter: int, energy, energy_tol: float, bnorm: np.ndarray,
-               work: dict):
-    """One group of at most WIDTH columns of :func:`compiled_block_pcg`: (X (n, m), iterations (m,));
-    X is a view into ``work``."""
-    from twinsense.capacitive.kernels import WIDTH, cg_update, column_dots, new_direction, residual8, spmm8
+               work: dict, in_place: bool = False) -> np.ndarray:
+    """One group of at most WIDTH columns of :func:`compiled_block_pcg`, solved into ``X0`` (n, m);
+    returns the iterations (m,). ``in_place``: ``m`` is the group's fixed width and ``B``, ``X0``
+    C-ordered float, used as the blocks themselves."""
+    from twinsense.capacitive.kernels import FIXED_WIDTH, cg_update, column_dots, group_width, new_direction
 
     n, m = B.shape
-    if work.get("n") != n:
+    w = group_width(m)
+    spmm, residual, _, _ = FIXED_WIDTH[w]
+    if work.get("shape") != (n, w):
         work.clear()
-        work.update(n=n, **{k: np.empty((n, WIDTH)) for k in ("B", "X", "R", "P", "AP")})
-    Bw, X, R, P, AP = (work[k] for k in ("B", "X", "R", "P", "AP"))
-    Bw[:, :m] = B
-    Bw[:, m:] = 0.0
-    X[:, :m] = X0
-    X[:, m:] = 0.0
-    residual8(A.indptr, A.indices, A.data, Bw, X, R)
-    rr = np.empty(WIDTH)
+        work.update(shape=(n, w), **{k: np.empty((n, w)) for k in ("B", "X", "R", "P", "AP")})
+    R, P, AP = (work[k] for k in ("R", "P", "AP"))
+    if in_place:
+        Bw, X = B, X0
+    else:
+        Bw, X = work["B"], work["X"]
+        Bw[:, :m] = B
+        Bw[:, m:] = 0.0
+        X[:, :m] = X0
+        X[:, m:] = 0.0
+    residual(A.indptr, A.indices, A.data, Bw, X, R)
+    rr = np.empty(w)
     column_dots(R, R, rr)
-    iters = np.zeros(WIDTH, dtype=np.int64)
-    active = np.zeros(WIDTH, bool)
+    iters = np.zeros(w, dtype=np.int64)
+    active = np.zeros(w, bool)
     active[:m] = np.sqrt(rr[:m]) > rtol * bnorm
     if not active.any():
-        return X[:, :m], iters[:m]
+        if not in_place:
+            X0[:] = X[:, :m]
+        return iters[:m]
     tail = None
     if energy is not None and energy_tol > 0:
-        tail = _EnergyTail.start(np.concatenate([energy, np.zeros(WIDTH - m)]))
-    rz = np.empty(WIDTH)
+        tail = _EnergyTail.start(np.concatenate([energy, np.zeros(w - m)]))
+    rz = np.empty(w)
     P[:] = precond(R, rz)
-    pap = np.empty(WIDTH)
+    pap = np.empty(w)
     for _ in range(maxiter):
-        spmm8(A.indptr, A.indices, A.data, P, AP)
+        spmm(A.indptr, A.indices, A.data, P, AP)
         column_dots(P, AP, pap)
         act = np.flatnonzero(active)
-        alpha = np.zeros(WIDTH)
+        alpha = np.zeros(w)
         alpha[act] = rz[act] / pap[act]
         cg_update(X, R, P, AP, alpha, rr)
         iters[act] += 1
@@ -245,10 +263,12 @@ def _pcg_group(A, B, X0, precond, rtol: float, maxiter: int, energy, energy_tol:
             still &= tail.unconverged(act, alpha[act] * rz[act], energy_tol)
         active[act[~still]] = False
         if not active.any():
-            return X[:, :m], iters[:m]
-        rz_new = np.empty(WIDTH)
+            if not in_place:
+                X0[:] = X[:, :m]
+            return iters[:m]
+        rz_new = np.empty(w)
         Z = precond(R, rz_new)
-        beta = np.zeros(WIDTH)
+        beta = np.zeros(w)
         act = np.flatnonzero(active)
         beta[act] = rz_new[act] / rz[act]
         new_direction(P, Z, beta)

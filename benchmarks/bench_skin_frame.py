@@ -1,0 +1,143 @@
+"""The robot cell's forearm skin over the reach: this tree's frames against another source tree's, in turn.
+
+The skin (``pad-grid`` on the moving forearm, 20 frames/s) with the person's
+hand reaching for it (from 3.2 s, where every frame grounds another set of
+nodes) is captured in two worker processes: one imports twinsense from this
+tree, the other from ``--before`` (a ``src`` directory, e.g. made with
+``git archive <commit> src | tar -x -C /tmp/before``). Each prepares the
+skin for the same times and captures its first frame untimed; then they
+capture frame k in turn, one process at a time, so both see the same
+machine load. Printed per tree: wall time per frame (median, best), the
+capturing process's CPU time (median), the CG iterations of the largest
+column, and the largest Maxwell difference between the two trees (against
+the skin's ``capacitance_atol``). Without ``--before`` only this tree runs.
+
+Same-run anchor: a plain scikit-fem + pyamg solve on the skin's mesh
+(``_timing.skfem_pyamg_anchor``), timed in this tree's worker.
+
+Run:  .venv/bin/python benchmarks/bench_skin_frame.py [--before /tmp/before/src] [--frames 12] [--rounds 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import pickle
+import subprocess
+import sys
+import time
+
+import numpy as np
+from _timing import print_anchor, print_load_at_end, print_machine
+
+T_REACH = 3.2  # [s] the person's hand at the forearm: the skin's map changes every frame
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def worker(frames: int) -> None:
+    """The worker's side: read frame numbers on stdin, capture, answer on stdout (pickled)."""
+    from twinsense.demos.robot_cell import build_arm_cell
+
+    scene, sensors = build_arm_cell()
+    skin = sensors[3]
+    times = [T_REACH + k / 20.0 for k in range(frames + 1)]
+    skin.prepare(scene, times)
+    skin.capture(scene, times[0], None)  # untimed: mesh, baseline, hierarchy, compiled kernels
+    out = sys.stdout.buffer
+    for line in sys.stdin:
+        cmd = line.split()
+        if cmd[0] == "anchor":
+            from _timing import skfem_pyamg_anchor
+
+            lm = skin.layout_mesh
+            got = min(skfem_pyamg_anchor(lm.mesh.points, lm.mesh.cells, lm.terminal_nodes, lm.ground_nodes,
+                                         lm.permittivity) for _ in range(3))
+            reply = {"anchor": got}
+        else:
+            k = int(cmd[1])
+            c0, w0 = time.process_time(), time.perf_counter()
+            f = skin.capture(scene, times[k], None)
+            wall, cpu = time.perf_counter() - w0, time.process_time() - c0
+            reply = {"wall": wall, "cpu": cpu, "iters": int(f.iterations.max()), "maxwell": f.maxwell,
+                     "atol": skin.frame_solver_config.capacitance_atol}
+        data = pickle.dumps(reply)
+        out.write(len(data).to_bytes(8, "little") + data)
+        out.flush()
+
+
+class Worker:
+    def __init__(self, src: str, frames: int):
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join([src, HERE]), OMP_NUM_THREADS="1",
+                   OPENBLAS_NUM_THREADS="1")
+        self.p = subprocess.Popen([sys.executable, os.path.abspath(__file__), "--worker", "--frames", str(frames)],
+                                  stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
+
+    def ask(self, cmd: str) -> dict:
+        self.p.stdin.write((cmd + "\n").encode())
+        self.p.stdin.flush()
+        n = int.from_bytes(self.p.stdout.read(8), "little")
+        return pickle.loads(self.p.stdout.read(n))
+
+    def close(self) -> None:
+        self.p.stdin.close()
+        self.p.wait()
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--before", help="a src directory of another tree, run in turn with this one")
+    ap.add_argument("--frames", type=int, default=12)
+    ap.add_argument("--rounds", type=int, default=2, help="passes over the frames (a frame again is a warm "
+                    "start from the last frame of the pass)")
+    ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.frames < 1 or args.rounds < 1:
+        ap.error("--frames and --rounds must be at least 1")
+    if args.worker:
+        worker(args.frames)
+        return
+    print_machine()
+    trees = {"this tree": os.path.join(os.path.dirname(HERE), "src")}
+    if args.before:
+        if not os.path.isdir(os.path.join(args.before, "twinsense")):
+            ap.error(f"--before {args.before!r}: no twinsense package there (give a src directory)")
+        trees = {"before": args.before, **trees}
+    workers = {name: Worker(src, args.frames) for name, src in trees.items()}
+    got = {name: {"wall": [], "cpu": [], "iters": []} for name in trees}
+    worst = 0.0
+    atol = None
+    try:
+        for _ in range(args.rounds):
+            for k in range(1, args.frames + 1):
+                mats = {}
+                for name, w in workers.items():
+                    r = w.ask(f"frame {k}")
+                    for key in ("wall", "cpu", "iters"):
+                        got[name][key].append(r[key])
+                    mats[name] = r["maxwell"]
+                    atol = r["atol"]
+                if len(mats) == 2:
+                    a, b = mats.values()
+                    worst = max(worst, float(np.abs(a - b).max()))
+        anchor = workers["this tree"].ask("anchor")["anchor"]
+    finally:
+        for w in workers.values():
+            w.close()
+    n = args.frames * args.rounds
+    print(f"skin pad-grid on the moving forearm, hand reaching (from {T_REACH:g} s, {args.frames} frames x "
+          f"{args.rounds} rounds, trees in turn frame by frame):")
+    for name, g in got.items():
+        wall, cpu = np.array(g["wall"]), np.array(g["cpu"])
+        print(f"  {name:10s}: {np.median(wall) * 1e3:6.1f} ms median wall ({wall.min() * 1e3:.1f} best, "
+              f"{np.percentile(wall, 90) * 1e3:.1f} 90th percentile), {np.median(cpu) * 1e3:6.1f} ms median CPU; "
+              f"CG iterations {min(g['iters'])}-{max(g['iters'])} (mean {np.mean(g['iters']):.2f}) over {n} frames; "
+              f"{'under' if np.median(wall) < 0.05 else 'NOT under'} 50 ms")
+    if len(got) == 2:
+        print(f"  largest Maxwell difference between the trees: {worst * 1e15:.4f} fF ({worst / atol:.2f} x "
+              f"capacitance_atol {atol * 1e15:.4f} fF)")
+    print_anchor("scikit-fem + pyamg solve, same mesh", anchor, float(np.median(got["this tree"]["wall"])))
+    print_load_at_end()
+
+
+if __name__ == "__main__":
+    main()
