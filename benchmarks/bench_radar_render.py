@@ -76,7 +76,9 @@ def stages(scene, radar, frames: int, anchor: float) -> None:
         done("world rays of the new pose")
         caster._states(t)
         done("moving objects' poses (state_at of 26 objects)")
-        hits = caster.cast(rays, t, _DIRECT_FIELDS, r.workers)
+        # As render casts: into the arrays it keeps (after), into new ones (before).
+        kept = r._hit_buffers(len(rays.directions), _DIRECT_FIELDS) if r.compiled else None
+        hits = caster.cast(rays, t, _DIRECT_FIELDS, r.workers, buffers=kept)
         done("cast: Embree 4 instanced traversal + float64 hits")
         (r._direct_compiled if r.compiled else r._direct_numpy)(scene, state, hits, True)
         done("scatterers: points, velocities, RCS, amplitudes")

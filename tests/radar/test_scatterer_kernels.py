@@ -160,3 +160,45 @@ def test_compiled_flag_is_checked():
     with pytest.raises(ConfigError, match="True or False"):
         r.compiled = 1
     assert r.compiled is True
+
+
+def test_a_frame_keeps_its_scatterers_when_the_next_is_rendered():
+    # The cast's arrays are kept between frames; the scatterers own theirs, and only
+    # arrays that nothing refers to any more (a dropped frame's) are written again.
+    cfg = preset_config("paper_bgt60tr13c", render_width=64, render_height=32)
+    scene = _scene(True)
+    scene.add_object("carrier", Box((0.01, 0.01, 0.01)), "plastic",
+                     ConstantVelocity(Pose(), (0.3, 0.0, 0.0), (0.0, 0.5, 0.0)), layers={"capacitive"})
+    mount = Mount(Pose(), parent="carrier")
+    r, r_ref = _renderers(cfg)
+    first = r.render(scene, mount.state_at(scene, 0.0), 0.0)
+    kept = {f: getattr(first, f).copy() for f in FIELDS}
+    second = r.render(scene, mount.state_at(scene, 0.5), 0.5)
+    assert not _same_bytes(second.points, first.points)
+    for f in FIELDS:  # a frame still held is left alone
+        assert _same_bytes(getattr(first, f), kept[f]), f
+    # A dropped frame lends its arrays to the next one, except one that a view still holds.
+    view = second.velocities[:, 0]
+    view_bytes = view.tobytes()
+    address = second.rcs.ctypes.data
+    del second
+    third = r.render(scene, mount.state_at(scene, 0.9), 0.9)
+    assert third.rcs.ctypes.data == address
+    assert view.tobytes() == view_bytes
+    _assert_same(third, r_ref.render(scene, mount.state_at(scene, 0.9), 0.9), r, r_ref)
+
+
+def test_cast_buffers_are_checked_and_filled():
+    from twinsense.render import Rays, caster_for
+    from twinsense.render.hits import allocate_field
+
+    scene = _scene(True)
+    caster = caster_for(scene, "radar")
+    rays = Rays(np.zeros(3), np.tile([0.0, 0.0, 1.0], (5, 1)))
+    buffers = {"distance": allocate_field("distance", 5), "object_id": allocate_field("object_id", 5)}
+    hits = caster.cast(rays, 0.0, ("distance",), buffers=buffers)
+    # The slab's near face at 5 m - 0.01 m; float64 plane distances round to ~1e-15 m.
+    assert hits.distance is buffers["distance"] and np.allclose(hits.distance, 4.99, rtol=0, atol=1e-12)
+    for bad in (np.zeros(4), np.zeros(5, np.float32), np.zeros((5, 2))[:, 0], [0.0] * 5):
+        with pytest.raises(ConfigError, match=r"buffers\['distance'\]"):
+            caster.cast(rays, 0.0, ("distance",), buffers={"distance": bad})

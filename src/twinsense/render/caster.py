@@ -31,7 +31,14 @@ import numpy as np
 
 from twinsense.errors import ConfigError, UnknownNameError
 from twinsense.render.backends import BACKENDS, Embree4Intersector, check_mesh, make_intersector
-from twinsense.render.hits import ALWAYS_FIELDS, HIT_FIELDS, Hits, allocate_field, check_fields
+from twinsense.render.hits import (
+    ALWAYS_FIELDS,
+    HIT_FIELDS,
+    Hits,
+    allocate_field,
+    check_fields,
+    field_array,
+)
 from twinsense.render.instanced import InstancedScene
 from twinsense.render.kernels import (
     CONE_BLOCK,
@@ -121,7 +128,7 @@ class SceneCaster:
         return scene
 
     def cast(self, rays: Rays, t: float = 0.0, fields: Iterable[str] | None = None,
-             workers: int | None = None, *, moving: bool = True) -> Hits:
+             workers: int | None = None, *, moving: bool = True, buffers: dict | None = None) -> Hits:
         """Closest hits of ``rays`` (world frame) against the scene posed at time ``t`` [s].
 
         ``fields``: the :class:`Hits` fields to compute (default all); the
@@ -130,6 +137,10 @@ class SceneCaster:
         every ray's result is the same whatever the chunking.
 
         ``moving=False`` leaves the moving objects out (see :meth:`cast_static`).
+
+        ``buffers``: {field: array} to write fields into instead of new arrays
+        (a caller that casts as many rays every frame keeps them: fresh arrays
+        cost a page fault per 4 kB each frame); the Hits then view them.
 
         A sensor that does not move casts the same rays every frame: when
         both ray arrays are read-only (and everything they view is), the
@@ -148,7 +159,7 @@ class SceneCaster:
         o, d = rays.origins, rays.directions
         n = len(d)
         movers = moving and bool(self._moving)
-        out = {f: allocate_field(f, n) for f in ALWAYS_FIELDS | want}
+        out = {f: field_array(f, n, buffers) for f in ALWAYS_FIELDS | want}
         workers = default_workers() if workers is None else workers
         memo, ready = self._static_memo(o, d)
         if movers and memo is None and self._instanced is not None:

@@ -84,3 +84,19 @@ def allocate_field(field: str, n: int) -> np.ndarray:
     """An uninitialised array for ``n`` rays of hit field ``field`` (dtype and shape as in Hits)."""
     k = _SHAPES.get(field)
     return np.empty((n, k) if k else n, dtype=_DTYPES.get(field, np.float64))
+
+
+def field_array(field: str, n: int, buffers: dict | None = None) -> np.ndarray:
+    """``buffers[field]`` if there is one (checked: the dtype and shape :func:`allocate_field`
+    gives, C-contiguous, writeable), else a new array for ``n`` rays."""
+    a = None if buffers is None else buffers.get(field)
+    if a is None:
+        return allocate_field(field, n)
+    k = _SHAPES.get(field)
+    shape = (n, k) if k else (n,)
+    dtype = np.dtype(_DTYPES.get(field, np.float64))
+    if (not isinstance(a, np.ndarray) or a.shape != shape or a.dtype != dtype
+            or not a.flags.c_contiguous or not a.flags.writeable):
+        raise ConfigError(f"buffers[{field!r}]", getattr(a, "shape", type(a).__name__),
+                          f"a writeable C-contiguous {dtype} array of shape {shape}")
+    return a
