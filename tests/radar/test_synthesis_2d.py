@@ -377,3 +377,30 @@ def test_rate_bounds_cut_the_tails_only():
     middle = [b for b in base if rate[b[0]] > -0.35 and rate[b[1] - 1] < 0.35]
     assert middle and all(b in cut for b in middle)
     assert rate_bounds(rate) == cut  # depends on the rates only
+
+
+def test_rate_bounds_floor_keeps_chunks_of_one_shared_rate():
+    # 200,000 movers nearly all at one range rate (a radar moving straight at a wall:
+    # 1e-6 m/s of rounding apart), 8,000 spread over +-4 mm/s: the median chunk's spread is
+    # ~1e-6 m/s, so without a floor every chunk holding any of the spread ones is cut into
+    # pieces of 1,024. The floor (the spread whose slow-time phase over the frame is
+    # 0.1 rad: 17.8 mm/s for this 58 GHz, 16-chirp config) keeps them whole; a tail far
+    # beyond it (1,500 movers at 1-3 m/s) is still cut off.
+    from twinsense.radar.nufft import rate_floor
+
+    rng = np.random.default_rng(26)
+    core = np.concatenate([1e-6 * rng.standard_normal(192000), rng.uniform(-0.004, 0.004, 8000)])
+    rate = np.sort(core)
+    base = moving_bounds(len(rate))
+    c = _config().chirp
+    floor = rate_floor(_config())
+    # 0.1 lambda / (4 pi T): lambda = c / 58 GHz, T = the last chirp's start + the ramp's end.
+    t_end = 15 * 150e-6 + c.ramp_end_time
+    assert floor == pytest.approx(0.1 * 299792458.0 / 58e9 / (4 * math.pi * t_end), rel=1e-12, abs=0.0)
+    assert len(rate_bounds(rate)) >= len(base) + 8  # the over-split without a floor
+    assert rate_bounds(rate, floor) == base
+    tail = np.sort(np.concatenate([core, rng.uniform(1.0, 3.0, 1500)]))
+    base_tail = moving_bounds(len(tail))
+    cut = rate_bounds(tail, floor)
+    assert len(cut) > len(base_tail)
+    assert all(b in cut for b in base_tail if tail[b[1] - 1] < 0.5)  # the core's chunks whole

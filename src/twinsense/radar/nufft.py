@@ -401,10 +401,17 @@ def moving_bounds(n: int) -> list[tuple[int, int]]:
 _MIN_PIECE = 1024  # movers: no chunk cut from a wide one is smaller
 
 
-def rate_bounds(rate: np.ndarray) -> list[tuple[int, int]]:
+def rate_bounds(rate: np.ndarray, floor: float = 0.0) -> list[tuple[int, int]]:
     """Chunks of movers sorted by range rate ``rate`` (n,) [m/s]: :func:`moving_bounds`'s
     equal counts, with any chunk whose rates spread over more than twice the median
-    chunk's cut into pieces of at most that spread (and at least 1,024 movers).
+    chunk's, and over ``floor`` [m/s], cut into pieces of at most that spread (and at
+    least 1,024 movers).
+
+    ``floor``: a spread too small to matter (the synthesis passes the one whose
+    slow-time phase over the frame is 0.1 rad, :func:`rate_floor`). Without it, a
+    scene whose movers mostly share one range rate (a radar moving straight at a
+    wall: a median spread near 0) would have every chunk with any spread cut into
+    pieces of 1,024 movers, each with its own plans and transforms.
 
     The tails of the distribution (the few fastest and slowest movers) would otherwise
     share a chunk with many movers of a narrow band: its rests grow with the spread,
@@ -413,7 +420,7 @@ def rate_bounds(rate: np.ndarray) -> list[tuple[int, int]]:
     """
     base = moving_bounds(len(rate))
     spans = [float(rate[hi - 1] - rate[lo]) for lo, hi in base]
-    limit = 2.0 * float(np.median(spans))
+    limit = max(2.0 * float(np.median(spans)), float(floor))
     out = []
     for lo, hi in base:
         start = lo
@@ -425,6 +432,19 @@ def rate_bounds(rate: np.ndarray) -> list[tuple[int, int]]:
             out.append((start, end))
             start = end
     return out
+
+
+def rate_floor(config: RadarConfig) -> float:
+    """Range-rate spread [m/s] whose slow-time phase over the frame is 0.1 rad.
+
+    Two movers whose range rates differ by dr drift apart in phase by 4 pi dr T / lambda
+    over the frame (T: the last ramp's end, lambda at the ramp's start frequency): at 0.1
+    rad the chunk's slow-time rest (the 1-D variant's largest, up to 1 rad allowed)
+    stays small, so cutting such a chunk saves nothing."""
+    c = config.chirp
+    t_end = float(c.chirp_times()[-1]) + c.ramp_end_time
+    wavelength = SPEED_OF_LIGHT / c.start_frequency
+    return 0.1 * wavelength / (4.0 * math.pi * t_end)
 
 
 # ---------------------------------------------------------------------------

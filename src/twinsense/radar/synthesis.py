@@ -92,6 +92,7 @@ from twinsense.radar.nufft import (
     moving_chunk,
     moving_chunk_2d,
     rate_bounds,
+    rate_floor,
     static_chunk,
 )
 from twinsense.render.parallel import map_ordered
@@ -371,7 +372,7 @@ def synthesize(points: np.ndarray, velocities: np.ndarray | None, weights: np.nd
                 rate = rate + _range_rate(pr, vr, mv)
             order = np.argsort(rate, kind="stable")
             mv = mv[order]
-            bounds = rate_bounds(rate[order])
+            bounds = rate_bounds(rate[order], rate_floor(config))
         else:
             bounds = moving_bounds(len(mv))
         pm, vm, wm = np.take(p, mv, axis=0), np.take(v, mv, axis=0), np.take(w, mv)
