@@ -147,21 +147,44 @@ def test_captures_on_two_threads_equal_captures_one_after_another():
         assert_same_frame(got[k], seq[k])
 
 
-def test_noise_slabs_are_the_per_block_streams():
+def test_noise_slabs_are_the_frames_stream_block_after_block():
     cfg = config(height=45)  # a last block of 5 rows
     seeds = noise_seeds(cfg, np.random.default_rng(3))
+    assert seeds.shape == (1,)  # one stream per frame
     slabs = draw_noise_slabs(cfg, seeds)
     whole = noise_rows(cfg, seeds, 0, cfg.height)
     cut = slab_noise(cfg, slabs)
     np.testing.assert_array_equal(cut.raw, whole.raw)
     np.testing.assert_array_equal(cut.gray, whole.gray)
-    # Block 0 is SFC64 seeded with its seed: the raw images (F, 4, K, W), then the gray image.
+    # The stream is SFC64 seeded with the seed, drawn block after block in separate calls: each
+    # block's raw images (F, 4, k, W), then its gray image (k, W). The slabs are one call over
+    # all blocks: NumPy's generator carries its state (the half-used 64-bit word too) from call
+    # to call, so the same bits.
     g = np.random.Generator(np.random.SFC64(int(seeds[0])))
     k, w = NOISE_BLOCK_ROWS, cfg.width
-    np.testing.assert_array_equal(whole.raw[:, :, :k], g.standard_normal((2, 4, k, w), dtype=np.float32))
-    np.testing.assert_array_equal(whole.gray[:k], g.standard_normal((k, w), dtype=np.float32))
+    for b in range(-(-cfg.height // k)):
+        rows = min(k, cfg.height - b * k)
+        np.testing.assert_array_equal(whole.raw[:, :, b * k:b * k + rows],
+                                      g.standard_normal((2, 4, rows, w), dtype=np.float32))
+        np.testing.assert_array_equal(whole.gray[b * k:b * k + rows], g.standard_normal((rows, w), dtype=np.float32))
     # Drawn again into the same (kept) array: the same draws.
     np.testing.assert_array_equal(draw_noise_slabs(cfg, seeds, slabs.copy()), slabs)
+
+
+def test_a_seeded_frame_is_the_same_bytes_run_to_run_and_for_any_worker_count(monkeypatch):
+    # Same seed, same bytes: two captures from generators in the same state, and again with one
+    # worker thread (the noise is one stream, drawn on one thread, whatever the bands).
+    cfg = config(height=45)
+    cam = ToFCamera(cfg, LOOK_X)
+    a = cam.capture(scene(), 0.0, np.random.default_rng(9))
+    b = cam.capture(scene(), 0.0, np.random.default_rng(9))
+    monkeypatch.setenv("TWINSENSE_THREADS", "1")
+    c = cam.capture(scene(), 0.0, np.random.default_rng(9))
+    for f in (b, c):
+        for name in ("raw", "gray", "amplitude", "distance", "depth", "noise", "confidence", "invalid",
+                     "points_sensor", "points_world"):
+            assert getattr(a, name).tobytes() == getattr(f, name).tobytes(), name
+    assert a.raw.tobytes() != cam.capture(scene(), 0.0, np.random.default_rng(10)).raw.tobytes()
 
 
 @pytest.mark.parametrize("sigma", [0.3, 0.6, 1.3, 2.2])
@@ -180,10 +203,13 @@ def test_bad_noise_slabs_and_seeds_raise_config_errors():
     cfg = config(height=45)
     seeds = noise_seeds(cfg, np.random.default_rng(3))
     good = draw_noise_slabs(cfg, seeds)
-    bad_seeds = {"too few": seeds[:-1], "floats": seeds.astype(float), "negative": -seeds}
+    bad_seeds = {"too few": seeds[:0], "too many": np.repeat(seeds, 2), "floats": seeds.astype(float),
+                 "negative": -seeds - 1}
     for seed_array in bad_seeds.values():
-        with pytest.raises(ConfigError, match=r"draw_noise_slabs\.seeds.*non-negative integers"):
+        with pytest.raises(ConfigError, match=r"draw_noise_slabs\.seeds.*non-negative integer"):
             draw_noise_slabs(cfg, seed_array)
+        with pytest.raises(ConfigError, match=r"noise_rows\.seeds.*non-negative integer"):
+            noise_rows(cfg, seed_array, 0, cfg.height)
     for bad in (good[:-1], good.astype(np.float64), good.reshape(-1, cfg.width), good[::-1], list(good)):
         with pytest.raises(ConfigError, match=r"draw_noise_slabs\.out.*C-contiguous float32"):
             draw_noise_slabs(cfg, seeds, bad)

@@ -26,8 +26,8 @@ from twinsense.tof.pipeline import (
     draw_noise_slabs,
     finish_geometry,
     noise_seeds,
+    noise_size,
     slab_noise,
-    slab_size,
 )
 from twinsense.tof.presets import tof_preset
 from twinsense.tof.rendering import ToFRenderer
@@ -177,7 +177,7 @@ class ToFCamera:
         seeds = noise_seeds(cfg, rng)
         out = None
         if mine:
-            size = len(seeds) * slab_size(cfg)
+            size = noise_size(cfg)
             if self._noise_buffer is None or len(self._noise_buffer) != size:
                 self._noise_buffer = np.empty(size, np.float32)
             # The background thread runs one task at a time, so a draw into the

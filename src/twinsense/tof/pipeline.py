@@ -82,20 +82,35 @@ class ChainNoise:
     gray: np.ndarray
 
 
-#: Noise is drawn in blocks of this many image rows, each from its own seeded stream.
+#: The frame's noise lies in slabs of this many image rows (the compiled chain's blocks).
 NOISE_BLOCK_ROWS = 8
 
 
 def noise_seeds(config: ToFConfig, rng: np.random.Generator) -> np.ndarray:
-    """One seed per block of :data:`NOISE_BLOCK_ROWS` image rows, drawn from ``rng``: (blocks,) int64."""
-    return rng.integers(0, 2 ** 63 - 1, size=_blocks(config), dtype=np.int64)
+    """The seed of the frame's noise stream, drawn from ``rng``: (1,) int64."""
+    return rng.integers(0, 2 ** 63 - 1, size=1, dtype=np.int64)
 
 
-def _block_generator(seed) -> np.random.Generator:
-    """The generator of one block of rows: SFC64 seeded through SeedSequence (independent
-    streams). SFC64 fills float32 normals in ~2/3 of PCG64's time; PCG64 gave the frames
-    before this choice (a seeded frame's noise bytes changed with it)."""
+def _frame_generator(seed) -> np.random.Generator:
+    """The generator of a frame's noise: SFC64 seeded through SeedSequence. SFC64 fills float32
+    normals in ~2/3 of PCG64's time. One stream for the whole frame, filled in one call: the
+    blocks of 8 rows had a stream each before (22 generators for a pico flexx frame, ~1 ms
+    more, and 22 calls each taking the GIL back from the capturing thread); a seeded frame's
+    noise bytes changed with each of these choices."""
     return np.random.Generator(np.random.SFC64(int(seed)))
+
+
+def _check_seeds(field: str, seeds) -> np.ndarray:
+    seeds = np.asarray(seeds)
+    if seeds.shape != (1,) or seeds.dtype.kind not in "iu" or (seeds < 0).any():
+        raise ConfigError(field, f"{seeds.dtype} array of shape {seeds.shape}",
+                          "(1,) non-negative integer (noise_seeds)")
+    return seeds
+
+
+def noise_size(config: ToFConfig) -> int:
+    """Floats of a frame's slabs (:func:`draw_noise_slabs`): blocks x :func:`slab_size`."""
+    return _blocks(config) * slab_size(config)
 
 
 def slab_size(config: ToFConfig) -> int:
@@ -119,16 +134,19 @@ def check_slabs(field: str, slabs, config: ToFConfig) -> None:
 
 
 def draw_noise_slabs(config: ToFConfig, seeds: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-    """The frame's standard normal draws, block by block, as they come from each block's stream.
+    """The frame's standard normal draws, block after block, as they come from its stream.
 
     Block b (rows b K .. b K + k - 1, K = :data:`NOISE_BLOCK_ROWS`, k <= K its
     rows) fills ``out[b S : b S + (4 F + 1) k W]`` (S = :func:`slab_size`): its
     raw images (F, 4, k, W) in C order, then its gray image (k, W); the same
-    draws as :func:`noise_rows`, which cuts them into whole images.
+    draws as :func:`noise_rows`, which cuts them into whole images. Every block
+    but the last is full, so the draws are one run of the stream over
+    ``out[:(blocks - 1) S + (4 F + 1) k W]``: one call, which holds the GIL only
+    to start (it runs beside the capturing thread's Python work).
 
     Parameters
     ----------
-    seeds : (blocks,) int64
+    seeds : (1,) int64
         From :func:`noise_seeds`.
     out : (blocks S,) float32, optional
         Filled in place (kept between frames by the camera); a new array if None.
@@ -139,17 +157,13 @@ def draw_noise_slabs(config: ToFConfig, seeds: np.ndarray, out: np.ndarray | Non
     """
     cfg = config
     k, size = NOISE_BLOCK_ROWS, slab_size(config)
-    seeds = np.asarray(seeds)
-    if seeds.shape != (_blocks(cfg),) or seeds.dtype.kind not in "iu" or (seeds < 0).any():
-        raise ConfigError("draw_noise_slabs.seeds", f"{seeds.dtype} array of shape {seeds.shape}",
-                          f"({_blocks(cfg)},) non-negative integers (noise_seeds)")
+    seeds = _check_seeds("draw_noise_slabs.seeds", seeds)
     if out is None:
-        out = np.empty(len(seeds) * size, np.float32)
+        out = np.empty(noise_size(cfg), np.float32)
     check_slabs("draw_noise_slabs.out", out, cfg)
-    per_row = size // k
-    for b, seed in enumerate(seeds):
-        rows = min(k, cfg.height - b * k)
-        _block_generator(seed).standard_normal(dtype=np.float32, out=out[b * size:b * size + rows * per_row])
+    last = _blocks(cfg) - 1
+    used = last * size + (cfg.height - last * k) * (size // k)
+    _frame_generator(seeds[0]).standard_normal(dtype=np.float32, out=out[:used])
     return out
 
 
@@ -171,21 +185,25 @@ def slab_noise(config: ToFConfig, slabs: np.ndarray) -> ChainNoise:
 
 
 def noise_rows(config: ToFConfig, seeds: np.ndarray, r0: int, r1: int) -> ChainNoise:
-    """Standard normal draws of image rows [r0, r1) from the per-block streams ``seeds``.
+    """Standard normal draws of image rows [r0, r1) from the frame's stream (seed ``seeds[0]``).
 
-    Each block of rows has its own generator (:func:`_block_generator`, so the
-    streams are independent): the draws depend on the seeds only, not on which
-    thread makes them or how the image is split. The reference for
-    :func:`draw_noise_slabs`.
+    The stream is drawn block after block of :data:`NOISE_BLOCK_ROWS` rows, each
+    block's raw images (F, 4, k, W) then its gray image (k, W), as separate draws
+    from the one generator (:func:`_frame_generator`), from block 0 on (the blocks
+    before r0 are drawn and dropped): the draws depend on the seed only, not on how
+    the image is split. The reference for :func:`draw_noise_slabs`.
     """
     cfg = config
+    seeds = _check_seeds("noise_rows.seeds", seeds)
     k = NOISE_BLOCK_ROWS
     raws, grays = [], []
-    for b in range(r0 // k, -(-r1 // k)):
-        g = _block_generator(seeds[b])
+    g = _frame_generator(seeds[0])
+    for b in range(-(-r1 // k)):
         rows = min(k, cfg.height - b * k)
         raw = g.standard_normal((cfg.n_frequencies, PHASE_STEPS, rows, cfg.width), dtype=np.float32)
         gray = g.standard_normal((rows, cfg.width), dtype=np.float32)
+        if (b + 1) * k <= r0:
+            continue
         lo, hi = max(r0 - b * k, 0), min(r1 - b * k, rows)
         raws.append(raw[:, :, lo:hi])
         grays.append(gray[lo:hi])
