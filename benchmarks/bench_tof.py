@@ -15,7 +15,16 @@ camera (``pmd_pico_flexx`` on the moving UR5, a walking person), whole
 captures with the NumPy reference chain and with the compiled chain in turn,
 frame by frame, then the chain's stages on one frame's hits.
 
-Run:  .venv/bin/python benchmarks/bench_tof.py [--wrist-chain [--frames N]]
+``--wrist-stages`` times where the wall time of one wrist frame goes on the
+worker threads: every stage's calls (camera pose and world rays, the links'
+poses, the top level's posing, Embree's traversal and the float64 hit pass
+per chunk, the phasor pass's two loops per band, the noise draw, the chain's
+two passes per band) are wrapped to record their thread, start, end and
+thread CPU; per frame the span of each stage (first start to last end, from
+the capture's start), its summed wall and CPU, each thread's busy time, and
+the cores' idle time (2 x wall - process CPU), medians over the frames.
+
+Run:  .venv/bin/python benchmarks/bench_tof.py [--wrist-chain | --wrist-stages] [--frames N]
 """
 
 from __future__ import annotations
@@ -289,14 +298,119 @@ def wrist_chain(frames: int) -> None:
               f"wall {np.median(wall[label]) * 1e3:6.2f} ms (median, in turn 40 times)")
 
 
+class _Recorder:
+    """Wraps functions to record (thread name, stage, start, end, thread CPU) of every call."""
+
+    def __init__(self):
+        self.events: list = []
+        self._undo: list = []
+
+    def wrap(self, owner, name: str, stage: str) -> None:
+        import functools
+        import threading
+
+        fn = getattr(owner, name)
+
+        @functools.wraps(fn)
+        def timed(*a, **k):
+            t0, c0 = time.perf_counter(), time.thread_time()
+            try:
+                return fn(*a, **k)
+            finally:
+                self.events.append((threading.current_thread().name, stage, t0, time.perf_counter(),
+                                    time.thread_time() - c0))
+
+        self._undo.append((owner, name, owner.__dict__.get(name) if isinstance(owner, type) else fn))
+        setattr(owner, name, timed)
+
+    def restore(self) -> None:
+        for owner, name, fn in reversed(self._undo):
+            setattr(owner, name, fn)
+
+
+def wrist_stages(frames: int) -> None:
+    """Where the wall time of a wrist frame goes (see the module docstring)."""
+    from collections import defaultdict
+
+    import twinsense.render.embree4 as embree4
+    import twinsense.render.instanced as instanced
+    import twinsense.tof.camera as camera
+    import twinsense.tof.chain_kernels as chain_kernels
+    import twinsense.tof.kernels as tof_kernels
+    from twinsense.demos.robot_cell import build_arm_cell
+    from twinsense.render.caster import SceneCaster
+    from twinsense.render.parallel import default_workers
+    from twinsense.scene.scene import Mount
+    from twinsense.tof.rendering import ToFRenderer
+
+    scene, sensors = build_arm_cell()
+    cam = sensors[2]
+    cfg = cam.config
+    times = [0.9 + k / 30.0 for k in range(frames + 4)]
+    rng = np.random.default_rng(0)
+    for k in range(3):
+        cam.capture(scene, times[k], rng)
+    rec = _Recorder()
+    for owner, name, stage in (
+            (Mount, "pose_at", "camera pose"), (ToFRenderer, "rays", "world rays"),
+            (SceneCaster, "_states", "moving links' poses (state_at)"),
+            (embree4.InstanceScene, "pose", "top level posed and committed"),
+            (instanced, "trace", "Embree traversal (per chunk)"),
+            (instanced, "instanced_hits", "float64 hit pass (per chunk)"),
+            (camera, "draw_noise_slabs", "noise draw (background thread)"),
+            (tof_kernels, "_sample_rows", "phasors: samples (per band)"),
+            (tof_kernels, "_block_rows", "phasors: block sums (per band)"),
+            (chain_kernels, "_pixel_rows", "chain pass 1 (per band)"),
+            (chain_kernels, "_geometry_rows", "chain pass 2 (per band)")):
+        rec.wrap(owner, name, stage)
+    spans: dict = defaultdict(list)
+    summed: dict = defaultdict(lambda: np.zeros((frames, 2)))
+    busy: dict = defaultdict(lambda: np.zeros(frames))
+    wall, cpu = np.zeros(frames), np.zeros(frames)
+    try:
+        for k in range(frames):
+            rec.events.clear()
+            c0, t0 = time.process_time(), time.perf_counter()
+            cam.capture(scene, times[k + 3], rng)
+            wall[k], cpu[k] = time.perf_counter() - t0, time.process_time() - c0
+            first: dict = {}
+            for thread, stage, a, b, c in rec.events:
+                lo, hi = first.get(stage, (np.inf, -np.inf))
+                first[stage] = (min(lo, a - t0), max(hi, b - t0))
+                summed[stage][k] += (b - a, c)
+                busy[thread][k] += b - a
+            for stage, span in first.items():
+                spans[stage].append(span)
+    finally:
+        rec.restore()
+    n_rays = cfg.width * cfg.height * cfg.supersample ** 2
+    print(f"\n== robot cell, wrist ToF pmd_pico_flexx ({n_rays} rays): where one frame's wall time goes, "
+          f"{default_workers()} worker threads, {frames} frames (medians)")
+    print(f"  frame: wall {np.median(wall) * 1e3:.2f} ms (best {wall.min() * 1e3:.2f}), process CPU "
+          f"{np.median(cpu) * 1e3:.2f} ms; the 2 cores idle {np.median(2 * wall - cpu) * 1e3:.2f} ms of "
+          f"2 x wall")
+    print(f"  {'stage':<40s} {'span from capture start':>24s} {'wall (sum of calls)':>20s} {'thread CPU':>11s}")
+    for stage, v in sorted(spans.items(), key=lambda x: np.median([a for a, _ in x[1]])):
+        v = np.array(v)
+        w, c = np.median(summed[stage], axis=0)
+        print(f"  {stage:<40s} {np.median(v[:, 0]) * 1e3:9.2f} .. {np.median(v[:, 1]) * 1e3:7.2f} ms "
+              f"{w * 1e3:14.2f} ms {c * 1e3:8.2f} ms")
+    for thread, b in sorted(busy.items()):
+        print(f"  thread {thread:<33s} busy in the stages above {np.median(b) * 1e3:6.2f} ms per frame")
+
+
 if __name__ == "__main__":
     ap = argparse.ArgumentParser()
     ap.add_argument("--wrist-chain", action="store_true", help="only the robot cell's wrist camera chain case")
+    ap.add_argument("--wrist-stages", action="store_true", help="only where a wrist frame's wall time goes")
     ap.add_argument("--frames", type=int, default=40)
     args = ap.parse_args()
-    if args.wrist_chain:
+    if args.wrist_chain or args.wrist_stages:
         print_machine()
-        wrist_chain(args.frames)
+        if args.wrist_chain:
+            wrist_chain(args.frames)
+        if args.wrist_stages:
+            wrist_stages(args.frames)
         print_load_at_end()
     else:
         main()
