@@ -254,3 +254,18 @@ def block_series(resid, program, scale, out_slots, n_terms, n_series, out):  # p
             k = out_slots[d]
             for i in range(n):
                 out[d, lo + i] = complex(s_re[k, i], s_im[k, i])
+
+
+@jit
+def abs_sum_max(rows):  # pragma: no cover
+    """max_i sum_r |rows[r, i]| of (R, m) rows, each sum from 0 in row order (the bits of
+    NumPy's ``max(sum(abs(r) for r in rows, zeros))``); 0 for m = 0."""
+    n_rows, m = rows.shape
+    best = 0.0
+    for i in range(m):
+        acc = 0.0
+        for r in range(n_rows):
+            acc += abs(rows[r, i])
+        if acc > best:
+            best = acc
+    return best

@@ -34,6 +34,7 @@ from twinsense.radar.kernels import (
     OP_SERIES_ACC,
     OP_SERIES_SET,
     OP_SET,
+    abs_sum_max,
     block_coefficients_low,
     block_series,
     leg_offsets,
@@ -627,6 +628,7 @@ class _Block2D:
         # rest (``resid[(1, 0)]``), and each vector is a 1-D NUFFT along the samples.
         self.phi0, self.w, self.x = phi0, w, x
         self.cost = 0.0           # the cost model's estimate of its run [ns]
+        self.resid_rows = None    # (R, m) the rests' rows in ``resid``'s order, when stacked
         self.common = common      # {(i, j): float} chunk-wide coefficients (normalised)
         self.resid = resid        # {(i, j): (m,)} per-scatterer rests (normalised)
         self.keep = keep          # monomials of the series kept
@@ -794,7 +796,13 @@ def _plan_block(p, v, pr, vr, tx, rx, chirps, t_mid, a_step, geo: Geometry,
     if not variants:
         return None
     best = None
-    for is_slow, var_bounds in variants:
+    # The 1-D variant's estimate first: the 2-D one's is skipped when it cannot be cheaper
+    # (its cost with a single vector, its least, above the 1-D one's); on a tie the 2-D
+    # variant is taken, as when it was estimated first.
+    for is_slow, var_bounds in sorted(variants, key=lambda var: not var[0]):
+        if (not is_slow and best is not None
+                and best[0] < _block_cost(len(p), 1, jb, n_samp, slow=False)):
+            continue
         # Drop the per-scatterer rest of the smallest monomials within eps / 16.
         kept = dict(var_bounds)
         dropped = 0.0
@@ -808,7 +816,7 @@ def _plan_block(p, v, pr, vr, tx, rx, chirps, t_mid, a_step, geo: Geometry,
         est_order = _taylor_order(sum(kept.values()), _SERIES_TOL * eps)
         est_keep, _ = _exp_series_2d(kept, est_order, _SERIES_TOL * eps)
         cost = _block_cost(len(p), len(est_keep), jb, n_samp, is_slow)
-        if best is None or cost < best[0]:
+        if best is None or cost < best[0] or (cost == best[0] and not is_slow):
             best = (cost, is_slow, kept, est_order, est_keep)
     _, is_slow, bounds, est_order, est_keep = best
     if is_slow:
@@ -818,21 +826,28 @@ def _plan_block(p, v, pr, vr, tx, rx, chirps, t_mid, a_step, geo: Geometry,
         w = None
     else:
         w = _reduce(c10)
+    # The rests as rows of one (R, m) array (the compiled series reads them so), each
+    # c scale - mid as before; the largest summed |rest| in one compiled pass (the same
+    # sum, left to right from 0, as sum(|r|) over the rows).
+    res_keys = [key for key in common if key in bounds]
+    stack = np.empty((len(res_keys), len(p)))
     resid: dict = {}
-    for key in common:
-        if key in bounds:
-            c = coeffs[key]  # this function's own array
-            if key != (1, 0):
-                c *= scales[key]
-                c -= common[key]
-            resid[key] = c
+    for r, key in enumerate(res_keys):
+        c = coeffs[key]
+        if key != (1, 0):
+            np.multiply(c, scales[key], out=stack[r])
+            stack[r] -= common[key]
+        else:
+            stack[r] = c
+        resid[key] = stack[r]
     bounds = {k: bounds[k] for k in resid}
-    pmax = float(np.max(sum((np.abs(r) for r in resid.values()), np.zeros(len(p))))) if resid else 0.0
+    pmax = abs_sum_max(stack) if res_keys else 0.0
     exp_order = _taylor_order(pmax, _SERIES_TOL * eps)
     # The estimate's selection when its order holds (the same bounds, in the same order).
     keep = (est_keep if exp_order == est_order
             else _exp_series_2d(bounds, exp_order, _SERIES_TOL * eps)[0])
     blk = _Block2D(chirps, mu_s, nu_s, phi0, w, x, common, resid, keep, exp_order)
+    blk.resid_rows = stack
     blk.cost = _block_cost(len(p), len(keep), jb, n_samp, is_slow)
     return blk
 
@@ -994,8 +1009,11 @@ def _spread_block_1d(blk: _Block2D, strength: np.ndarray, n_samp: int, tol: floa
     weights evaluated once). Returns the sorted kept monomials and their (D, N) modes."""
     keys = sorted(blk.keep)
     res_keys = list(blk.resid)
-    resid = (np.array([blk.resid[k] for k in res_keys]) if res_keys
-             else np.zeros((0, len(strength))))  # (R, m)
+    if blk.resid_rows is not None:
+        resid = blk.resid_rows
+    else:
+        resid = (np.array([blk.resid[k] for k in res_keys]) if res_keys
+                 else np.zeros((0, len(strength))))  # (R, m)
     program, scale, out_slots, n_terms, n_series = _series_program(res_keys, blk.keep, blk.order)
     kern = kernel_for(n_samp, tol)
     g_re, g_im = kern.grids(len(keys))
@@ -1057,10 +1075,11 @@ def _tx_period(tx_of: np.ndarray) -> int:
 # per fine-grid point and vector in the FFT and the monomial sums.
 _NS_1D_TERMS, _NS_1D_VECTOR = 90.0, 70.0
 _NS_2D_PLAN, _NS_2D_VECTOR, _NS_2D_GRID = 400.0, 130.0, 5.0
-# The 1-D variant (the slow-time frequency a rest): ~50 ns per strength vector and mover
-# (1-D spreading at width 7-8, the series' products; measured on the wrist radar's
-# blocks: 0.4-0.5x a 2-D vector's time) and ~5 ns per sample of its sums.
-_NS_SLOW_VECTOR, _NS_SLOW_GRID = 50.0, 5.0
+# The 1-D variant (the slow-time frequency a rest): ~15 ns per strength vector and mover
+# (the compiled series and spreading at width 6, each mover's kernel weights once:
+# 13-16 ns measured on the wrist radar's 42 blocks of 16,286 movers with 10.4 vectors;
+# finufft took ~50 ns per vector) and ~5 ns per sample of its sums.
+_NS_SLOW_VECTOR, _NS_SLOW_GRID = 15.0, 5.0
 
 
 def _block_cost(m: int, n_vectors: int, n_chirps: int, n_samp: int, slow: bool) -> float:
