@@ -267,6 +267,7 @@ def main() -> None:
     ap.add_argument("--cell-only", action="store_true", help="only the whole cell (both windows, both ways)")
     ap.add_argument("--repeats", type=int, default=1, help="whole-cell runs of each way per window")
     ap.add_argument("--skin-only", action="store_true", help="only the forearm skin's cases")
+    ap.add_argument("--wrist-tof-only", action="store_true", help="only the wrist ToF camera (collision meshes)")
     args = ap.parse_args()
     print_machine()
     if args.cell_only:
@@ -284,6 +285,9 @@ def main() -> None:
     print(f"\n== robot cell: {len(scene.objects)} objects, {n_tri} triangles (UR5 collision meshes), arm and person "
           "moving")
     wrist_tof(scene, sensors[2], args.frames, "wrist ToF pmd_pico_flexx, 2 x 2 rays per pixel")
+    if args.wrist_tof_only:
+        print_load_at_end()
+        return
     wrist_radar(scene, args.frames)
     skin_frames(scene, sensors[3], args.frames)
     skin_frames(scene, sensors[3], args.frames, T_REACH, ", the person's hand reaching for it")
