@@ -1016,10 +1016,10 @@ def _spread_block_1d(blk: _Block2D, strength: np.ndarray, n_samp: int, tol: floa
                  else np.zeros((0, len(strength))))  # (R, m)
     program, scale, out_slots, n_terms, n_series = _series_program(res_keys, blk.keep, blk.order)
     kern = kernel_for(n_samp, tol)
-    g_re, g_im = kern.grids(len(keys))
+    grid = kern.grid(len(keys))
     spread_series_1d(resid, program, scale, out_slots, n_terms, n_series, strength,
-                     np.ascontiguousarray(blk.x, dtype=float), kern.coef, kern.nf, g_re, g_im)
-    return keys, kern.finish(g_re, g_im)
+                     np.ascontiguousarray(blk.x, dtype=float), kern.coef, kern.nf, grid.view(np.float64))
+    return keys, kern.finish(grid)
 
 
 def _block_rows(blk: _Block2D, keys: list, out: np.ndarray, jb: int, n_samp: int) -> np.ndarray:
@@ -1075,11 +1075,11 @@ def _tx_period(tx_of: np.ndarray) -> int:
 # per fine-grid point and vector in the FFT and the monomial sums.
 _NS_1D_TERMS, _NS_1D_VECTOR = 90.0, 70.0
 _NS_2D_PLAN, _NS_2D_VECTOR, _NS_2D_GRID = 400.0, 130.0, 5.0
-# The 1-D variant (the slow-time frequency a rest): ~15 ns per strength vector and mover
+# The 1-D variant (the slow-time frequency a rest): ~10 ns per strength vector and mover
 # (the compiled series and spreading at width 6, each mover's kernel weights once:
-# 13-16 ns measured on the wrist radar's 42 blocks of 16,286 movers with 10.4 vectors;
+# 9-11 ns measured on the wrist radar's 42 blocks of 16,286 movers with 10.4 vectors;
 # finufft took ~50 ns per vector) and ~5 ns per sample of its sums.
-_NS_SLOW_VECTOR, _NS_SLOW_GRID = 15.0, 5.0
+_NS_SLOW_VECTOR, _NS_SLOW_GRID = 10.0, 5.0
 
 
 def _block_cost(m: int, n_vectors: int, n_chirps: int, n_samp: int, slow: bool) -> float:

@@ -100,20 +100,19 @@ class Kernel:
         """(D, N) complex: out[d, n] = sum_i strengths[d, i] exp(1j x_i (n - N/2)).
 
         ``x`` (m,) float in [-pi, pi]; ``strengths`` (D, m) complex."""
-        g_re, g_im = self.grids(strengths.shape[0])
+        grid = self.grid(strengths.shape[0])
         spread_1d(np.ascontiguousarray(x, dtype=float), np.ascontiguousarray(strengths), self.coef,
-                  self.nf, g_re, g_im)
-        return self.finish(g_re, g_im)
+                  self.nf, grid.view(np.float64))
+        return self.finish(grid)
 
-    def grids(self, n_vectors: int) -> tuple[np.ndarray, np.ndarray]:
-        """Zeroed real and imaginary padded grids (nf + 2 w, D) for :func:`spread_1d`."""
-        shape = (self.nf + 2 * self.width, n_vectors)
-        return np.zeros(shape), np.zeros(shape)
+    def grid(self, n_vectors: int) -> np.ndarray:
+        """A zeroed padded grid (nf + 2 w, D) complex; the kernels spread into its float view."""
+        return np.zeros((self.nf + 2 * self.width, n_vectors), dtype=complex)
 
-    def finish(self, g_re: np.ndarray, g_im: np.ndarray) -> np.ndarray:
-        """(D, N) modes of spread grids: wrapped, Fourier transformed and deconvolved."""
+    def finish(self, grid: np.ndarray) -> np.ndarray:
+        """(D, N) modes of a spread grid (nf + 2 w, D): wrapped, Fourier transformed and
+        deconvolved."""
         w = self.width
-        grid = g_re + 1j * g_im
         fine = grid[w:w + self.nf]
         fine[:w] += grid[w + self.nf:]   # wrap the padding onto the periodic grid
         fine[-w:] += grid[:w]
@@ -142,71 +141,86 @@ _TILE = 64  # points per tile: their kernel weights are evaluated together (vect
 
 
 @jit
-def spread_1d(x, strengths, coef, nf, g_re, g_im):  # pragma: no cover
-    """Spread ``strengths`` (D, m) complex at points ``x`` (m,) onto the padded, shifted fine
-    grid of :class:`Kernel`: real and imaginary parts ``g_re``, ``g_im`` (nf + 2 w, D),
-    row l + w holding fine point l. ``coef`` (deg + 1, w): the kernel's Horner table,
-    highest power first. A tile of points' weights first (a loop over the tile the
-    compiler vectorises), then each point's strengths times its w weights."""
+def _tile_weights(x, lo, n, coef, nf, ker, u, first):  # pragma: no cover
+    """Kernel weights ker[j, i] (w, tile) and first grid rows first[i] of points lo..lo+n."""
     n_deg, w = coef.shape
-    n_vec, m = strengths.shape
     scale = nf / _TWO_PI
     off = 0.5 * nf - 0.5 * w
+    for i in range(n):
+        t = x[lo + i] * scale + off  # the support's left end [grid points]
+        c = math.ceil(t)
+        first[i] = int(c) + w
+        u[i] = 2.0 * (c - t) - 1.0  # the fraction s = c - t in [0, 1) as u in [-1, 1)
+    for j in range(w):
+        c0 = coef[0, j]
+        for i in range(n):
+            ker[j, i] = c0
+        for q in range(1, n_deg):
+            cq = coef[q, j]
+            for i in range(n):
+                ker[j, i] = ker[j, i] * u[i] + cq
+
+
+@jit
+def _spread_tile(a, n, ker, first, grid):  # pragma: no cover
+    """grid[first[i] + j, :] += a[i, :] ker[j, i] for the tile's n points; ``a`` (tile, 2 D)
+    and ``grid`` (rows, 2 D): real and imaginary parts interleaved, contiguous rows (the
+    inner loop runs over them, vectorised)."""
+    w = ker.shape[0]
+    n2 = a.shape[1]
+    for i in range(n):
+        b = first[i]
+        ai = a[i]
+        for j in range(w):
+            kj = ker[j, i]
+            row = grid[b + j]
+            for e in range(n2):
+                row[e] += ai[e] * kj
+
+
+@jit
+def spread_1d(x, strengths, coef, nf, grid):  # pragma: no cover
+    """Spread ``strengths`` (D, m) complex at points ``x`` (m,) onto the padded, shifted fine
+    grid of :class:`Kernel`: ``grid`` (nf + 2 w, 2 D) float, row l + w holding fine point
+    l, real and imaginary parts interleaved (a complex (nf + 2 w, D) array's view).
+    ``coef`` (deg + 1, w): the kernel's Horner table, highest power first. A tile of
+    points' weights first (vectorised over the tile), then each point's strengths times
+    its w weights."""
+    w = coef.shape[1]
+    n_vec, m = strengths.shape
     ker = np.empty((w, _TILE))
     u = np.empty(_TILE)
     first = np.empty(_TILE, np.int64)
-    a_re = np.empty(n_vec)
-    a_im = np.empty(n_vec)
+    a = np.empty((_TILE, 2 * n_vec))
     for lo in range(0, m, _TILE):
         n = min(_TILE, m - lo)
-        for i in range(n):
-            t = x[lo + i] * scale + off  # the support's left end [grid points]
-            c = math.ceil(t)
-            first[i] = int(c) + w
-            u[i] = 2.0 * (c - t) - 1.0  # the fraction s = c - t in [0, 1) as u in [-1, 1)
-        for j in range(w):
-            c0 = coef[0, j]
-            for i in range(n):
-                ker[j, i] = c0
-            for q in range(1, n_deg):
-                cq = coef[q, j]
-                for i in range(n):
-                    ker[j, i] = ker[j, i] * u[i] + cq
+        _tile_weights(x, lo, n, coef, nf, ker, u, first)
         for i in range(n):
             for d in range(n_vec):
                 v = strengths[d, lo + i]
-                a_re[d] = v.real
-                a_im[d] = v.imag
-            b = first[i]
-            for j in range(w):
-                k = ker[j, i]
-                r = b + j
-                for d in range(n_vec):
-                    g_re[r, d] += a_re[d] * k
-                    g_im[r, d] += a_im[d] * k
+                a[i, 2 * d] = v.real
+                a[i, 2 * d + 1] = v.imag
+        _spread_tile(a, n, ker, first, grid)
 
 
 @jit
 def spread_series_1d(resid, program, scale, out_slots, n_terms, n_series, strength, x, coef, nf,
-                     g_re, g_im):  # pragma: no cover
+                     grid):  # pragma: no cover
     """:func:`twinsense.radar.kernels.block_series` and :func:`spread_1d` in one pass: per
     tile of points the kept monomials' coefficients of exp(j R) (the same program and
     operations), times ``strength`` (m,) complex, spread at once with the tile's kernel
     weights; the (D, m) strength vectors are never stored. Arguments as there."""
-    n_deg, w = coef.shape
+    w = coef.shape[1]
     m = resid.shape[1]
     n_vec = out_slots.shape[0]
     t_re = np.empty((n_terms, _TILE))
     t_im = np.empty((n_terms, _TILE))
     s_re = np.empty((n_series, _TILE))
     s_im = np.empty((n_series, _TILE))
-    sc = nf / _TWO_PI
-    off = 0.5 * nf - 0.5 * w
     ker = np.empty((w, _TILE))
     u = np.empty(_TILE)
     first = np.empty(_TILE, np.int64)
-    a_re = np.empty(n_vec)
-    a_im = np.empty(n_vec)
+    a = np.empty((_TILE, 2 * n_vec))
     for lo in range(0, m, _TILE):
         n = min(_TILE, m - lo)
         for i in range(n):
@@ -217,15 +231,15 @@ def spread_series_1d(resid, program, scale, out_slots, n_terms, n_series, streng
             if op == OP_SET:
                 for i in range(n):
                     c = resid[r, lo + i]
-                    a, b = t_re[src, i], t_im[src, i]
-                    t_re[dst, i] = -(b * c)
-                    t_im[dst, i] = a * c
+                    re, im = t_re[src, i], t_im[src, i]
+                    t_re[dst, i] = -(im * c)
+                    t_im[dst, i] = re * c
             elif op == OP_ACC:
                 for i in range(n):
                     c = resid[r, lo + i]
-                    a, b = t_re[src, i], t_im[src, i]
-                    t_re[dst, i] -= b * c
-                    t_im[dst, i] += a * c
+                    re, im = t_re[src, i], t_im[src, i]
+                    t_re[dst, i] -= im * c
+                    t_im[dst, i] += re * c
             elif op == OP_SCALE:
                 f = scale[q]
                 for i in range(n):
@@ -239,31 +253,12 @@ def spread_series_1d(resid, program, scale, out_slots, n_terms, n_series, streng
                 for i in range(n):
                     s_re[dst, i] += t_re[src, i]
                     s_im[dst, i] += t_im[src, i]
-        for i in range(n):
-            t = x[lo + i] * sc + off
-            c = math.ceil(t)
-            first[i] = int(c) + w
-            u[i] = 2.0 * (c - t) - 1.0
-        for j in range(w):
-            c0 = coef[0, j]
+        _tile_weights(x, lo, n, coef, nf, ker, u, first)
+        for d in range(n_vec):
+            k = out_slots[d]
             for i in range(n):
-                ker[j, i] = c0
-            for q in range(1, n_deg):
-                cq = coef[q, j]
-                for i in range(n):
-                    ker[j, i] = ker[j, i] * u[i] + cq
-        for i in range(n):
-            st = strength[lo + i]
-            p_re, p_im = st.real, st.imag
-            for d in range(n_vec):
-                k = out_slots[d]
+                st = strength[lo + i]
                 e_re, e_im = s_re[k, i], s_im[k, i]
-                a_re[d] = e_re * p_re - e_im * p_im
-                a_im[d] = e_re * p_im + e_im * p_re
-            b = first[i]
-            for j in range(w):
-                kj = ker[j, i]
-                row = b + j
-                for d in range(n_vec):
-                    g_re[row, d] += a_re[d] * kj
-                    g_im[row, d] += a_im[d] * kj
+                a[i, 2 * d] = e_re * st.real - e_im * st.imag
+                a[i, 2 * d + 1] = e_re * st.imag + e_im * st.real
+        _spread_tile(a, n, ker, first, grid)
