@@ -309,12 +309,31 @@ class BlockAMG:
                 return False
             ops.append(_pruned(sp.csr_matrix((c, c_ind, c_ptr), shape=(len(c_ptr) - 1,) * 2)))
             keep = np.ones(len(c_ptr) - 1, bool)
-        rng = np.random.default_rng(AMG_SEED)
         self.A = ops
-        self.scaled_dinv = [(self._omega0 / A.diagonal())[:, None]] + [
-            self._jacobi(a, compiled_spectral_radius(a, rng, REFRESH_LANCZOS_STEPS)) for a in ops[1:-1]]
+        self._scaled_dinv = None  # the Jacobi smoother's damping, estimated when a cycle asks for it
         self._factor_coarse()
         return True
+
+    @property
+    def scaled_dinv(self) -> list[np.ndarray]:
+        """(n_l, 1) damped inverse diagonals of the Jacobi smoother on every level but the coarsest.
+
+        After a :meth:`refresh`, estimated on first use: the finest level keeps
+        the build's damping, each coarse level gets a new Lanczos estimate
+        (:func:`compiled_spectral_radius`, :data:`REFRESH_LANCZOS_STEPS`, from a
+        Generator seeded with :data:`AMG_SEED`). The Gauss-Seidel
+        :class:`CompiledCycle` needs no damping and never asks, which saves the
+        estimate (2-3 ms a frame on the robot-cell skin).
+        """
+        if self._scaled_dinv is None:
+            rng = np.random.default_rng(AMG_SEED)
+            self._scaled_dinv = [(self._omega0 / self.A[0].diagonal())[:, None]] + [
+                self._jacobi(a, compiled_spectral_radius(a, rng, REFRESH_LANCZOS_STEPS)) for a in self.A[1:-1]]
+        return self._scaled_dinv
+
+    @scaled_dinv.setter
+    def scaled_dinv(self, value: list[np.ndarray]) -> None:
+        self._scaled_dinv = value
 
     @staticmethod
     def _jacobi(A: sp.csr_matrix, rho: float) -> np.ndarray:
@@ -417,15 +436,22 @@ def _cycle_levels(ml: BlockAMG, dtype) -> list:
 
 
 class CompiledCycle:
-    """A :class:`BlockAMG` V-cycle (one Jacobi step each way) in compiled loops on blocks of 8 columns,
-    masked to the free unknowns.
+    """A symmetric Gauss-Seidel V-cycle on a :class:`BlockAMG` hierarchy in compiled loops, on blocks of
+    a fixed width (8 or 6 columns), masked to the free unknowns.
 
-    The levels, damping and prolongators are the hierarchy's own, copied in
-    :data:`CYCLE_DTYPE`; every level but the coarsest runs in two loops
-    (:func:`~twinsense.capacitive.kernels.cycle_down8`, ``cycle_up8``), the
-    coarsest is the hierarchy's Cholesky solve in float64. The output is
-    zero on prescribed unknowns (``free`` False), like the masked NumPy
-    cycle in :func:`~twinsense.capacitive.pcg.block_pcg`.
+    The operators and prolongators are the hierarchy's own, copied in
+    :data:`CYCLE_DTYPE`. Every level but the coarsest smooths with one
+    forward Gauss-Seidel sweep going down and one backward sweep going up
+    (the adjoint of the first, so the cycle is a symmetric positive-definite
+    preconditioner), each one pass over the level's matrix
+    (:func:`~twinsense.capacitive.kernels.gs_down8`, ``gs_up8`` and their
+    6-column twins); the coarsest is the hierarchy's Cholesky solve in
+    float64. Gauss-Seidel needs no damping, so a refreshed hierarchy needs no
+    spectral-radius estimate for it, and on the robot-cell skin's reach it
+    brings every frame to the energy rule's floor of 4 CG iterations (the
+    Jacobi cycle: 4-5; docs/capacitive-accuracy.md) at the same cost per
+    cycle. The output is zero on prescribed unknowns (``free`` False), like
+    the masked NumPy cycle in :func:`~twinsense.capacitive.pcg.block_pcg`.
 
     Parameters
     ----------
@@ -434,16 +460,24 @@ class CompiledCycle:
     """
 
     def __init__(self, ml: BlockAMG, free: np.ndarray) -> None:
+        from twinsense.capacitive.kernels import diagonal_split
+
         if ml.steps != 1 or not ml.P:
             raise ValueError("CompiledCycle needs one smoothing step and at least two levels")
         t = CYCLE_DTYPE
         self.ml = ml
-        # The prolongators never change after the build (a refresh keeps them): their copies are
-        # kept on the hierarchy, and only the operators and damping are copied per frame.
+        # The prolongators never change after the build (a refresh keeps them): their copies, and
+        # the restrictions' (P^T in CSR, for a gathering restriction), are kept on the hierarchy;
+        # only the operators are copied per frame.
         if ml._cycle_prolongators is None:
-            ml._cycle_prolongators = [(p.indptr, p.indices, p.data.astype(t)) for p in ml.P]
-        self.levels = [((a.indptr, a.indices, a.data.astype(t)), d[:, 0].astype(t), p, pm.shape[1])
-                       for a, d, p, pm in zip(ml.A[:-1], ml.scaled_dinv, ml._cycle_prolongators, ml.P, strict=True)]
+            ml._cycle_prolongators = [((p.indptr, p.indices, p.data.astype(t)), (r.indptr, r.indices, r.data.astype(t)))
+                                      for p, r in zip(ml.P, ml.R, strict=True)]
+        self.levels = []
+        for a, (p, r), pm in zip(ml.A[:-1], ml._cycle_prolongators, ml.P, strict=True):
+            if not a.has_sorted_indices:  # the sweeps split each row at its diagonal
+                a = a.sorted_indices()
+            split, dinv = diagonal_split(a.indptr, a.indices, a.data)
+            self.levels.append(((a.indptr, a.indices, a.data.astype(t)), split, dinv.astype(t), p, r, pm.shape[1]))
         self.masks = [np.asarray(free, t)] + [np.ones(a.shape[0], t) for a in ml.A[1:-1]]
 
     def __call__(self, B: np.ndarray, rz: np.ndarray) -> np.ndarray:
@@ -454,18 +488,17 @@ class CompiledCycle:
         """
         from twinsense.capacitive.kernels import FIXED_WIDTH
 
-        _, _, cycle_down, cycle_up = FIXED_WIDTH[B.shape[1]]
+        _, _, down_sweep, up_sweep = FIXED_WIDTH[B.shape[1]]
         work = self._workspace(B.shape[1])
         down = []
-        for (A, d, P, _), (X, Bc, _) in zip(self.levels, work, strict=True):
-            cycle_down(*A, d, B, X, *P, Bc)
+        for (A, split, dinv, _, R, _), (X, Bc, T) in zip(self.levels, work, strict=True):
+            down_sweep(*A, split, dinv, B, X, T, *R, Bc)
             down.append((B, X))
             B = Bc
         Xc = self.ml._cho_solve(self.ml._chol, B.astype(float)).astype(CYCLE_DTYPE)
         scratch = np.empty(B.shape[1])
-        for (A, d, P, _), mask, (B, X), (_, _, T) in zip(self.levels[::-1], self.masks[::-1], down[::-1], work[::-1],
-                                                         strict=True):
-            cycle_up(*A, d, B, X, *P, Xc, mask, T, scratch)
+        for (A, _, dinv, P, _, _), mask, (B, X) in zip(self.levels[::-1], self.masks[::-1], down[::-1], strict=True):
+            up_sweep(*A, dinv, B, X, *P, Xc, mask, scratch)
             Xc = X
         rz[:] = scratch  # the finest level's, computed last
         return Xc
@@ -478,7 +511,7 @@ class CompiledCycle:
         work = self.ml._cycle_work
         if work is None or work[0] != c:
             work = (c, [(np.empty((len(d), c), CYCLE_DTYPE), np.empty((nc, c), CYCLE_DTYPE),
-                         np.empty((len(d), c), CYCLE_DTYPE)) for _, d, _, nc in self.levels])
+                         np.empty((len(d), c), CYCLE_DTYPE)) for _, _, d, _, _, nc in self.levels])
             self.ml._cycle_work = work
         return work[1]
 

@@ -22,8 +22,8 @@ import numpy as np
 from twinsense.compiled import jit
 
 __all__ = ["FIXED_WIDTH", "WIDTH", "block_product", "block_residual", "cg_update", "cholesky_columns", "column_dots",
-           "cycle_down", "cycle_down6", "cycle_down8", "cycle_up", "cycle_up6", "cycle_up8", "dirichlet_split",
-           "dropped_rows_product", "first_coarse_update", "group_width", "lanczos_tridiagonal", "new_direction",
+           "cycle_down", "cycle_up", "diagonal_split", "dirichlet_split", "dropped_rows_product", "first_coarse_update",
+           "group_width", "gs_down6", "gs_down8", "gs_up6", "gs_up8", "lanczos_tridiagonal", "new_direction",
            "product_into", "put_columns", "residual6", "residual8", "residual_row", "split_arrays",
            "split_row", "spmm6", "spmm8", "take_columns"]
 
@@ -412,22 +412,154 @@ def column_dots(X, Y, w):  # pragma: no cover - compiled
 
 
 @jit
-def cycle_down8(indptr, indices, data, d, B, X, p_ptr, p_ind, p_dat, Bc):  # pragma: no cover - compiled
-    """A V-cycle level going down, blocks (n, 8): Jacobi ``X = d B``, then ``Bc = P^T (B - A X)``.
+def diagonal_split(indptr, indices, data):  # pragma: no cover - compiled
+    """For a CSR ``A`` (n, n) with sorted rows: ``split`` (n,) int64, the first entry of each row at or
+    right of the diagonal, and ``dinv`` (n,) its inverse diagonal (0 where the diagonal is missing or
+    not positive: an empty coarse row is not smoothed)."""
+    n = indptr.shape[0] - 1
+    split = np.empty(n, np.int64)
+    dinv = np.zeros(n)
+    for i in range(n):
+        p = indptr[i]
+        while p < indptr[i + 1] and indices[p] < i:
+            p += 1
+        split[i] = p
+        if p < indptr[i + 1] and indices[p] == i and data[p] > 0:
+            dinv[i] = 1.0 / data[p]
+    return split, dinv
 
-    ``A`` (n, n) CSR, ``d`` (n,) damped inverse diagonal, ``P`` (n, nc) CSR,
-    ``Bc`` (nc, 8) the next level's right-hand side. A row's residual stays
-    in registers on its way to ``Bc``.
+
+@jit
+def gs_down8(indptr, indices, data, split, dinv, B, X, T, r_ptr, r_ind, r_dat, Bc):  # pragma: no cover - compiled
+    """A V-cycle level going down, blocks (n, 8): a forward Gauss-Seidel sweep from zero, ``X = (D + L)^-1 B``,
+    then ``Bc = P^T (B - A X)``.
+
+    ``A`` (n, n) CSR with sorted rows, ``split`` (n,) the first entry of each row at or right of the
+    diagonal and ``dinv`` (n,) the inverse diagonal (0 on an empty row)
+    (:func:`diagonal_split`); ``T`` (n, 8) scratch; ``R = P^T`` (nc, n) CSR; ``Bc`` (nc, 8) the next
+    level's right-hand side. The sweep touches the entries left of the diagonal only and the residual
+    the others (``T`` holds the sweep's sums in between): one pass over ``A`` in all. The restriction
+    gathers rows of ``T`` (a scatter into ``Bc`` would chain its read-modify-writes row to row).
     """
     n = B.shape[0]
     for i in range(n):
-        for k in range(8):
-            X[i, k] = d[i] * B[i, k]
-    Bc[:] = 0.0
-    for i in range(n):
         b = B[i]
-        r0, r1, r2, r3, r4, r5, r6, r7 = b[0] * 1.0, b[1] * 1.0, b[2] * 1.0, b[3] * 1.0, b[4] * 1.0, \
-            b[5] * 1.0, b[6] * 1.0, b[7] * 1.0
+        r0, r1, r2, r3, r4, r5, r6, r7 = b[0] * 1.0, b[1] * 1.0, b[2] * 1.0, b[3] * 1.0, b[4] * 1.0, b[5] * 1.0, \
+            b[6] * 1.0, b[7] * 1.0
+        for p in range(indptr[i], split[i]):
+            a = data[p]
+            x = X[indices[p]]
+            r0 -= a * x[0]
+            r1 -= a * x[1]
+            r2 -= a * x[2]
+            r3 -= a * x[3]
+            r4 -= a * x[4]
+            r5 -= a * x[5]
+            r6 -= a * x[6]
+            r7 -= a * x[7]
+        t = T[i]
+        x = X[i]
+        di = dinv[i]
+        t[0] = r0
+        x[0] = di * r0
+        t[1] = r1
+        x[1] = di * r1
+        t[2] = r2
+        x[2] = di * r2
+        t[3] = r3
+        x[3] = di * r3
+        t[4] = r4
+        x[4] = di * r4
+        t[5] = r5
+        x[5] = di * r5
+        t[6] = r6
+        x[6] = di * r6
+        t[7] = r7
+        x[7] = di * r7
+    for i in range(n):
+        t = T[i]
+        r0, r1, r2, r3, r4, r5, r6, r7 = t[0] * 1.0, t[1] * 1.0, t[2] * 1.0, t[3] * 1.0, t[4] * 1.0, t[5] * 1.0, \
+            t[6] * 1.0, t[7] * 1.0
+        for p in range(split[i], indptr[i + 1]):
+            a = data[p]
+            x = X[indices[p]]
+            r0 -= a * x[0]
+            r1 -= a * x[1]
+            r2 -= a * x[2]
+            r3 -= a * x[3]
+            r4 -= a * x[4]
+            r5 -= a * x[5]
+            r6 -= a * x[6]
+            r7 -= a * x[7]
+        t[0] = r0
+        t[1] = r1
+        t[2] = r2
+        t[3] = r3
+        t[4] = r4
+        t[5] = r5
+        t[6] = r6
+        t[7] = r7
+    for i in range(Bc.shape[0]):
+        a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = 0.0
+        for q in range(r_ptr[i], r_ptr[i + 1]):
+            w = r_dat[q]
+            c = T[r_ind[q]]
+            a0 += w * c[0]
+            a1 += w * c[1]
+            a2 += w * c[2]
+            a3 += w * c[3]
+            a4 += w * c[4]
+            a5 += w * c[5]
+            a6 += w * c[6]
+            a7 += w * c[7]
+        c = Bc[i]
+        c[0] = a0
+        c[1] = a1
+        c[2] = a2
+        c[3] = a3
+        c[4] = a4
+        c[5] = a5
+        c[6] = a6
+        c[7] = a7
+
+
+@jit
+def gs_up8(indptr, indices, data, dinv, B, X, p_ptr, p_ind, p_dat, Xc, mask, rz):  # pragma: no cover - compiled
+    """A V-cycle level going up, blocks (n, 8): ``X += P Xc``, then a backward Gauss-Seidel sweep
+    ``X += (D + U)^-1 (B - A X)``, masked (``X *= mask``, zero on prescribed unknowns), with
+    ``rz[k] = B[:, k] . X[:, k]`` (the value as stored). The adjoint of :func:`gs_down8`'s sweep, so
+    the cycle is symmetric. A row is final once swept (later rows lie above it), so its mask and its
+    share of ``rz`` are applied in the same pass.
+    """
+    n = B.shape[0]
+    for i in range(n):
+        x = X[i]
+        a0, a1, a2, a3, a4, a5, a6, a7 = x[0] * 1.0, x[1] * 1.0, x[2] * 1.0, x[3] * 1.0, x[4] * 1.0, x[5] * 1.0, \
+            x[6] * 1.0, x[7] * 1.0
+        for q in range(p_ptr[i], p_ptr[i + 1]):
+            w = p_dat[q]
+            c = Xc[p_ind[q]]
+            a0 += w * c[0]
+            a1 += w * c[1]
+            a2 += w * c[2]
+            a3 += w * c[3]
+            a4 += w * c[4]
+            a5 += w * c[5]
+            a6 += w * c[6]
+            a7 += w * c[7]
+        x[0] = a0
+        x[1] = a1
+        x[2] = a2
+        x[3] = a3
+        x[4] = a4
+        x[5] = a5
+        x[6] = a6
+        x[7] = a7
+    s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = 0.0
+    for i in range(n - 1, -1, -1):
+        b = B[i]
+        r0, r1, r2, r3, r4, r5, r6, r7 = b[0] * 1.0, b[1] * 1.0, b[2] * 1.0, b[3] * 1.0, b[4] * 1.0, b[5] * 1.0, \
+            b[6] * 1.0, b[7] * 1.0
         for p in range(indptr[i], indptr[i + 1]):
             a = data[p]
             x = X[indices[p]]
@@ -439,40 +571,34 @@ def cycle_down8(indptr, indices, data, d, B, X, p_ptr, p_ind, p_dat, Bc):  # pra
             r5 -= a * x[5]
             r6 -= a * x[6]
             r7 -= a * x[7]
-        for q in range(p_ptr[i], p_ptr[i + 1]):
-            w = p_dat[q]
-            c = Bc[p_ind[q]]
-            c[0] += w * r0
-            c[1] += w * r1
-            c[2] += w * r2
-            c[3] += w * r3
-            c[4] += w * r4
-            c[5] += w * r5
-            c[6] += w * r6
-            c[7] += w * r7
-
-
-@jit
-def cycle_up8(indptr, indices, data, d, B, X, p_ptr, p_ind, p_dat, Xc, mask, T, rz):  # pragma: no cover
-    """A V-cycle level going up, blocks (n, 8): ``X += P Xc``, then Jacobi ``X += d (B - A X)``, masked.
-
-    ``X *= mask`` (zero on prescribed unknowns) and ``rz[k] = B[:, k] . X[:, k]``
-    (the value as stored); ``T`` (n, 8) is scratch for the residual.
-    """
-    n = B.shape[0]
-    for i in range(n):
         x = X[i]
-        for q in range(p_ptr[i], p_ptr[i + 1]):
-            w = p_dat[q]
-            c = Xc[p_ind[q]]
-            for k in range(8):
-                x[k] += w * c[k]
-    residual8(indptr, indices, data, B, X, T)
-    rz[:] = 0.0
-    for i in range(n):
-        for k in range(8):
-            X[i, k] = (X[i, k] + d[i] * T[i, k]) * mask[i]
-            rz[k] += B[i, k] * X[i, k]
+        di = dinv[i]
+        m = mask[i]
+        x[0] = (x[0] + di * r0) * m
+        s0 += b[0] * x[0]
+        x[1] = (x[1] + di * r1) * m
+        s1 += b[1] * x[1]
+        x[2] = (x[2] + di * r2) * m
+        s2 += b[2] * x[2]
+        x[3] = (x[3] + di * r3) * m
+        s3 += b[3] * x[3]
+        x[4] = (x[4] + di * r4) * m
+        s4 += b[4] * x[4]
+        x[5] = (x[5] + di * r5) * m
+        s5 += b[5] * x[5]
+        x[6] = (x[6] + di * r6) * m
+        s6 += b[6] * x[6]
+        x[7] = (x[7] + di * r7) * m
+        s7 += b[7] * x[7]
+    rz[0] = s0
+    rz[1] = s1
+    rz[2] = s2
+    rz[3] = s3
+    rz[4] = s4
+    rz[5] = s5
+    rz[6] = s6
+    rz[7] = s7
+
 
 
 @jit
@@ -619,14 +745,112 @@ def residual6(indptr, indices, data, B, X, R):  # pragma: no cover - compiled
 
 
 @jit
-def cycle_down6(indptr, indices, data, d, B, X, p_ptr, p_ind, p_dat, Bc):  # pragma: no cover - compiled
-    """:func:`cycle_down8` on blocks (n, 6)."""
+def gs_down6(indptr, indices, data, split, dinv, B, X, T, r_ptr, r_ind, r_dat, Bc):  # pragma: no cover - compiled
+    """A V-cycle level going down, blocks (n, 6): a forward Gauss-Seidel sweep from zero, ``X = (D + L)^-1 B``,
+    then ``Bc = P^T (B - A X)``.
+
+    ``A`` (n, n) CSR with sorted rows, ``split`` (n,) the first entry of each row at or right of the
+    diagonal and ``dinv`` (n,) the inverse diagonal (0 on an empty row)
+    (:func:`diagonal_split`); ``T`` (n, 6) scratch; ``R = P^T`` (nc, n) CSR; ``Bc`` (nc, 6) the next
+    level's right-hand side. The sweep touches the entries left of the diagonal only and the residual
+    the others (``T`` holds the sweep's sums in between): one pass over ``A`` in all. The restriction
+    gathers rows of ``T`` (a scatter into ``Bc`` would chain its read-modify-writes row to row).
+    """
     n = B.shape[0]
     for i in range(n):
-        for k in range(6):
-            X[i, k] = d[i] * B[i, k]
-    Bc[:] = 0.0
+        b = B[i]
+        r0, r1, r2, r3, r4, r5 = b[0] * 1.0, b[1] * 1.0, b[2] * 1.0, b[3] * 1.0, b[4] * 1.0, b[5] * 1.0
+        for p in range(indptr[i], split[i]):
+            a = data[p]
+            x = X[indices[p]]
+            r0 -= a * x[0]
+            r1 -= a * x[1]
+            r2 -= a * x[2]
+            r3 -= a * x[3]
+            r4 -= a * x[4]
+            r5 -= a * x[5]
+        t = T[i]
+        x = X[i]
+        di = dinv[i]
+        t[0] = r0
+        x[0] = di * r0
+        t[1] = r1
+        x[1] = di * r1
+        t[2] = r2
+        x[2] = di * r2
+        t[3] = r3
+        x[3] = di * r3
+        t[4] = r4
+        x[4] = di * r4
+        t[5] = r5
+        x[5] = di * r5
     for i in range(n):
+        t = T[i]
+        r0, r1, r2, r3, r4, r5 = t[0] * 1.0, t[1] * 1.0, t[2] * 1.0, t[3] * 1.0, t[4] * 1.0, t[5] * 1.0
+        for p in range(split[i], indptr[i + 1]):
+            a = data[p]
+            x = X[indices[p]]
+            r0 -= a * x[0]
+            r1 -= a * x[1]
+            r2 -= a * x[2]
+            r3 -= a * x[3]
+            r4 -= a * x[4]
+            r5 -= a * x[5]
+        t[0] = r0
+        t[1] = r1
+        t[2] = r2
+        t[3] = r3
+        t[4] = r4
+        t[5] = r5
+    for i in range(Bc.shape[0]):
+        a0 = a1 = a2 = a3 = a4 = a5 = 0.0
+        for q in range(r_ptr[i], r_ptr[i + 1]):
+            w = r_dat[q]
+            c = T[r_ind[q]]
+            a0 += w * c[0]
+            a1 += w * c[1]
+            a2 += w * c[2]
+            a3 += w * c[3]
+            a4 += w * c[4]
+            a5 += w * c[5]
+        c = Bc[i]
+        c[0] = a0
+        c[1] = a1
+        c[2] = a2
+        c[3] = a3
+        c[4] = a4
+        c[5] = a5
+
+
+@jit
+def gs_up6(indptr, indices, data, dinv, B, X, p_ptr, p_ind, p_dat, Xc, mask, rz):  # pragma: no cover - compiled
+    """A V-cycle level going up, blocks (n, 6): ``X += P Xc``, then a backward Gauss-Seidel sweep
+    ``X += (D + U)^-1 (B - A X)``, masked (``X *= mask``, zero on prescribed unknowns), with
+    ``rz[k] = B[:, k] . X[:, k]`` (the value as stored). The adjoint of :func:`gs_down6`'s sweep, so
+    the cycle is symmetric. A row is final once swept (later rows lie above it), so its mask and its
+    share of ``rz`` are applied in the same pass.
+    """
+    n = B.shape[0]
+    for i in range(n):
+        x = X[i]
+        a0, a1, a2, a3, a4, a5 = x[0] * 1.0, x[1] * 1.0, x[2] * 1.0, x[3] * 1.0, x[4] * 1.0, x[5] * 1.0
+        for q in range(p_ptr[i], p_ptr[i + 1]):
+            w = p_dat[q]
+            c = Xc[p_ind[q]]
+            a0 += w * c[0]
+            a1 += w * c[1]
+            a2 += w * c[2]
+            a3 += w * c[3]
+            a4 += w * c[4]
+            a5 += w * c[5]
+        x[0] = a0
+        x[1] = a1
+        x[2] = a2
+        x[3] = a3
+        x[4] = a4
+        x[5] = a5
+    s0 = s1 = s2 = s3 = s4 = s5 = 0.0
+    for i in range(n - 1, -1, -1):
         b = B[i]
         r0, r1, r2, r3, r4, r5 = b[0] * 1.0, b[1] * 1.0, b[2] * 1.0, b[3] * 1.0, b[4] * 1.0, b[5] * 1.0
         for p in range(indptr[i], indptr[i + 1]):
@@ -638,37 +862,30 @@ def cycle_down6(indptr, indices, data, d, B, X, p_ptr, p_ind, p_dat, Bc):  # pra
             r3 -= a * x[3]
             r4 -= a * x[4]
             r5 -= a * x[5]
-        for q in range(p_ptr[i], p_ptr[i + 1]):
-            w = p_dat[q]
-            c = Bc[p_ind[q]]
-            c[0] += w * r0
-            c[1] += w * r1
-            c[2] += w * r2
-            c[3] += w * r3
-            c[4] += w * r4
-            c[5] += w * r5
-
-
-@jit
-def cycle_up6(indptr, indices, data, d, B, X, p_ptr, p_ind, p_dat, Xc, mask, T, rz):  # pragma: no cover
-    """:func:`cycle_up8` on blocks (n, 6)."""
-    n = B.shape[0]
-    for i in range(n):
         x = X[i]
-        for q in range(p_ptr[i], p_ptr[i + 1]):
-            w = p_dat[q]
-            c = Xc[p_ind[q]]
-            for k in range(6):
-                x[k] += w * c[k]
-    residual6(indptr, indices, data, B, X, T)
-    rz[:] = 0.0
-    for i in range(n):
-        for k in range(6):
-            X[i, k] = (X[i, k] + d[i] * T[i, k]) * mask[i]
-            rz[k] += B[i, k] * X[i, k]
+        di = dinv[i]
+        m = mask[i]
+        x[0] = (x[0] + di * r0) * m
+        s0 += b[0] * x[0]
+        x[1] = (x[1] + di * r1) * m
+        s1 += b[1] * x[1]
+        x[2] = (x[2] + di * r2) * m
+        s2 += b[2] * x[2]
+        x[3] = (x[3] + di * r3) * m
+        s3 += b[3] * x[3]
+        x[4] = (x[4] + di * r4) * m
+        s4 += b[4] * x[4]
+        x[5] = (x[5] + di * r5) * m
+        s5 += b[5] * x[5]
+    rz[0] = s0
+    rz[1] = s1
+    rz[2] = s2
+    rz[3] = s3
+    rz[4] = s4
+    rz[5] = s5
 
 
-FIXED_WIDTH = {8: (spmm8, residual8, cycle_down8, cycle_up8), 6: (spmm6, residual6, cycle_down6, cycle_up6)}
+FIXED_WIDTH = {8: (spmm8, residual8, gs_down8, gs_up8), 6: (spmm6, residual6, gs_down6, gs_up6)}
 """The fixed-width loops by block width: ``(spmm, residual, cycle_down, cycle_up)``."""
 
 
