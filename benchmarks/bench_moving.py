@@ -26,12 +26,13 @@ Run:  .venv/bin/python benchmarks/bench_moving.py [--frames N]
 from __future__ import annotations
 
 import argparse
+import contextlib
 import time
 from pathlib import Path
 
 import numpy as np
-from _cell import flange_radar, radar_anchor, radar_before_after, tof_anchor, two_d_vectors_only
-from _timing import alternating, print_anchor, print_load_at_end, print_machine, timed_frames
+from _cell import flange_radar, radar_anchor, tof_anchor
+from _timing import alternating, in_turn, print_anchor, print_load_at_end, print_machine, timed_frames
 
 from twinsense.demos.office import SENSOR_EYE, SENSOR_TARGET, build_office_scene, sensor_pose
 from twinsense.radar import FMCWRadar
@@ -67,7 +68,7 @@ def office(frames: int) -> None:
            *timed_frames(lambda k: radar.capture(scene, 1.0 + k / 30.0, np.random.default_rng(k)), frames), anchor)
 
 
-def robot_cell(frames: int) -> None:
+def robot_cell(frames: int, radar_only: bool = False) -> None:
     from twinsense.scenario import load_scenario
     from twinsense.scene.human import Walk, add_person
 
@@ -82,18 +83,28 @@ def robot_cell(frames: int) -> None:
     tof = next(s for s in sc.sensors if s.name == "wrist_tof")
     t_of = [0.3 + k / tof.frame_rate for k in range(frames + 1)]
     anchor = tof_anchor(scene, tof, t_of[1], 15)
+    if not radar_only:
+        wrist_tof(scene, tof, t_of, frames, rng, anchor)
+    wrist_radar(scene, t_of, frames)
+
+
+def wrist_tof(scene, tof, t_of, frames: int, rng, anchor: float) -> None:
+    """The wrist ToF camera's frames, their stages and the world-BVH alternative."""
     report(f"wrist ToF ({tof.config.width} x {tof.config.height}, {tof.config.supersample} x "
            f"{tof.config.supersample} sub-pixels), on the moving arm",
            *timed_frames(lambda k: tof.capture(scene, t_of[k], rng), frames), anchor)
     tof_stages(scene, tof, t_of[1:], anchor)
     movers_world_bvh(scene, tof, t_of[1:])
 
+
+def wrist_radar(scene, t_of, frames: int) -> None:
+    """The flange radar's whole frames before and after in turn, then its synthesis alone."""
     # Beside the ToF camera on the flange, looking the same way (down at the table).
     radar = flange_radar("ur5")
     anchor = radar_anchor(scene, radar, t_of[1], 15)
     n = max(2, frames // 4)  # every scatterer moves with the arm: seconds per frame
-    # Whole frames, before (2-D vectors only) and after (the 1-D variant where cheaper) in turn.
-    for label, times in radar_before_after(radar, scene, t_of, n).items():
+    # Whole frames, before (finufft for the 1-D transforms) and after (the compiled spreader) in turn.
+    for label, times in radar_frames_before_after(radar, scene, t_of, n).items():
         report(f"radar paper_bgt60tr13c on the moving wrist, {label} ({n} frames)", *times, anchor)
     wrist_synthesis(radar, scene, t_of[1], anchor)
 
@@ -198,14 +209,82 @@ def movers_world_bvh(scene, tof, times) -> None:
           f"moving objects (cull, trace, merge): {np.median(movers_cpu) * 1e3:.1f} ms CPU")
 
 
+def _stage_timers(stages: dict):
+    """Wrap the synthesis' stage functions to add their thread CPU time to ``stages``
+    (label -> seconds; a call inside another is counted in both). Returns the undo."""
+    import finufft
+
+    import twinsense.radar.nufft as nufft_module
+    import twinsense.radar.spreader as spreader_module
+    import twinsense.radar.synthesis as synthesis_module
+
+    targets = [
+        (synthesis_module, "moving_chunk_2d", "movers' 2-D blocks (plan and run)"),
+        (synthesis_module, "moving_chunk", "movers per chirp (the tails)"),
+        (synthesis_module, "static_chunk", "static rows"),
+        (nufft_module, "_plan_block", "- block plans (legs, phase coefficients, series choice)"),
+        (nufft_module, "spread_series_1d", "- 1-D blocks: series + spreading (compiled)"),
+        (spreader_module.Kernel, "finish", "- spreader FFTs and deconvolution"),
+        (nufft_module, "_block_rows", "- monomial sums and chunk-wide phasor"),
+        (finufft.Plan, "execute", "- finufft executes (2-D vectors)"),
+    ]
+    saved = []
+    for owner, name, label in targets:
+        fn = getattr(owner, name)
+        saved.append((owner, name, fn))
+
+        def timed(*a, _fn=fn, _label=label, **k):
+            c0 = time.thread_time()
+            try:
+                return _fn(*a, **k)
+            finally:
+                stages[_label] = stages.get(_label, 0.0) + time.thread_time() - c0
+        setattr(owner, name, timed)
+
+    def undo():
+        for owner, name, fn in saved:
+            setattr(owner, name, fn)
+    return undo
+
+
+def synthesis_stages(p, v, w, cfg, eps: float, rounds: int = 3) -> None:
+    """Thread CPU time of each stage of one wrist frame's synthesis on one thread (median of
+    ``rounds``), and of the noise-tolerance estimate before it."""
+    from twinsense.radar.synthesis import noise_tolerance, synthesize
+
+    runs: list[dict] = []
+    for _ in range(rounds + 1):
+        stages: dict = {}
+        c0 = time.thread_time()
+        noise_tolerance(p, w, cfg, workers=1)
+        stages["noise tolerance (first-chirp power estimate)"] = time.thread_time() - c0
+        undo = _stage_timers(stages)
+        try:
+            c0 = time.thread_time()
+            synthesize(p, v, w, cfg, eps=eps, workers=1)
+            stages["synthesis, all"] = time.thread_time() - c0
+        finally:
+            undo()
+        work = sum(stages.get(k, 0.0) for k in ("movers' 2-D blocks (plan and run)",
+                                                 "movers per chirp (the tails)", "static rows"))
+        stages["- movers found, range rates, sort, gathers, sums"] = stages["synthesis, all"] - work
+        runs.append(stages)
+    runs = runs[1:]  # the first: warm-up
+    print(f"  stages of the wrist synthesis, thread CPU on one thread (median of {rounds}; eps={eps:.2g}):")
+    for label in runs[0]:
+        print(f"    {label:<58s} {np.median([r.get(label, 0.0) for r in runs]) * 1e3:7.1f} ms")
+
+
 def wrist_synthesis(radar: FMCWRadar, scene, t: float, anchor: float) -> None:
     """The wrist radar's IF synthesis alone (every scatterer moves), the variants in
-    turn: the per-chirp path only, the 2-D path with 2-D vectors only (before its 1-D
-    variant) and the per-chunk and per-block choice (after), anchored to the
+    turn: the per-chirp path only, the code before the compiled spreader (finufft for
+    every 1-D transform: ``nufft.SPREAD_1D`` off) and after, anchored to the
     static-scene synthesis of the same scatterers (velocities dropped) and to the bare
-    embreex cast; the preset's 16 chirps and the same frame with 64 chirps."""
+    embreex cast; the preset's 16 chirps and the same frame with 64 chirps. Then the
+    stages of the 16-chirp synthesis on one thread."""
     import dataclasses
 
+    import twinsense.radar.nufft as nufft_module
     import twinsense.radar.synthesis as synthesis_module
 
     scat = radar._renderer.render(scene, radar.mount.state_at(scene, t), t)
@@ -231,25 +310,61 @@ def wrist_synthesis(radar: FMCWRadar, scene, t: float, anchor: float) -> None:
                 synthesis_module.moving_chunk_2d = two_d
 
         def before():
-            with two_d_vectors_only():
+            with finufft_1d():
                 return run()
 
         def static(cfg=cfg):
             return synthesis_module.synthesize(p, None, w, cfg, eps=eps, workers=workers)
 
-        ref = per_chirp()
+        # Accuracy against the same frame at eps = 1e-8 (the bound: 2 eps).
+        ref = synthesis_module.synthesize(p, v, w, cfg, eps=1e-8, workers=workers)
         errs = [np.linalg.norm(fn() - ref) / np.linalg.norm(ref) for fn in (before, run)]
-        times = alternating({"per-chirp path only": per_chirp, "2-D vectors only (before)": before,
-                             "1-D variant where cheaper (after)": run,
+        times = alternating({"per-chirp path only": per_chirp, "finufft 1-D (before)": before,
+                             "compiled spreader (after)": run,
                              "anchor: same scatterers static": static}, rounds)
         print(f"  wrist radar synthesis alone, {len(p)} scatterers, all moving, {num_chirps} chirps "
-              f"(workers={workers}, eps={eps:.2g}, {rounds} rounds in turn); against the per-chirp "
-              f"path: relative difference {errs[0]:.1e} before, {errs[1]:.1e} after")
+              f"(workers={workers}, eps={eps:.2g}, {rounds} rounds in turn); relative l2 error against "
+              f"eps=1e-8: {errs[0]:.1e} ({errs[0] / eps:.2f} eps) before, {errs[1]:.1e} "
+              f"({errs[1] / eps:.2f} eps) after")
         static_cpu = times["anchor: same scatterers static"][2]
         for label, (best, median, cpu) in times.items():
             print(f"    {label:<36s} {best * 1e3:8.1f} ms best {median * 1e3:8.1f} ms median; "
                   f"CPU {cpu * 1e3:8.1f} ms/frame; {cpu / static_cpu:5.1f} x static CPU")
-        print_anchor("bare embreex cast, same rays", anchor, times["1-D variant where cheaper (after)"][1])
+        print_anchor("bare embreex cast, same rays", anchor, times["compiled spreader (after)"][1])
+    assert nufft_module.SPREAD_1D
+    # The render before it (scatterers and amplitudes), at times 10 ms apart (new poses).
+    render = timed_frames(lambda k: radar._weights(radar._renderer.render(
+        scene, radar.mount.state_at(scene, t + 0.01 * k), t + 0.01 * k)), 3)
+    print(f"  the frame's render and amplitudes (workers={workers}): {render[1] * 1e3:.1f} ms median "
+          f"wall, CPU {render[2] * 1e3:.1f} ms")
+    synthesis_stages(p, v, w, radar.config, eps)
+
+
+@contextlib.contextmanager
+def finufft_1d():
+    """The synthesis before the compiled spreader: finufft for every 1-D transform (at the
+    tolerances it had: eps for static and per-chirp rows, eps / 4 and looser for the
+    blocks' 1-D vectors); restored on exit."""
+    import twinsense.radar.nufft as nufft_module
+
+    nufft_module.SPREAD_1D = False
+    try:
+        yield
+    finally:
+        nufft_module.SPREAD_1D = True
+
+
+def radar_frames_before_after(radar: FMCWRadar, scene, times, n: int) -> dict:
+    """{"before": ..., "after": ...}: (best wall, median wall, median CPU) [s] of whole frames
+    at ``times[k]``, k = 1..n, finufft 1-D (before) and the compiled spreader (after) in
+    turn, each round at the next time (frame k's noise from seed k)."""
+    def before(k):
+        with finufft_1d():
+            radar.capture(scene, times[k], np.random.default_rng(k))
+
+    return alternating({"before (finufft 1-D)": in_turn(before, n),
+                        "after (compiled spreader)": in_turn(
+                            lambda k: radar.capture(scene, times[k], np.random.default_rng(k)), n)}, n)
 
 
 def compile_times() -> None:
@@ -281,8 +396,14 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--frames", type=int, default=20)
     ap.add_argument("--skip-robot", action="store_true")
+    ap.add_argument("--wrist-radar-only", action="store_true",
+                    help="only the robot cell's wrist radar (frames, synthesis, its stages)")
     args = ap.parse_args()
     print_machine()
+    if args.wrist_radar_only:
+        robot_cell(args.frames, radar_only=True)
+        print_load_at_end()
+        return
     office(args.frames)
     if not args.skip_robot:
         robot_cell(args.frames)
