@@ -1035,12 +1035,14 @@ def _block_rows(blk: _Block2D, keys: list, out: np.ndarray, jb: int, n_samp: int
             term = out[d] * vv**j if j else out[d]
             by_i[i] = by_i[i] + term if i in by_i else term
         for i, acc in sorted(by_i.items()):
-            rows += np.outer(uu**i, acc)
+            # Broadcast, not np.outer: 3x faster for a real column times a complex row.
+            rows += (uu**i)[:, None] * acc[None, :]
     else:
         for d, (i, j) in enumerate(keys):
             rows += out[d] * np.outer(uu**i, vv**j)
     # The chunk-wide phase sum_ij c_ij U^i V^j, grouped by i as above (one (J, N) pass per
-    # power of U), and its phasor by cos and sin (a third of the time of a complex exp).
+    # power of U), reduced to [-pi, pi] in float64 and its cos and sin in float32 as for
+    # the strengths (error ~1e-7 rad; 8x faster than a complex exp).
     poly: dict = {}
     for (i, j), c in blk.common.items():
         if c != 0.0:
@@ -1049,10 +1051,11 @@ def _block_rows(blk: _Block2D, keys: list, out: np.ndarray, jb: int, n_samp: int
     if poly:
         common = np.zeros((jb, n_samp))
         for i, acc in sorted(poly.items()):
-            common += np.outer(uu**i, acc)
+            common += (uu**i)[:, None] * acc[None, :]
+        ph32 = _reduce(common).astype(np.float32)
         phasor = np.empty((jb, n_samp), dtype=complex)
-        phasor.real = np.cos(common)
-        phasor.imag = np.sin(common)
+        phasor.real = np.cos(ph32)
+        phasor.imag = np.sin(ph32)
         rows *= phasor
     return rows
 
