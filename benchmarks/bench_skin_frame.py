@@ -15,7 +15,11 @@ the skin's ``capacitance_atol``). Without ``--before`` only this tree runs.
 Same-run anchor: a plain scikit-fem + pyamg solve on the skin's mesh
 (``_timing.skfem_pyamg_anchor``), timed in this tree's worker.
 
-Run:  .venv/bin/python benchmarks/bench_skin_frame.py [--before /tmp/before/src] [--frames 12] [--rounds 2]
+With ``--exact`` this tree's worker also solves every frame directly
+(sparse LU of the free block, untimed) and the largest Maxwell error
+against that exact discrete solution is printed.
+
+Run:  .venv/bin/python benchmarks/bench_skin_frame.py [--before /tmp/before/src] [--frames 12] [--rounds 2] [--exact]
 """
 
 from __future__ import annotations
@@ -34,7 +38,21 @@ T_REACH = 3.2  # [s] the person's hand at the forearm: the skin's map changes ev
 HERE = os.path.dirname(os.path.abspath(__file__))
 
 
-def worker(frames: int) -> None:
+def exact_maxwell(system) -> np.ndarray:
+    """The frame's Maxwell matrix from a sparse direct solve of its free block (the exact discrete solution)."""
+    import scipy.sparse.linalg as spla
+
+    from twinsense.capacitive.fem import reduce_floating
+    from twinsense.capacitive.solver import split_system
+
+    A, K, B, fixed, X = split_system(system)
+    free = ~fixed
+    X[free] = spla.splu(A[free][:, free].tocsc()).solve(B[free])
+    full = X.T @ (K @ X)
+    return reduce_floating(0.5 * (full + full.T), len(system.terminals))
+
+
+def worker(frames: int, exact: bool) -> None:
     """The worker's side: read frame numbers on stdin, capture, answer on stdout (pickled)."""
     from twinsense.demos.robot_cell import build_arm_cell
 
@@ -60,17 +78,20 @@ def worker(frames: int) -> None:
             wall, cpu = time.perf_counter() - w0, time.process_time() - c0
             reply = {"wall": wall, "cpu": cpu, "iters": int(f.iterations.max()), "maxwell": f.maxwell,
                      "atol": skin.frame_solver_config.capacitance_atol}
+            if exact:
+                reply["exact"] = exact_maxwell(skin._solver.system)
         data = pickle.dumps(reply)
         out.write(len(data).to_bytes(8, "little") + data)
         out.flush()
 
 
 class Worker:
-    def __init__(self, src: str, frames: int):
+    def __init__(self, src: str, frames: int, exact: bool = False):
         env = dict(os.environ, PYTHONPATH=os.pathsep.join([src, HERE]), OMP_NUM_THREADS="1",
                    OPENBLAS_NUM_THREADS="1")
-        self.p = subprocess.Popen([sys.executable, os.path.abspath(__file__), "--worker", "--frames", str(frames)],
-                                  stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
+        cmd = [sys.executable, os.path.abspath(__file__), "--worker", "--frames", str(frames)]
+        self.p = subprocess.Popen(cmd + (["--exact"] if exact else []), stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                  env=env)
 
     def ask(self, cmd: str) -> dict:
         self.p.stdin.write((cmd + "\n").encode())
@@ -89,12 +110,14 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=12)
     ap.add_argument("--rounds", type=int, default=2, help="passes over the frames (a frame again is a warm "
                     "start from the last frame of the pass)")
+    ap.add_argument("--exact", action="store_true", help="also solve each frame of this tree directly (untimed) "
+                    "and print its largest Maxwell error")
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.frames < 1 or args.rounds < 1:
         ap.error("--frames and --rounds must be at least 1")
     if args.worker:
-        worker(args.frames)
+        worker(args.frames, args.exact)
         return
     print_machine()
     trees = {"this tree": os.path.join(os.path.dirname(HERE), "src")}
@@ -102,9 +125,10 @@ def main() -> None:
         if not os.path.isdir(os.path.join(args.before, "twinsense")):
             ap.error(f"--before {args.before!r}: no twinsense package there (give a src directory)")
         trees = {"before": args.before, **trees}
-    workers = {name: Worker(src, args.frames) for name, src in trees.items()}
+    workers = {name: Worker(src, args.frames, args.exact and name == "this tree") for name, src in trees.items()}
     got = {name: {"wall": [], "cpu": [], "iters": []} for name in trees}
     worst = 0.0
+    errors = []
     atol = None
     try:
         for _ in range(args.rounds):
@@ -116,6 +140,8 @@ def main() -> None:
                         got[name][key].append(r[key])
                     mats[name] = r["maxwell"]
                     atol = r["atol"]
+                    if "exact" in r:
+                        errors.append(float(np.abs(r["maxwell"] - r["exact"]).max()))
                 if len(mats) == 2:
                     a, b = mats.values()
                     worst = max(worst, float(np.abs(a - b).max()))
@@ -135,6 +161,9 @@ def main() -> None:
     if len(got) == 2:
         print(f"  largest Maxwell difference between the trees: {worst * 1e15:.4f} fF ({worst / atol:.2f} x "
               f"capacitance_atol {atol * 1e15:.4f} fF)")
+    if errors:
+        print(f"  this tree against a direct solve of each frame: largest Maxwell error {max(errors) * 1e15:.4f} fF "
+              f"({max(errors) / atol:.2f} x capacitance_atol; median over frames {np.median(errors) / atol:.2f} x)")
     print_anchor("scikit-fem + pyamg solve, same mesh", anchor, float(np.median(got["this tree"]["wall"])))
     print_load_at_end()
 
