@@ -24,7 +24,20 @@ thread CPU; per frame the span of each stage (first start to last end, from
 the capture's start), its summed wall and CPU, each thread's busy time, and
 the cores' idle time (2 x wall - process CPU), medians over the frames.
 
-Run:  .venv/bin/python benchmarks/bench_tof.py [--wrist-chain | --wrist-stages] [--frames N]
+``--before SRC`` times the wrist camera's whole captures with the package at
+SRC (another checkout's ``src``, e.g. ``git archive <commit> src | tar -x -C
+DIR``) and with this one, in child processes taking turns (``--rounds``
+rounds of ``--frames`` frames each, the first child of each untimed: numba
+compiles or loads its cache), every child at the same frame times and seeds:
+median and best wall per frame, median process CPU per frame, the same-run
+anchor (a bare embreex cast of the same rays, in each child) and the load.
+
+``--wrist-noise`` takes whole wrist captures with the noise drawn per block of
+8 rows (a generator each, as before) or as one stream, each with and without
+the capture waiting for the draw to start, frame by frame in turn.
+
+Run:  .venv/bin/python benchmarks/bench_tof.py [--wrist-chain | --wrist-stages | --wrist-noise | --before SRC]
+      [--frames N]
 """
 
 from __future__ import annotations
@@ -399,14 +412,139 @@ def wrist_stages(frames: int) -> None:
         print(f"  thread {thread:<33s} busy in the stages above {np.median(b) * 1e3:6.2f} ms per frame")
 
 
+def _per_block_slabs(cfg, seeds, out=None):
+    """The noise draw as it was before one stream per frame: a generator per block of rows (seeded
+    from the frame's seed through SeedSequence.spawn: 22 for a pico flexx frame), one fill each.
+    Other bytes than draw_noise_slabs; for timing."""
+    from twinsense.tof.pipeline import NOISE_BLOCK_ROWS, noise_size, slab_size
+
+    k, size = NOISE_BLOCK_ROWS, slab_size(cfg)
+    out = np.empty(noise_size(cfg), np.float32) if out is None else out
+    blocks = np.random.SeedSequence(int(seeds[0])).spawn(-(-cfg.height // k))
+    for b, seq in enumerate(blocks):
+        rows = min(k, cfg.height - b * k)
+        np.random.Generator(np.random.SFC64(seq)).standard_normal(
+            dtype=np.float32, out=out[b * size:b * size + rows * (size // k)])
+    return out
+
+
+def wrist_noise_ways(frames: int) -> None:
+    """Whole wrist captures with the noise drawn per block or as one stream, and with and without the
+    capture waiting for the draw to start; frame by frame in turn (the order rotating), one process."""
+    import twinsense.tof.camera as camera
+    from twinsense.demos.robot_cell import build_arm_cell
+
+    scene, sensors = build_arm_cell()
+    cam = sensors[2]
+    times = [0.9 + k / 30.0 for k in range(frames + 3)]
+    one_stream, waited = camera.draw_noise_slabs, camera._NOISE_START_WAIT
+    ways = {"per block, no wait": (_per_block_slabs, 0.0), "per block, wait": (_per_block_slabs, waited),
+            "one stream, no wait": (one_stream, 0.0), "one stream, wait (as built)": (one_stream, waited)}
+    wall: dict = {w: [] for w in ways}
+    cpu: dict = {w: [] for w in ways}
+    try:
+        for k in range(frames + 3):
+            order = list(ways)[k % 4:] + list(ways)[:k % 4]
+            for way in order:
+                camera.draw_noise_slabs, camera._NOISE_START_WAIT = ways[way]
+                c0, t0 = time.process_time(), time.perf_counter()
+                # Each way at its own time (10 us apart): a pose seen before would reuse its rays
+                # and keep their static hits (a fixed camera's path).
+                cam.capture(scene, times[k] + 1e-5 * list(ways).index(way), np.random.default_rng(k))
+                if k >= 3:  # the first three untimed
+                    wall[way].append(time.perf_counter() - t0)
+                    cpu[way].append(time.process_time() - c0)
+    finally:
+        camera.draw_noise_slabs, camera._NOISE_START_WAIT = one_stream, waited
+    print(f"\n== robot cell, wrist ToF: the noise draw's ways, {frames} frames each in turn")
+    for way in ways:
+        print(f"  {way:<30s} wall {np.median(wall[way]) * 1e3:6.2f} ms median (best {min(wall[way]) * 1e3:6.2f}), "
+              f"process CPU {np.median(cpu[way]) * 1e3:6.2f} ms")
+
+
+def wrist_child(frames: int) -> None:
+    """One child of ``--before``: ``frames`` wrist captures after 3 untimed ones; prints one JSON line."""
+    import json
+    import os
+
+    import twinsense
+    from twinsense.demos.robot_cell import build_arm_cell
+
+    scene, sensors = build_arm_cell()
+    cam = sensors[2]
+    times = [0.9 + k / 30.0 for k in range(frames + 3)]
+    rng = np.random.default_rng(0)
+    for k in range(3):
+        cam.capture(scene, times[k], rng)
+    wall, cpu = [], []
+    for k in range(frames):
+        c0, t0 = time.process_time(), time.perf_counter()
+        cam.capture(scene, times[k + 3], rng)
+        wall.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
+    pose = cam.mount.pose_at(scene, times[3])
+    rays = cam._renderer.rays(pose.rotation, pose.position)
+    _, anchor = embree_anchor(scene, "tof", times[3], rays.origins, rays.directions, repeats=9)
+    print(json.dumps({"package": os.path.dirname(twinsense.__file__), "wall": wall, "cpu": cpu,
+                      "anchor": anchor, "load": os.getloadavg()[0]}))
+
+
+def before_after(before_src: str, frames: int, rounds: int) -> None:
+    """The wrist camera with the package at ``before_src`` and with this one, in child processes in turn."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    here = os.path.abspath(__file__)
+    env_of = {"before": {**os.environ, "PYTHONPATH": os.path.abspath(before_src)},
+              "after": {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}}
+
+    def child(way: str, n: int) -> dict:
+        out = subprocess.run([sys.executable, here, "--wrist-child", "--frames", str(n)], env=env_of[way],
+                             check=True, capture_output=True, text=True).stdout
+        return json.loads(out.strip().splitlines()[-1])
+
+    for way in env_of:  # untimed: compiled kernels built or loaded, files cached
+        print(f"  {way}: {child(way, 2)['package']}")
+    got: dict = {way: {"wall": [], "cpu": [], "anchor": [], "load": []} for way in env_of}
+    for r in range(rounds):
+        for way in (list(env_of) if r % 2 == 0 else list(env_of)[::-1]):
+            res = child(way, frames)
+            for key in ("wall", "cpu"):
+                got[way][key] += res[key]
+            got[way]["anchor"].append(res["anchor"])
+            got[way]["load"].append(res["load"])
+    print(f"\n== robot cell, wrist ToF pmd_pico_flexx on the moving UR5 (153,216 rays): {rounds} rounds of "
+          f"{frames} frames per way, in child processes taking turns")
+    for way, g in got.items():
+        med = float(np.median(g["wall"]))
+        anchor = float(np.median(g["anchor"]))
+        print(f"  {way:<7s} wall {med * 1e3:6.1f} ms median (best {min(g['wall']) * 1e3:5.1f}) -> {1 / med:5.1f} "
+              f"frames/s; process CPU {np.median(g['cpu']) * 1e3:5.1f} ms/frame; anchor {anchor * 1e3:5.1f} ms, "
+              f"wall / anchor {med / anchor:4.2f}; load {min(g['load']):.1f}-{max(g['load']):.1f}")
+
+
 if __name__ == "__main__":
     ap = argparse.ArgumentParser()
     ap.add_argument("--wrist-chain", action="store_true", help="only the robot cell's wrist camera chain case")
     ap.add_argument("--wrist-stages", action="store_true", help="only where a wrist frame's wall time goes")
+    ap.add_argument("--wrist-noise", action="store_true", help="only the wrist frame with the noise draw's ways")
+    ap.add_argument("--before", metavar="SRC", help="the wrist camera with the package at SRC and with this one")
+    ap.add_argument("--rounds", type=int, default=6, help="child processes per way with --before")
+    ap.add_argument("--wrist-child", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--frames", type=int, default=40)
     args = ap.parse_args()
-    if args.wrist_chain or args.wrist_stages:
+    if args.wrist_child:
+        wrist_child(args.frames)
+    elif args.before:
         print_machine()
+        before_after(args.before, args.frames, args.rounds)
+        print_load_at_end()
+    elif args.wrist_chain or args.wrist_stages or args.wrist_noise:
+        print_machine()
+        if args.wrist_noise:
+            wrist_noise_ways(args.frames)
         if args.wrist_chain:
             wrist_chain(args.frames)
         if args.wrist_stages:
