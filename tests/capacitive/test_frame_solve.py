@@ -206,7 +206,7 @@ def test_compiled_cycle_is_a_symmetric_positive_definite_preconditioner(frame):
     assert np.all(np.einsum("ij,ij->j", U, MU) > 0)
 
 
-@pytest.mark.parametrize("t", [3, 11])
+@pytest.mark.parametrize("t", [3, 6, 11])
 def test_compiled_pcg_against_a_direct_solve(frame, t):
     ml, _ = _base_hierarchy(frame)
     A, _, _, fixed, _ = split_system(frame)
@@ -215,7 +215,8 @@ def test_compiled_pcg_against_a_direct_solve(frame, t):
     rng = np.random.default_rng(t)
     B = rng.standard_normal((A.shape[0], t)) * free[:, None]
     X0 = np.zeros_like(B)
-    # 11 columns: a full group of 8 and a padded one of 3.
+    # 11 columns: a full group of 8 and a padded one of 3 (a block of 6); 6 columns: one block of 6
+    # solved in place.
     X, it = compiled_block_pcg(A, B, X0, CompiledCycle(ml, free), 1e-10, 500)
     ref = spla.splu(A.tocsc()).solve(B)
     # The residual rule is the checked quantity: |b - A x| <= 1e-10 |b| per column. The solution
