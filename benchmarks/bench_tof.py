@@ -33,8 +33,7 @@ median and best wall per frame, median process CPU per frame, the same-run
 anchor (a bare embreex cast of the same rays, in each child) and the load.
 
 ``--wrist-noise`` takes whole wrist captures with the noise drawn per block of
-8 rows (a generator each, as before) or as one stream, each with and without
-the capture waiting for the draw to start, frame by frame in turn.
+8 rows (a generator each, as before) or as one stream, frame by frame in turn.
 
 Run:  .venv/bin/python benchmarks/bench_tof.py [--wrist-chain | --wrist-stages | --wrist-noise | --before SRC]
       [--frames N]
@@ -429,24 +428,22 @@ def _per_block_slabs(cfg, seeds, out=None):
 
 
 def wrist_noise_ways(frames: int) -> None:
-    """Whole wrist captures with the noise drawn per block or as one stream, and with and without the
-    capture waiting for the draw to start; frame by frame in turn (the order rotating), one process."""
+    """Whole wrist captures with the noise drawn per block or as one stream, frame by frame in turn (the
+    order alternating), one process."""
     import twinsense.tof.camera as camera
     from twinsense.demos.robot_cell import build_arm_cell
 
     scene, sensors = build_arm_cell()
     cam = sensors[2]
     times = [0.9 + k / 30.0 for k in range(frames + 3)]
-    one_stream, waited = camera.draw_noise_slabs, camera._NOISE_START_WAIT
-    ways = {"per block, no wait": (_per_block_slabs, 0.0), "per block, wait": (_per_block_slabs, waited),
-            "one stream, no wait": (one_stream, 0.0), "one stream, wait (as built)": (one_stream, waited)}
+    one_stream = camera.draw_noise_slabs
+    ways = {"per block of 8 rows (before)": _per_block_slabs, "one stream (now)": one_stream}
     wall: dict = {w: [] for w in ways}
     cpu: dict = {w: [] for w in ways}
     try:
         for k in range(frames + 3):
-            order = list(ways)[k % 4:] + list(ways)[:k % 4]
-            for way in order:
-                camera.draw_noise_slabs, camera._NOISE_START_WAIT = ways[way]
+            for way in (list(ways) if k % 2 else list(ways)[::-1]):
+                camera.draw_noise_slabs = ways[way]
                 c0, t0 = time.process_time(), time.perf_counter()
                 # Each way at its own time (10 us apart): a pose seen before would reuse its rays
                 # and keep their static hits (a fixed camera's path).
@@ -455,7 +452,7 @@ def wrist_noise_ways(frames: int) -> None:
                     wall[way].append(time.perf_counter() - t0)
                     cpu[way].append(time.process_time() - c0)
     finally:
-        camera.draw_noise_slabs, camera._NOISE_START_WAIT = one_stream, waited
+        camera.draw_noise_slabs = one_stream
     print(f"\n== robot cell, wrist ToF: the noise draw's ways, {frames} frames each in turn")
     for way in ways:
         print(f"  {way:<30s} wall {np.median(wall[way]) * 1e3:6.2f} ms median (best {min(wall[way]) * 1e3:6.2f}), "

@@ -183,19 +183,10 @@ class ToFCamera:
             # The background thread runs one task at a time, so a draw into the
             # kept slabs never overlaps another one (even after a failed capture).
             out = self._noise_buffer
-        started = threading.Event()
-
-        def draw():
-            started.set()
-            return draw_noise_slabs(cfg, seeds, out)  # one NumPy fill, without the GIL
-
-        task = _background().submit(draw)
-        # The draw takes the GIL once, to start; this thread renders in Python (poses) and
-        # would keep it for up to the interpreter's switch interval (5 ms) before the draw
-        # could start: wait here (without the GIL) until it has, or 1 ms if the background
-        # thread is busy with another camera's draw.
-        started.wait(_NOISE_START_WAIT)
-        return task
+        # One NumPy fill: the draw takes the GIL once, to start, at this thread's first call
+        # without it (the forward kinematics of the camera's pose). Waiting here until it has
+        # started gained nothing measurable at loads of 3-4 and can cost the capture its core.
+        return _background().submit(draw_noise_slabs, cfg, seeds, out)
 
     def _frame(self, phasors, noise: Future | None, pose: Pose, t: float, mine: bool = False) -> ToFFrame:
         """The frame from the pixels' phasors, the pending noise draw (or None) and the camera pose at ``t``.
@@ -253,8 +244,6 @@ class ToFCamera:
         return phasors + indirect_phasors(samples.distance, normals, samples.albedo, self.radiometry,
                                           occluded)
 
-
-_NOISE_START_WAIT = 1e-3  # [s] the longest a capture waits for its noise draw to start
 
 _BACKGROUND: list[ThreadPoolExecutor] = []
 # A forked child inherits the pool but not its thread: it must start its own.
