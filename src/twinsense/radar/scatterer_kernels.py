@@ -65,7 +65,7 @@ def _times_row(v0, v1, v2, rot, k):  # pragma: no cover
 @jit
 def direct_scatterers(lo, hi, rows, dirs_cols, solid_angle, gain, dist, cos_inc, mat, obj,
                       v_world, refl, spec, inv_lobe, lobe_scale, amp_scale, rot, v_o, w_s,
-                      sensor_moves, moving_obj, points, vel, rcs, amp):  # pragma: no cover
+                      sensor_moves, moving_obj, points, vel, rcs, amp, keys):  # pragma: no cover
     """Scatterers m in [lo, hi) of the direct hits: points, velocities, RCS, amplitudes.
 
     Inputs per pixel (n pixels): dirs_cols (3, n) sensor-frame unit directions,
@@ -83,9 +83,12 @@ def direct_scatterers(lo, hi, rows, dirs_cols, solid_angle, gain, dist, cos_inc,
     and, if amp has k rows (zero rows: not wanted), amp (k,) [sqrt(W)]:
     the operations of ``radiometry.backscatter_rcs``,
     ``radiometry.radar_equation_amplitude`` and ``ScatterRenderer._hit_velocities``.
+    If keys has k rows: keys (k,) uint64, the sort key (:func:`rate_key`) of each
+    scatterer's range rate p . v / |p| [m/s] (as the synthesis forms it to sort its movers).
     """
     gather = rows.shape[0] > 0
     want_amp = amp.shape[0] > 0
+    want_keys = keys.shape[0] > 0
     for m in range(lo, hi):
         i = rows[m] if gather else m
         r = dist[i]
@@ -146,6 +149,8 @@ def direct_scatterers(lo, hi, rows, dirs_cols, solid_angle, gain, dist, cos_inc,
             vel[m, 0] = e0
             vel[m, 1] = e1
             vel[m, 2] = e2
+            if want_keys:
+                keys[m] = rate_key(range_rate(p0, p1, p2, e0, e1, e2))
         elif moving_obj[obj[i]]:
             vel[m, 0] = _times_row(v0, v1, v2, rot, 0)
             vel[m, 1] = _times_row(v0, v1, v2, rot, 1)
@@ -154,6 +159,157 @@ def direct_scatterers(lo, hi, rows, dirs_cols, solid_angle, gain, dist, cos_inc,
             vel[m, 0] = 0.0
             vel[m, 1] = 0.0
             vel[m, 2] = 0.0
+
+
+@jit
+def range_rate(p0, p1, p2, v0, v1, v2):  # pragma: no cover
+    """p . v / max(|p|, 1e-12) [m/s]: the range rate from the sensor origin, summed as
+    ``synthesis._range_rate`` sums it (column by column, then one division)."""
+    dot = p0 * v0
+    dot += p1 * v1
+    dot += p2 * v2
+    n2 = p0 * p0
+    n2 += p1 * p1
+    n2 += p2 * p2
+    r = math.sqrt(n2)
+    if r < 1e-12:  # np.maximum(r, 1e-12); a NaN stays NaN
+        r = 1e-12
+    return dot / r
+
+
+_SIGN = np.uint64(1 << 63)
+_ALL = np.uint64(0xFFFFFFFFFFFFFFFF)
+
+
+@jit
+def rate_key(x):  # pragma: no cover
+    """A uint64 whose unsigned order is NumPy's sort order of float64 x: -0.0 and 0.0
+    are one key (NumPy sorts them as equal), every NaN the largest key (NumPy sorts
+    NaNs last)."""
+    if x != x:
+        return _ALL
+    x += 0.0  # -0.0 -> 0.0
+    b = np.array([x]).view(np.uint64)[0]
+    return b ^ _ALL if b & _SIGN else b | _SIGN
+
+
+_DIGIT = 8
+_BINS = 1 << _DIGIT
+_LOW = np.uint64(0xFFFFFFFF)
+
+
+@jit
+def _radix_top32(packed):  # pragma: no cover
+    """packed (n,) uint64 (a key's top 32 bits above a 32-bit index) sorted stably by
+    the top 32 bits: four LSD radix passes of 8 bits, a pass whose digit every entry
+    shares skipped. Returns the sorted array (``packed`` or a new one)."""
+    n = packed.shape[0]
+    hist = np.zeros((4, _BINS), np.int64)
+    mask = np.uint64(_BINS - 1)
+    for i in range(n):
+        k = packed[i]
+        for d in range(4):
+            hist[d, np.int64((k >> np.uint64(32 + _DIGIT * d)) & mask)] += 1
+    out = np.empty(n, np.uint64)
+    offset = np.empty(_BINS, np.int64)
+    for d in range(4):
+        h = hist[d]
+        if h.max() == n:
+            continue
+        total = 0
+        for b in range(_BINS):
+            offset[b] = total
+            total += h[b]
+        shift = np.uint64(32 + _DIGIT * d)
+        for i in range(n):
+            k = packed[i]
+            b = np.int64((k >> shift) & mask)
+            at = offset[b]
+            offset[b] = at + 1
+            out[at] = k
+        packed, out = out, packed
+    return packed
+
+
+@jit
+def stable_argsort(keys):  # pragma: no cover
+    """(n,) int64 indices that sort keys (n,) uint64 ascending, equal keys in index order
+    (``np.argsort(kind="stable")``; n < 2^32).
+
+    Radix passes over the keys' top 32 bits (each packed with its index, 8 bytes an
+    entry), then each run of entries that share them sorted by the full keys by
+    insertion (stable; range rates share 32 bits only in runs of a few). If the
+    insertions take more than 16 moves per key, a stable radix sort of the full keys
+    (low 32 bits first, then the top 32) instead.
+    """
+    n = keys.shape[0]
+    packed = np.empty(n, np.uint64)
+    for i in range(n):
+        packed[i] = (keys[i] & ~_LOW) | np.uint64(i)
+    packed = _radix_top32(packed)
+    idx = np.empty(n, np.int64)
+    for i in range(n):
+        idx[i] = np.int64(packed[i] & _LOW)
+    budget = 16 * n
+    moves = 0
+    a = 0
+    while a < n:
+        top = packed[a] & ~_LOW
+        b = a + 1
+        while b < n and packed[b] & ~_LOW == top:
+            b += 1
+        for i in range(a + 1, b):  # insertion sort of idx[a:b] by the full keys
+            j = idx[i]
+            k = keys[j]
+            at = i
+            while at > a and keys[idx[at - 1]] > k:
+                idx[at] = idx[at - 1]
+                at -= 1
+                moves += 1
+            idx[at] = j
+            if moves > budget:
+                return _full_radix(keys)
+        a = b
+    return idx
+
+
+@jit
+def _full_radix(keys):  # pragma: no cover
+    """Stable argsort of keys (n,) uint64 by two sorts of 32 bits: by the low half,
+    then (stably) by the high half."""
+    n = keys.shape[0]
+    packed = np.empty(n, np.uint64)
+    for i in range(n):
+        packed[i] = (keys[i] << np.uint64(32)) | np.uint64(i)
+    packed = _radix_top32(packed)
+    for m in range(n):
+        i = np.int64(packed[m] & _LOW)
+        packed[m] = (keys[i] & ~_LOW) | np.uint64(i)
+    packed = _radix_top32(packed)
+    idx = np.empty(n, np.int64)
+    for i in range(n):
+        idx[i] = np.int64(packed[i] & _LOW)
+    return idx
+
+
+@jit
+def gather_rows(lo, hi, order, work, rows, obj, points, vel, rcs, amp, obj_out):  # pragma: no cover
+    """Scatterers m in [lo, hi) in sorted order: row order[m] of work (k, 8) [points (3),
+    velocity (3), rcs, amplitude] into points, vel (k, 3), rcs, amp (k,), and its
+    object id from obj (n,) int32 (through rows (k,) if not empty, as in
+    :func:`direct_scatterers`) into obj_out (k,)."""
+    gather = rows.shape[0] > 0
+    for m in range(lo, hi):
+        i = order[m]
+        points[m, 0] = work[i, 0]
+        points[m, 1] = work[i, 1]
+        points[m, 2] = work[i, 2]
+        vel[m, 0] = work[i, 3]
+        vel[m, 1] = work[i, 4]
+        vel[m, 2] = work[i, 5]
+        rcs[m] = work[i, 6]
+        amp[m] = work[i, 7]
+        obj_out[m] = obj[rows[i] if gather else i]
 
 
 @jit
