@@ -82,6 +82,9 @@ class AssemblyPattern:
     def nnz(self) -> int:
         return len(self.indices)
 
+    sorted_rows = True
+    """Every row's column indices ascend (the keys ``row * n + col`` come from ``np.unique``)."""
+
     def assemble(self, local: np.ndarray, weights: np.ndarray) -> np.ndarray:
         """CSR data of ``sum_e weights[e] * local[e]``.
 

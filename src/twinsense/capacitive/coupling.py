@@ -218,8 +218,9 @@ def inclusions_from_scene(scene, t: float, kind: str = "capacitive") -> list[Inc
             continue
         pose = obj.pose_at(t)
         geom = obj.geometry
-        corners = pose.apply(_box_corners(np.asarray(geom.bounds, float)))
-        bounds = np.vstack([corners.min(axis=0), corners.max(axis=0)])
+        local_bounds = np.asarray(geom.bounds, float)
+        corners = _box_corners(local_bounds) @ pose.rotation.T + pose.position
+        bounds = np.array([corners.min(axis=0), corners.max(axis=0)])
 
         # The inverse pose only when a point test runs: most objects of a cell are culled before
         # any (an inverse re-orthonormalises its rotation, ~30 us, 33 objects a frame).
@@ -228,7 +229,7 @@ def inclusions_from_scene(scene, t: float, kind: str = "capacitive") -> list[Inc
 
         mat = obj.material
         out.append(Inclusion(obj.name, contains, bounds, float(mat.permittivity), mat.conductor,
-                             pose=pose, local_bounds=np.asarray(geom.bounds, float), shape=geom))
+                             pose=pose, local_bounds=local_bounds, shape=geom))
     return out
 
 
