@@ -23,6 +23,7 @@ static hits.
 
 from __future__ import annotations
 
+import math
 import weakref
 from collections.abc import Iterable
 from concurrent.futures import Future
@@ -128,7 +129,8 @@ class SceneCaster:
         return scene
 
     def cast(self, rays: Rays, t: float = 0.0, fields: Iterable[str] | None = None,
-             workers: int | None = None, *, moving: bool = True, buffers: dict | None = None) -> Hits:
+             workers: int | None = None, *, moving: bool = True, buffers: dict | None = None,
+             then=None, chunk_multiple: int = 1) -> Hits:
         """Closest hits of ``rays`` (world frame) against the scene posed at time ``t`` [s].
 
         ``fields``: the :class:`Hits` fields to compute (default all); the
@@ -141,6 +143,13 @@ class SceneCaster:
         ``buffers``: {field: array} to write fields into instead of new arrays
         (a caller that casts as many rays every frame keeps them: fresh arrays
         cost a page fault per 4 kB each frame); the Hits then view them.
+
+        ``then(lo, hi, fields)``, if given, is called once for every chunk of rays
+        [lo, hi) as soon as its hits are final, on the thread that cast the chunk
+        (chunks run at once), ``fields`` the dict of the whole bundle's hit arrays
+        (only rows lo..hi-1 are final then). Chunks are whole multiples of
+        ``chunk_multiple`` rays, the last one excepted: a camera passes the rays of
+        a pixel row and works on each chunk's rows while the next ones are cast.
 
         A sensor that does not move casts the same rays every frame: when
         both ray arrays are read-only (and everything they view is), the
@@ -156,6 +165,13 @@ class SceneCaster:
                                     or workers < 1):
             raise ConfigError("workers", workers, "None or an integer >= 1 (threads)")
         want = check_fields(fields)
+        if then is not None and not callable(then):
+            raise ConfigError("then", then, "None or a callable then(lo, hi, fields)")
+        if isinstance(chunk_multiple, bool) or not isinstance(chunk_multiple, (int, np.integer)) or chunk_multiple < 1:
+            raise ConfigError("chunk_multiple", chunk_multiple, "an integer >= 1 (rays)")
+        # About _CHUNK rays per chunk, whole multiples of chunk_multiple and of the cones' blocks.
+        step = math.lcm(int(chunk_multiple), CONE_BLOCK)
+        per_chunk = max(1, _CHUNK // step) * step
         o, d = rays.origins, rays.directions
         n = len(d)
         movers = moving and bool(self._moving)
@@ -166,8 +182,8 @@ class SceneCaster:
             # A moving sensor (or rays that may change): one traversal per ray through the
             # instanced scene. A fixed sensor keeps its static hits and traces only movers.
             states = self._states(t)
-            self._instanced.cast(o, d, [states[i] for i in self._moving], out, _CHUNK,
-                                 workers if n >= _PARALLEL_MIN_RAYS else 1)
+            self._instanced.cast(o, d, [states[i] for i in self._moving], out, per_chunk,
+                                 workers if n >= _PARALLEL_MIN_RAYS else 1, then)
             return Hits(**{f: out.get(f) for f in HIT_FIELDS})
         # Tracing dominates a cold cast: chunks of rays on all workers, small
         # enough to keep their per-ray arrays in cache. With the static hits
@@ -177,7 +193,7 @@ class SceneCaster:
         # again with the compiled culls, at a load of 1: one chunk per worker
         # gained nothing for the robot cell's wall camera, 31.0 against 30.3
         # ms a frame, and lost 1-4 ms for the office camera.)
-        size = _CHUNK if not ready else max(n, 1)
+        size = per_chunk if not ready else max(n, 1)
         chunk_workers = workers if n >= _PARALLEL_MIN_RAYS and not ready else 1
         trace_threads = 1 if chunk_workers > 1 else workers
         bounds = [(lo, min(lo + size, n)) for lo in range(0, n, size)] or [(0, 0)]
@@ -198,6 +214,8 @@ class SceneCaster:
             self._cast_chunk(o[lo:hi], d[lo:hi], states, {f: a[lo:hi] for f, a in out.items()},
                              None if memo is None else tuple(a[lo:hi] for a in memo), ready,
                              trace_threads, part)
+            if then is not None:
+                then(lo, hi, out)
 
         if chunk_workers > 1 and len(bounds) > 1:
             tasks = [pool(chunk_workers).submit(chunk, b) for b in bounds]

@@ -102,12 +102,13 @@ class InstancedScene:
         with self._lock:
             self._free.append(top)
 
-    def cast(self, o, d, states: list, out: dict, chunk: int, workers: int) -> None:
+    def cast(self, o, d, states: list, out: dict, chunk: int, workers: int, then=None) -> None:
         """Every field in ``out`` (views of (n,) or (n, 3) arrays, see Hits; ``distance`` and
         ``object_id`` always there) for rays o, d (n, 3) float64 (o may be a stride-0
         broadcast of one origin), the moving objects posed as ``states`` (their
         MotionStates, in the order of ``movers``). Chunks of ``chunk`` rays, on
-        ``workers`` threads when more than one chunk."""
+        ``workers`` threads when more than one chunk; ``then(lo, hi, out)`` (if not
+        None) right after each chunk's hits, on the thread that cast it."""
         m = len(states)
         rots = np.array([s.pose.rotation for s in states], dtype=float).reshape(m, 3, 3)
         poss = np.array([s.pose.position for s in states], dtype=float).reshape(m, 3)
@@ -144,6 +145,8 @@ class InstancedScene:
                            _EMPTY3 if normal is None else normal[lo:hi],
                            _EMPTY3 if point is None else point[lo:hi],
                            _EMPTY3 if vel is None else vel[lo:hi])
+            if then is not None:
+                then(lo, hi, out)
 
         bounds = [(a, min(a + chunk, n)) for a in range(0, n, chunk)]
         try:

@@ -207,6 +207,23 @@ def hits_to_phasors(distance: np.ndarray, cos_incidence: np.ndarray, object_id: 
     (real, imag, tap_sum): (F, H, W), (F, H, W), (H, W) float32 [e-], the
     fields of :class:`twinsense.tof.signal.PixelPhasors`.
     """
+    real, imag, tap_sum, band = phasor_bands(tables, config, radiometry, scratch)
+    hits = (np.ascontiguousarray(distance), np.ascontiguousarray(cos_incidence), np.ascontiguousarray(object_id))
+    in_bands(lambda r0, r1: band(r0, r1, *hits), config.height, workers)
+    return real, imag, tap_sum
+
+
+def phasor_bands(tables, config, radiometry, scratch: dict | None = None):
+    """:func:`hits_to_phasors` in parts: (real, imag, tap_sum, band), the phasor arrays (see there)
+    and ``band(r0, r1, distance, cos_incidence, object_id)``, which fills their pixel rows
+    [r0, r1) from the hits (contiguous arrays as in :func:`hits_to_phasors`) of those rows'
+    sub-pixel rays, rays r0 N W N .. r1 N W N - 1 (the other rays are not read).
+
+    Every row is computed by exactly one call, on any thread, in any order (bands run at once
+    on disjoint rows): the phasors are the same bits as :func:`hits_to_phasors`. A caster that
+    hands over its hits in chunks of whole pixel rows runs the band of each chunk as soon as
+    its rays are cast (:meth:`twinsense.render.caster.SceneCaster.cast`, ``then``).
+    """
     cfg = config
     h, w, n = cfg.height, cfg.width, cfg.supersample
     f = len(radiometry.wavenumbers)
@@ -226,24 +243,21 @@ def hits_to_phasors(distance: np.ndarray, cos_incidence: np.ndarray, object_id: 
     albedo_o, spec_o, retro_o = tables
     e = cfg.specular_exponent
     whole = int(e) if e == int(e) and 1 <= e <= 256 else 0  # as signal._power chooses
-    sample_args = (np.ascontiguousarray(distance), np.ascontiguousarray(cos_incidence),
-                   np.ascontiguousarray(object_id), albedo_o, spec_o, retro_o, np.float32(e), whole,
+    sample_args = (albedo_o, spec_o, retro_o, np.float32(e), whole,
                    np.float32((e + 2.0) / 2.0), np.float32(cfg.retroreflector_gain),
                    radiometry.signal_gain, radiometry.ambient_gain,
                    radiometry.wavenumbers.astype(np.float32), ne, charge, phase)
     dark2 = np.float32(2.0 * radiometry.dark_electrons)
 
-    def band(rows):
-        r0, r1 = rows
-        _sample_rows(r0 * n, r1 * n, *sample_args)
+    def band(r0, r1, distance, cos_incidence, object_id):
+        _sample_rows(r0 * n, r1 * n, distance, cos_incidence, object_id, *sample_args)
         # NumPy's vectorised float32 cos and sin, as in pixel_phasors: the same bits.
         sub = (slice(None), slice(r0 * n, r1 * n))
         np.cos(phase[sub], out=cos[sub])
         np.sin(phase[sub], out=sin[sub])
         _block_rows(r0, r1, n, ne, charge, cos, sin, dark2, real, imag, tap_sum)
 
-    in_bands(lambda r0, r1: band((r0, r1)), h, workers)
-    return real, imag, tap_sum
+    return real, imag, tap_sum, band
 
 
 def in_bands(fn, height: int, workers: int) -> None:

@@ -23,10 +23,9 @@ import numpy as np
 from twinsense.linalg import rotate_rows
 from twinsense.render import Hits, PinholeCamera, Rays, caster_for
 from twinsense.render.kernels import rotate_rows as rotate_rows_once
-from twinsense.render.parallel import default_workers
 from twinsense.scene.scene import Scene
 from twinsense.tof.config import ToFConfig
-from twinsense.tof.kernels import hits_to_phasors
+from twinsense.tof.kernels import phasor_bands
 from twinsense.tof.signal import PixelPhasors, Radiometry, SurfaceSamples, pixel_phasors, radiance_factor
 
 #: Hit fields the direct-light model needs (normals only for multipath).
@@ -144,14 +143,22 @@ class ToFRenderer:
                 # would never reuse what is kept, so render the whole image once,
                 # hits to phasors in one compiled pass (same numbers as
                 # pixel_phasors(surface_samples(...)) but the float32 cos/sin).
-                hits = self.hits(scene, rotation, position, t)
                 # The kept work arrays serve one frame at a time; a frame rendered
                 # meanwhile on another thread gets its own.
                 mine = self._scratch_lock.acquire(blocking=False)
                 try:
-                    return PixelPhasors(*hits_to_phasors(hits.distance, hits.cos_incidence, hits.object_id,
-                                                         material_table(scene), self.config, self.radiometry,
-                                                         default_workers(), self._scratch if mine else None))
+                    real, imag, taps, band = phasor_bands(material_table(scene), self.config, self.radiometry,
+                                                          self._scratch if mine else None)
+                    row = self.config.supersample ** 2 * self.config.width  # rays of one pixel row
+
+                    def then(lo, hi, f):
+                        band(lo // row, hi // row, f["distance"], f["cos_incidence"], f["object_id"])
+
+                    # Each chunk of whole pixel rows goes on to its phasors on the thread that
+                    # cast it, while the other chunks are cast (no wait for the whole image,
+                    # the chunk's hits still in that core's cache).
+                    caster.cast(rays, t, DIRECT_FIELDS, then=then, chunk_multiple=row)
+                    return PixelPhasors(real, imag, taps)
                 finally:
                     if mine:
                         self._scratch_lock.release()
