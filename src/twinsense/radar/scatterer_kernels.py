@@ -65,7 +65,7 @@ def _times_row(v0, v1, v2, rot, k):  # pragma: no cover
 @jit
 def direct_scatterers(lo, hi, rows, dirs_cols, solid_angle, gain, dist, cos_inc, mat, obj,
                       v_world, refl, spec, inv_lobe, lobe_scale, amp_scale, rot, v_o, w_s,
-                      sensor_moves, moving_obj, points, vel, rcs, amp, keys):  # pragma: no cover
+                      sensor_moves, moving_obj, points, vel, rcs, amp, rates, work):  # pragma: no cover
     """Scatterers m in [lo, hi) of the direct hits: points, velocities, RCS, amplitudes.
 
     Inputs per pixel (n pixels): dirs_cols (3, n) sensor-frame unit directions,
@@ -83,21 +83,20 @@ def direct_scatterers(lo, hi, rows, dirs_cols, solid_angle, gain, dist, cos_inc,
     and, if amp has k rows (zero rows: not wanted), amp (k,) [sqrt(W)]:
     the operations of ``radiometry.backscatter_rcs``,
     ``radiometry.radar_equation_amplitude`` and ``ScatterRenderer._hit_velocities``.
-    If keys has k rows: keys (k,) uint64, the sort key (:func:`rate_key`) of each
-    scatterer's range rate p . v / |p| [m/s] (as the synthesis forms it to sort its movers).
+    If rates has k rows: rates (k,) each scatterer's range rate p . v / |p| [m/s] (as
+    the synthesis forms it to sort its movers; a moving sensor only). If work has k rows: work (k, 8) gets each
+    scatterer's point, velocity, rcs and amplitude instead of points, vel, rcs, amp.
     """
     gather = rows.shape[0] > 0
-    want_amp = amp.shape[0] > 0
-    want_keys = keys.shape[0] > 0
+    to_work = work.shape[0] > 0
+    want_amp = amp.shape[0] > 0 or to_work
+    want_rates = rates.shape[0] > 0
     for m in range(lo, hi):
         i = rows[m] if gather else m
         r = dist[i]
         p0 = dirs_cols[0, i] * r
         p1 = dirs_cols[1, i] * r
         p2 = dirs_cols[2, i] * r
-        points[m, 0] = p0
-        points[m, 1] = p1
-        points[m, 2] = p2
         # RCS of the pixel's patch: rho [(1 - k) c + k L(theta) / c] Omega R^2.
         c = cos_inc[i]
         if c < 1e-6:  # np.clip(c, 1e-6, 1.0) (a NaN stays NaN)
@@ -120,13 +119,13 @@ def direct_scatterers(lo, hi, rows, dirs_cols, solid_angle, gain, dist, cos_inc,
         s *= solid_angle[i]
         s *= r
         s *= r
-        rcs[m] = s
+        a = 0.0
         if want_amp:
             a = gain[i] * s
             a *= amp_scale
             a = math.sqrt(a)
             den = r * r
-            amp[m] = a / den if den > 0 else 0.0
+            a = a / den if den > 0 else 0.0
         # Velocity relative to the sensor, sensor frame.
         v0, v1, v2 = v_world[i, 0], v_world[i, 1], v_world[i, 2]
         if sensor_moves:
@@ -146,19 +145,33 @@ def direct_scatterers(lo, hi, rows, dirs_cols, solid_angle, gain, dist, cos_inc,
                 e2 -= w_s[0] * p1
             if w_s[1] != 0.0:
                 e2 += w_s[1] * p0
+            if want_rates:
+                rates[m] = range_rate(p0, p1, p2, e0, e1, e2)
+        elif moving_obj[obj[i]]:
+            e0 = _times_row(v0, v1, v2, rot, 0)
+            e1 = _times_row(v0, v1, v2, rot, 1)
+            e2 = _times_row(v0, v1, v2, rot, 2)
+        else:
+            e0 = e1 = e2 = 0.0
+        if to_work:  # one 64-byte row per scatterer, for the gather in sorted order
+            work[m, 0] = p0
+            work[m, 1] = p1
+            work[m, 2] = p2
+            work[m, 3] = e0
+            work[m, 4] = e1
+            work[m, 5] = e2
+            work[m, 6] = s
+            work[m, 7] = a
+        else:
+            points[m, 0] = p0
+            points[m, 1] = p1
+            points[m, 2] = p2
             vel[m, 0] = e0
             vel[m, 1] = e1
             vel[m, 2] = e2
-            if want_keys:
-                keys[m] = rate_key(range_rate(p0, p1, p2, e0, e1, e2))
-        elif moving_obj[obj[i]]:
-            vel[m, 0] = _times_row(v0, v1, v2, rot, 0)
-            vel[m, 1] = _times_row(v0, v1, v2, rot, 1)
-            vel[m, 2] = _times_row(v0, v1, v2, rot, 2)
-        else:
-            vel[m, 0] = 0.0
-            vel[m, 1] = 0.0
-            vel[m, 2] = 0.0
+            rcs[m] = s
+            if want_amp:
+                amp[m] = a
 
 
 @jit
@@ -182,15 +195,15 @@ _ALL = np.uint64(0xFFFFFFFFFFFFFFFF)
 
 
 @jit
-def rate_key(x):  # pragma: no cover
-    """A uint64 whose unsigned order is NumPy's sort order of float64 x: -0.0 and 0.0
-    are one key (NumPy sorts them as equal), every NaN the largest key (NumPy sorts
-    NaNs last)."""
+def rate_key(x, bits):  # pragma: no cover
+    """A uint64 whose unsigned order is NumPy's sort order of the float64 x (``bits``: its
+    bit pattern): -0.0 and 0.0 are one key (NumPy sorts them as equal), every NaN the
+    largest key (NumPy sorts NaNs last)."""
     if x != x:
         return _ALL
-    x += 0.0  # -0.0 -> 0.0
-    b = np.array([x]).view(np.uint64)[0]
-    return b ^ _ALL if b & _SIGN else b | _SIGN
+    if x == 0.0:
+        return _SIGN
+    return bits ^ _ALL if bits & _SIGN else bits | _SIGN
 
 
 _DIGIT = 8
@@ -232,9 +245,9 @@ def _radix_top32(packed):  # pragma: no cover
 
 
 @jit
-def stable_argsort(keys):  # pragma: no cover
-    """(n,) int64 indices that sort keys (n,) uint64 ascending, equal keys in index order
-    (``np.argsort(kind="stable")``; n < 2^32).
+def stable_argsort(x, bits):  # pragma: no cover
+    """(n,) int64 indices that sort x (n,) float64 ascending, equal values in index order:
+    ``np.argsort(x, kind="stable")`` (n < 2^32); ``bits``: ``x.view(np.uint64)``.
 
     Radix passes over the keys' top 32 bits (each packed with its index, 8 bytes an
     entry), then each run of entries that share them sorted by the full keys by
@@ -242,10 +255,13 @@ def stable_argsort(keys):  # pragma: no cover
     insertions take more than 16 moves per key, a stable radix sort of the full keys
     (low 32 bits first, then the top 32) instead.
     """
-    n = keys.shape[0]
+    n = x.shape[0]
+    keys = np.empty(n, np.uint64)
     packed = np.empty(n, np.uint64)
     for i in range(n):
-        packed[i] = (keys[i] & ~_LOW) | np.uint64(i)
+        k = rate_key(x[i], bits[i])
+        keys[i] = k
+        packed[i] = (k & ~_LOW) | np.uint64(i)
     packed = _radix_top32(packed)
     idx = np.empty(n, np.int64)
     for i in range(n):

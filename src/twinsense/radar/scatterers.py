@@ -166,7 +166,8 @@ class _Snapshot:
 
 _ZERO3 = np.zeros(3)
 _NO_OBJECT = np.zeros(1, dtype=bool)
-_NO_KEYS = np.zeros(0, dtype=np.uint64)
+_NO_RATES = np.zeros(0)
+_NO_WORK = np.zeros((0, 8))
 #: Pixels per block of the compiled passes: a block's rows stay in a core's L2 cache.
 _BLOCK = 32768
 
@@ -245,7 +246,7 @@ class ScatterRenderer:
         self._snap: _Snapshot | None = None
         self._buffers: dict | None = None  # the cast's output arrays, kept (compiled passes)
         self._spare: list | None = None  # the last frame's scatterer arrays (see _outputs)
-        self._work: tuple | None = None  # pixel-order rows and sort keys (see _work_rows)
+        self._work: tuple | None = None  # pixel-order rows and range rates (see _work_rows)
 
     @property
     def compiled(self) -> bool:
@@ -376,10 +377,10 @@ class ScatterRenderer:
         points, vel, rcs, obj_hit, amp = self._outputs(k, want_amp)
         if by_rate:
             # Pixel order into kept work rows (points, velocity, rcs, amplitude), then sorted.
-            work, keys = self._work_rows(k)
-            out = (work[:, 0:3], work[:, 3:6], work[:, 6], work[:, 7], keys)
+            work, rates = self._work_rows(k)
+            out = (points, vel, rcs, amp, rates, work)
         else:
-            out = (points, vel, rcs, amp, _NO_KEYS)
+            out = (points, vel, rcs, amp, _NO_RATES, _NO_WORK)
 
         def run(lo, hi):
             direct_scatterers(lo, hi, rows, self._dirs_cols, self._solid_angle, self._gain,
@@ -390,7 +391,7 @@ class ScatterRenderer:
         threads = self._threads()
         _in_blocks(k, threads, run)
         if by_rate:
-            order = stable_argsort(keys)
+            order = stable_argsort(rates, rates.view(np.uint64))
             _in_blocks(k, threads, lambda lo, hi: gather_rows(lo, hi, order, work, rows, obj, points,
                                                               vel, rcs, amp, obj_hit))
         elif idx is None:  # a copy either way: the cast's arrays are kept for the next frame
@@ -401,12 +402,12 @@ class ScatterRenderer:
 
     def _work_rows(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """(k, 8) float64 rows (64 bytes: one cache line each, for the gather in sorted
-        order) and (k,) uint64 sort keys, kept between frames."""
+        order) and (k,) range rates [m/s], kept between frames."""
         kept = self._work
         if kept is None or len(kept[1]) != k:
             raw = np.empty(8 * k + 8)
             skip = (-raw.ctypes.data % 64) // 8  # rows start on 64-byte boundaries
-            kept = self._work = (raw[skip:skip + 8 * k].reshape(k, 8), np.empty(k, np.uint64))
+            kept = self._work = (raw[skip:skip + 8 * k].reshape(k, 8), np.empty(k))
         return kept
 
     def _outputs(self, k: int, want_amp: bool) -> list[np.ndarray]:
