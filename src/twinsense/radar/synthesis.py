@@ -28,8 +28,11 @@ Two implementations:
   office frames). Static scatterers (v = 0, or too slow to change any sample
   by eps / 4: :func:`still_speed`) have a constant tau per (tx, rx)
   pair: their phase is exactly linear in the sample index, so each (tx, rx)
-  row is one type-1 non-uniform FFT (finufft) over the scatterers, shared by
-  every chirp of that transmitter. A moving scatterer's path length is
+  row is one type-1 non-uniform FFT over the scatterers, shared by every
+  chirp of that transmitter. Every 1-D transform runs on the compiled
+  spreader of :mod:`twinsense.radar.spreader` (finufft's kernel and width
+  rule, each point's kernel weights once for all its strength vectors) at
+  eps / 2; the 2-D transforms on finufft at eps / 2. A moving scatterer's path length is
   expanded in time around each chirp's centre (exact distance and its first
   three time derivatives, computed in closed form); the phase then reads
   ``phi0 + phi1 s + phi2 s^2 + phi3 s^3`` in the fast time s. The linear part
@@ -59,8 +62,9 @@ What is exact and what is bounded: :func:`synthesize_exact` is the model
 itself. In :func:`synthesize` every per-scatterer approximation (the
 delay's and the phase's Taylor series, skipped series terms and monomials)
 has a closed-form bound, together at most ``eps`` of that scatterer's
-amplitude at every sample; the NUFFTs err by finufft's tolerance, a relative
-l2 error of their output. Summed over scatterers, the cube's error is then
+amplitude at every sample; the NUFFTs err by about their tolerance, a relative
+l2 error of their output (at eps / 2: 0.06-1.06 eps measured on chunks of
+wrist scatterers, ``tests/radar/test_synthesis_tolerance.py``). Summed over scatterers, the cube's error is then
 at most ``eps`` times the summed |weights| per sample when every error adds
 in phase, and about 2 ``eps`` of the cube in the l2 sense, which is what the
 tests measure. :func:`noise_tolerance` turns the receiver noise into a
