@@ -19,6 +19,7 @@ The model and the exact reference are in :mod:`twinsense.radar.synthesis`.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 import threading
@@ -882,6 +883,12 @@ def _series_numpy(blk: _Block2D, n: int) -> dict:
 
 
 def _series_program(res_keys: list, keep, order: int):
+    """:func:`_series_program_of` (cached: blocks of a frame share a few structures)."""
+    return _series_program_of(tuple(res_keys), tuple(sorted(keep)), order)
+
+
+@functools.lru_cache(maxsize=256)
+def _series_program_of(res_keys: tuple, keep: tuple, order: int):
     """The compiled series' program (:func:`twinsense.radar.kernels.block_series`): the
     products, scalings and sums of :func:`_series_numpy` in its order (dictionary
     order of :func:`_poly_mul`). Returns (program (n_ops, 4), scale (n_ops,),
