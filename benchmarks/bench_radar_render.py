@@ -13,12 +13,9 @@ radar's worker threads (the cores, 2 here):
   person's segments: ``state_at`` of each, which the cast asks for),
 - the cast (one Embree 4 traversal per ray through the instanced scene, then
   float64 distances, ids, incidence and point velocities),
-- the scatterers: points, velocities relative to the radar, RCS and amplitudes
-  (after: also sorted by range rate, the order the synthesis sorts its movers in);
+- the scatterers: points, velocities relative to the radar, RCS and amplitudes;
 
-the IF synthesis of one frame's scatterers in pixel order and in range-rate order
-(the synthesis sorts its movers by range rate; given them in that order its sort
-finds them sorted); then whole renders and whole frames (``FMCWRadar.capture``: render, IF
+then whole renders and whole frames (``FMCWRadar.capture``: render, IF
 synthesis, noise, ADC, processing), before and after in turn. Each variant
 runs at its own times (a frame's time is never repeated, so no pose is taken
 from a cache the other variant filled). The same-run anchor is the bare
@@ -110,37 +107,6 @@ def stages(scene, radar, frames: int, anchor: float) -> None:
               f"{(totals[lab][0] - cast) / anchor:.2f} x anchor; whole stage {totals[lab][0] / anchor:.2f} x anchor")
 
 
-def synthesis_orders(scene, radar, rounds: int) -> None:
-    """The IF synthesis of one frame's scatterers given in pixel order (before) and in
-    range-rate order (after), in turn, at the frame's own tolerance."""
-    from twinsense.radar.synthesis import synthesize
-
-    t = T0 + 0.5
-    state = radar.mount.state_at(scene, t)
-    fast, ref = (ScatterRenderer(radar.config, workers=radar.workers, compiled=c) for c in (True, False))
-    sorted_, pixel = fast.render(scene, state, t), ref.render(scene, state, t)
-    radar._renderer = ref
-    w_pixel = radar._weights(pixel)
-    eps = radar._tolerance(pixel.points, w_pixel, n_moving=len(pixel))
-    radar._renderer = fast
-    w_sorted = radar._weights(sorted_)
-    radar._renderer = None
-    cubes = {}
-
-    def run(label, s, w):
-        def go():
-            cubes[label] = synthesize(s.points, s.velocities, w, radar.config, eps=eps, workers=radar.workers)
-        return go
-
-    results = alternating({"pixel order (before)": run("pixel", pixel, w_pixel),
-                           "range-rate order (after)": run("rate", sorted_, w_sorted)}, rounds)
-    same = cubes["pixel"].tobytes() == cubes["rate"].tobytes()
-    print(f"\n  IF synthesis of one frame's {len(pixel)} scatterers (eps {eps:.2g}), in turn, {rounds} rounds; "
-          f"the same cube bytes: {same}")
-    for lab, (best, med, cpu) in results.items():
-        print(f"    {lab:<28s} CPU {cpu * 1e3:7.1f} ms, wall {med * 1e3:7.1f} ms median ({best * 1e3:6.1f} best)")
-
-
 def whole(scene, radar, rounds: int, anchor: float) -> None:
     """Whole renders and whole frames, the two forms in turn (each at its own times)."""
     renderers = {label: ScatterRenderer(radar.config, workers=radar.workers, compiled=c)
@@ -196,7 +162,6 @@ def main() -> None:
     print(f"robot cell, {cfg.render_width} x {cfg.render_height} radar rays on the moving flange; "
           f"anchor: bare single-thread embreex cast of the same rays {anchor * 1e3:.1f} ms (median of 9)")
     stages(scene, radar, args.frames, anchor)
-    synthesis_orders(scene, radar, max(2, args.rounds // 2))
     whole(scene, radar, args.rounds, anchor)
     print_load_at_end()
 

@@ -65,7 +65,7 @@ def _times_row(v0, v1, v2, rot, k):  # pragma: no cover
 @jit
 def direct_scatterers(lo, hi, rows, dirs_cols, solid_angle, gain, dist, cos_inc, mat, obj,
                       v_world, refl, spec, inv_lobe, lobe_scale, amp_scale, rot, v_o, w_s,
-                      sensor_moves, moving_obj, points, vel, rcs, amp, rates, work):  # pragma: no cover
+                      sensor_moves, moving_obj, points, vel, rcs, amp):  # pragma: no cover
     """Scatterers m in [lo, hi) of the direct hits: points, velocities, RCS, amplitudes.
 
     Inputs per pixel (n pixels): dirs_cols (3, n) sensor-frame unit directions,
@@ -83,20 +83,18 @@ def direct_scatterers(lo, hi, rows, dirs_cols, solid_angle, gain, dist, cos_inc,
     and, if amp has k rows (zero rows: not wanted), amp (k,) [sqrt(W)]:
     the operations of ``radiometry.backscatter_rcs``,
     ``radiometry.radar_equation_amplitude`` and ``ScatterRenderer._hit_velocities``.
-    If rates has k rows: rates (k,) each scatterer's range rate p . v / |p| [m/s] (as
-    the synthesis forms it to sort its movers; a moving sensor only). If work has k rows: work (k, 8) gets each
-    scatterer's point, velocity, rcs and amplitude instead of points, vel, rcs, amp.
     """
     gather = rows.shape[0] > 0
-    to_work = work.shape[0] > 0
-    want_amp = amp.shape[0] > 0 or to_work
-    want_rates = rates.shape[0] > 0
+    want_amp = amp.shape[0] > 0
     for m in range(lo, hi):
         i = rows[m] if gather else m
         r = dist[i]
         p0 = dirs_cols[0, i] * r
         p1 = dirs_cols[1, i] * r
         p2 = dirs_cols[2, i] * r
+        points[m, 0] = p0
+        points[m, 1] = p1
+        points[m, 2] = p2
         # RCS of the pixel's patch: rho [(1 - k) c + k L(theta) / c] Omega R^2.
         c = cos_inc[i]
         if c < 1e-6:  # np.clip(c, 1e-6, 1.0) (a NaN stays NaN)
@@ -119,13 +117,13 @@ def direct_scatterers(lo, hi, rows, dirs_cols, solid_angle, gain, dist, cos_inc,
         s *= solid_angle[i]
         s *= r
         s *= r
-        a = 0.0
+        rcs[m] = s
         if want_amp:
             a = gain[i] * s
             a *= amp_scale
             a = math.sqrt(a)
             den = r * r
-            a = a / den if den > 0 else 0.0
+            amp[m] = a / den if den > 0 else 0.0
         # Velocity relative to the sensor, sensor frame.
         v0, v1, v2 = v_world[i, 0], v_world[i, 1], v_world[i, 2]
         if sensor_moves:
@@ -145,187 +143,17 @@ def direct_scatterers(lo, hi, rows, dirs_cols, solid_angle, gain, dist, cos_inc,
                 e2 -= w_s[0] * p1
             if w_s[1] != 0.0:
                 e2 += w_s[1] * p0
-            if want_rates:
-                rates[m] = range_rate(p0, p1, p2, e0, e1, e2)
-        elif moving_obj[obj[i]]:
-            e0 = _times_row(v0, v1, v2, rot, 0)
-            e1 = _times_row(v0, v1, v2, rot, 1)
-            e2 = _times_row(v0, v1, v2, rot, 2)
-        else:
-            e0 = e1 = e2 = 0.0
-        if to_work:  # one 64-byte row per scatterer, for the gather in sorted order
-            work[m, 0] = p0
-            work[m, 1] = p1
-            work[m, 2] = p2
-            work[m, 3] = e0
-            work[m, 4] = e1
-            work[m, 5] = e2
-            work[m, 6] = s
-            work[m, 7] = a
-        else:
-            points[m, 0] = p0
-            points[m, 1] = p1
-            points[m, 2] = p2
             vel[m, 0] = e0
             vel[m, 1] = e1
             vel[m, 2] = e2
-            rcs[m] = s
-            if want_amp:
-                amp[m] = a
-
-
-@jit
-def range_rate(p0, p1, p2, v0, v1, v2):  # pragma: no cover
-    """p . v / max(|p|, 1e-12) [m/s]: the range rate from the sensor origin, summed as
-    ``synthesis._range_rate`` sums it (column by column, then one division)."""
-    dot = p0 * v0
-    dot += p1 * v1
-    dot += p2 * v2
-    n2 = p0 * p0
-    n2 += p1 * p1
-    n2 += p2 * p2
-    r = math.sqrt(n2)
-    if r < 1e-12:  # np.maximum(r, 1e-12); a NaN stays NaN
-        r = 1e-12
-    return dot / r
-
-
-_SIGN = np.uint64(1 << 63)
-_ALL = np.uint64(0xFFFFFFFFFFFFFFFF)
-
-
-@jit
-def rate_key(x, bits):  # pragma: no cover
-    """A uint64 whose unsigned order is NumPy's sort order of the float64 x (``bits``: its
-    bit pattern): -0.0 and 0.0 are one key (NumPy sorts them as equal), every NaN the
-    largest key (NumPy sorts NaNs last)."""
-    if x != x:
-        return _ALL
-    if x == 0.0:
-        return _SIGN
-    return bits ^ _ALL if bits & _SIGN else bits | _SIGN
-
-
-_DIGIT = 8
-_BINS = 1 << _DIGIT
-_LOW = np.uint64(0xFFFFFFFF)
-
-
-@jit
-def _radix_top32(packed):  # pragma: no cover
-    """packed (n,) uint64 (a key's top 32 bits above a 32-bit index) sorted stably by
-    the top 32 bits: four LSD radix passes of 8 bits, a pass whose digit every entry
-    shares skipped. Returns the sorted array (``packed`` or a new one)."""
-    n = packed.shape[0]
-    hist = np.zeros((4, _BINS), np.int64)
-    mask = np.uint64(_BINS - 1)
-    for i in range(n):
-        k = packed[i]
-        for d in range(4):
-            hist[d, np.int64((k >> np.uint64(32 + _DIGIT * d)) & mask)] += 1
-    out = np.empty(n, np.uint64)
-    offset = np.empty(_BINS, np.int64)
-    for d in range(4):
-        h = hist[d]
-        if h.max() == n:
-            continue
-        total = 0
-        for b in range(_BINS):
-            offset[b] = total
-            total += h[b]
-        shift = np.uint64(32 + _DIGIT * d)
-        for i in range(n):
-            k = packed[i]
-            b = np.int64((k >> shift) & mask)
-            at = offset[b]
-            offset[b] = at + 1
-            out[at] = k
-        packed, out = out, packed
-    return packed
-
-
-@jit
-def stable_argsort(x, bits):  # pragma: no cover
-    """(n,) int64 indices that sort x (n,) float64 ascending, equal values in index order:
-    ``np.argsort(x, kind="stable")`` (n < 2^32); ``bits``: ``x.view(np.uint64)``.
-
-    Radix passes over the keys' top 32 bits (each packed with its index, 8 bytes an
-    entry), then each run of entries that share them sorted by the full keys by
-    insertion (stable; range rates share 32 bits only in runs of a few). If the
-    insertions take more than 16 moves per key, a stable radix sort of the full keys
-    (low 32 bits first, then the top 32) instead.
-    """
-    n = x.shape[0]
-    keys = np.empty(n, np.uint64)
-    packed = np.empty(n, np.uint64)
-    for i in range(n):
-        k = rate_key(x[i], bits[i])
-        keys[i] = k
-        packed[i] = (k & ~_LOW) | np.uint64(i)
-    packed = _radix_top32(packed)
-    idx = np.empty(n, np.int64)
-    for i in range(n):
-        idx[i] = np.int64(packed[i] & _LOW)
-    budget = 16 * n
-    moves = 0
-    a = 0
-    while a < n:
-        top = packed[a] & ~_LOW
-        b = a + 1
-        while b < n and packed[b] & ~_LOW == top:
-            b += 1
-        for i in range(a + 1, b):  # insertion sort of idx[a:b] by the full keys
-            j = idx[i]
-            k = keys[j]
-            at = i
-            while at > a and keys[idx[at - 1]] > k:
-                idx[at] = idx[at - 1]
-                at -= 1
-                moves += 1
-            idx[at] = j
-            if moves > budget:
-                return _full_radix(keys)
-        a = b
-    return idx
-
-
-@jit
-def _full_radix(keys):  # pragma: no cover
-    """Stable argsort of keys (n,) uint64 by two sorts of 32 bits: by the low half,
-    then (stably) by the high half."""
-    n = keys.shape[0]
-    packed = np.empty(n, np.uint64)
-    for i in range(n):
-        packed[i] = (keys[i] << np.uint64(32)) | np.uint64(i)
-    packed = _radix_top32(packed)
-    for m in range(n):
-        i = np.int64(packed[m] & _LOW)
-        packed[m] = (keys[i] & ~_LOW) | np.uint64(i)
-    packed = _radix_top32(packed)
-    idx = np.empty(n, np.int64)
-    for i in range(n):
-        idx[i] = np.int64(packed[i] & _LOW)
-    return idx
-
-
-@jit
-def gather_rows(lo, hi, order, work, rows, obj, points, vel, rcs, amp, obj_out):  # pragma: no cover
-    """Scatterers m in [lo, hi) in sorted order: row order[m] of work (k, 8) [points (3),
-    velocity (3), rcs, amplitude] into points, vel (k, 3), rcs, amp (k,), and its
-    object id from obj (n,) int32 (through rows (k,) if not empty, as in
-    :func:`direct_scatterers`) into obj_out (k,)."""
-    gather = rows.shape[0] > 0
-    for m in range(lo, hi):
-        i = order[m]
-        points[m, 0] = work[i, 0]
-        points[m, 1] = work[i, 1]
-        points[m, 2] = work[i, 2]
-        vel[m, 0] = work[i, 3]
-        vel[m, 1] = work[i, 4]
-        vel[m, 2] = work[i, 5]
-        rcs[m] = work[i, 6]
-        amp[m] = work[i, 7]
-        obj_out[m] = obj[rows[i] if gather else i]
+        elif moving_obj[obj[i]]:
+            vel[m, 0] = _times_row(v0, v1, v2, rot, 0)
+            vel[m, 1] = _times_row(v0, v1, v2, rot, 1)
+            vel[m, 2] = _times_row(v0, v1, v2, rot, 2)
+        else:
+            vel[m, 0] = 0.0
+            vel[m, 1] = 0.0
+            vel[m, 2] = 0.0
 
 
 @jit

@@ -34,7 +34,6 @@ import numpy as np
 
 from twinsense.errors import ConfigError
 from twinsense.radar.config import RadarConfig
-from twinsense.radar.nufft import CHUNK
 from twinsense.radar.radiometry import (
     amplitude_scale,
     backscatter_rcs,
@@ -43,13 +42,7 @@ from twinsense.radar.radiometry import (
     received_amplitude,
     second_bounce_rcs,
 )
-from twinsense.radar.scatterer_kernels import (
-    direct_scatterers,
-    gather_rows,
-    hit_rows,
-    stable_argsort,
-    world_directions,
-)
+from twinsense.radar.scatterer_kernels import direct_scatterers, hit_rows, world_directions
 from twinsense.render import PinholeCamera, Rays, cast, caster_for
 from twinsense.render.hits import allocate_field
 from twinsense.render.parallel import default_workers, map_ordered
@@ -166,8 +159,6 @@ class _Snapshot:
 
 _ZERO3 = np.zeros(3)
 _NO_OBJECT = np.zeros(1, dtype=bool)
-_NO_RATES = np.zeros(0)
-_NO_WORK = np.zeros((0, 8))
 #: Pixels per block of the compiled passes: a block's rows stay in a core's L2 cache.
 _BLOCK = 32768
 
@@ -208,13 +199,6 @@ class ScatterRenderer:
     threads (:mod:`twinsense.radar.scatterer_kernels`); False runs their NumPy
     form, the reference they equal bit for bit. A renderer renders one frame at
     a time (it keeps the cast's arrays between frames).
-
-    Order: scatterers come in pixel order (rows then columns, misses left out),
-    except those of a moving radar with the compiled passes when there are more
-    than ``nufft.CHUNK`` of them: every one moves relative to the radar, and the
-    synthesis sorts such movers by range rate (p . v / |p|, ties in pixel
-    order) to chunk them, so they come in that order (the same scatterers;
-    the synthesis then finds them sorted).
     """
 
     def __init__(self, config: RadarConfig, backend: str = "embree", workers: int | None = None,
@@ -246,7 +230,6 @@ class ScatterRenderer:
         self._snap: _Snapshot | None = None
         self._buffers: dict | None = None  # the cast's output arrays, kept (compiled passes)
         self._spare: list | None = None  # the last frame's scatterer arrays (see _outputs)
-        self._work: tuple | None = None  # pixel-order rows and range rates (see _work_rows)
 
     @property
     def compiled(self) -> bool:
@@ -371,44 +354,21 @@ class ScatterRenderer:
         else:
             v_o = w_s = _ZERO3
             moving_obj = np.array([not o.is_static for o in scene.objects] + [False])
-        # A moving radar's scatterers all move, and the synthesis sorts more than a chunk of
-        # movers by range rate (nufft.CHUNK): they come in that order (see the class docstring).
-        by_rate = moves and want_amp and k > CHUNK
         points, vel, rcs, obj_hit, amp = self._outputs(k, want_amp)
-        if by_rate:
-            # Pixel order into kept work rows (points, velocity, rcs, amplitude), then sorted.
-            work, rates = self._work_rows(k)
-            out = (points, vel, rcs, amp, rates, work)
-        else:
-            out = (points, vel, rcs, amp, _NO_RATES, _NO_WORK)
 
         def run(lo, hi):
             direct_scatterers(lo, hi, rows, self._dirs_cols, self._solid_angle, self._gain,
                               hits.distance, hits.cos_incidence, hits.material_id, obj,
                               hits.velocity, refl, spec, inv_lobe, lobe_scale, scale, rot, v_o,
-                              w_s, moves, moving_obj, *out)
+                              w_s, moves, moving_obj, points, vel, rcs, amp)
 
-        threads = self._threads()
-        _in_blocks(k, threads, run)
-        if by_rate:
-            order = stable_argsort(rates, rates.view(np.uint64))
-            _in_blocks(k, threads, lambda lo, hi: gather_rows(lo, hi, order, work, rows, obj, points,
-                                                              vel, rcs, amp, obj_hit))
-        elif idx is None:  # a copy either way: the cast's arrays are kept for the next frame
+        _in_blocks(k, self._threads(), run)
+        # A copy either way: the cast's arrays are kept for the next frame.
+        if idx is None:
             np.copyto(obj_hit, obj)
         else:
             np.take(obj, idx, out=obj_hit)
         return idx, Scatterers(points, vel, rcs, obj_hit), amp if want_amp else None
-
-    def _work_rows(self, k: int) -> tuple[np.ndarray, np.ndarray]:
-        """(k, 8) float64 rows (64 bytes: one cache line each, for the gather in sorted
-        order) and (k,) range rates [m/s], kept between frames."""
-        kept = self._work
-        if kept is None or len(kept[1]) != k:
-            raw = np.empty(8 * k + 8)
-            skip = (-raw.ctypes.data % 64) // 8  # rows start on 64-byte boundaries
-            kept = self._work = (raw[skip:skip + 8 * k].reshape(k, 8), np.empty(k))
-        return kept
 
     def _outputs(self, k: int, want_amp: bool) -> list[np.ndarray]:
         """[points (k, 3), velocities (k, 3), rcs (k,), object ids (k,) int32, amplitudes (k,)
