@@ -33,9 +33,12 @@ median and best wall per frame, median process CPU per frame, the same-run
 anchor (a bare embreex cast of the same rays, in each child) and the load.
 
 ``--wrist-noise`` takes whole wrist captures with the noise drawn per block of
-8 rows (a generator each, as before) or as one stream, frame by frame in turn.
+8 rows (a generator each, as before) or as one stream, frame by frame in turn;
+``--wrist-phasors`` with the phasors made after the whole cast (as before) or
+per chunk of the cast (``SceneCaster.cast(then=)``), frame by frame in turn.
 
-Run:  .venv/bin/python benchmarks/bench_tof.py [--wrist-chain | --wrist-stages | --wrist-noise | --before SRC]
+Run:  .venv/bin/python benchmarks/bench_tof.py [--wrist-chain | --wrist-stages | --wrist-noise |
+      --wrist-phasors | --before SRC]
       [--frames N]
 """
 
@@ -459,6 +462,43 @@ def wrist_noise_ways(frames: int) -> None:
               f"process CPU {np.median(cpu[way]) * 1e3:6.2f} ms")
 
 
+def wrist_phasor_ways(frames: int) -> None:
+    """Whole wrist captures with the phasors made per chunk of the cast (now) or after the whole cast
+    (before: the cast, then hits_to_phasors in bands), frame by frame in turn, one process."""
+    from twinsense.demos.robot_cell import build_arm_cell
+    from twinsense.render.parallel import default_workers
+    from twinsense.tof.kernels import hits_to_phasors
+    from twinsense.tof.rendering import material_table
+
+    scene, sensors = build_arm_cell()
+    now = sensors[2]
+    before = ToFCamera(now.config, now.mount, "wrist_tof_before")
+    r = before._renderer
+
+    def after_the_cast(scene, rotation, position, t):
+        hits = r.hits(scene, rotation, position, t)
+        return PixelPhasors(*hits_to_phasors(hits.distance, hits.cos_incidence, hits.object_id,
+                                             material_table(scene), r.config, r.radiometry, default_workers(),
+                                             r._scratch))
+
+    r.phasors = after_the_cast
+    ways = {"after the whole cast (before)": before, "per chunk of the cast (now)": now}
+    times = [0.9 + k / 30.0 for k in range(frames + 3)]
+    wall: dict = {w: [] for w in ways}
+    cpu: dict = {w: [] for w in ways}
+    for k in range(frames + 3):
+        for j, way in enumerate(list(ways) if k % 2 else list(ways)[::-1]):
+            c0, t0 = time.process_time(), time.perf_counter()
+            ways[way].capture(scene, times[k] + 1e-5 * j, np.random.default_rng(k))
+            if k >= 3:
+                wall[way].append(time.perf_counter() - t0)
+                cpu[way].append(time.process_time() - c0)
+    print(f"\n== robot cell, wrist ToF: the phasors after the cast or per chunk, {frames} frames each in turn")
+    for way in ways:
+        print(f"  {way:<32s} wall {np.median(wall[way]) * 1e3:6.2f} ms median (best {min(wall[way]) * 1e3:6.2f}), "
+              f"process CPU {np.median(cpu[way]) * 1e3:6.2f} ms")
+
+
 def wrist_child(frames: int) -> None:
     """One child of ``--before``: ``frames`` wrist captures after 3 untimed ones; prints one JSON line."""
     import json
@@ -527,6 +567,7 @@ if __name__ == "__main__":
     ap.add_argument("--wrist-chain", action="store_true", help="only the robot cell's wrist camera chain case")
     ap.add_argument("--wrist-stages", action="store_true", help="only where a wrist frame's wall time goes")
     ap.add_argument("--wrist-noise", action="store_true", help="only the wrist frame with the noise draw's ways")
+    ap.add_argument("--wrist-phasors", action="store_true", help="only the wrist frame, phasors per chunk or after")
     ap.add_argument("--before", metavar="SRC", help="the wrist camera with the package at SRC and with this one")
     ap.add_argument("--rounds", type=int, default=6, help="child processes per way with --before")
     ap.add_argument("--wrist-child", action="store_true", help=argparse.SUPPRESS)
@@ -538,8 +579,10 @@ if __name__ == "__main__":
         print_machine()
         before_after(args.before, args.frames, args.rounds)
         print_load_at_end()
-    elif args.wrist_chain or args.wrist_stages or args.wrist_noise:
+    elif args.wrist_chain or args.wrist_stages or args.wrist_noise or args.wrist_phasors:
         print_machine()
+        if args.wrist_phasors:
+            wrist_phasor_ways(args.frames)
         if args.wrist_noise:
             wrist_noise_ways(args.frames)
         if args.wrist_chain:
