@@ -8,8 +8,9 @@ levels of the V-cycle. In NumPy each is a chain of (n, c) temporaries and
 fancy-index copies; here each is one or two loops that touch every row
 once. Blocks are C-ordered (n, c), a row's c columns side by side. The
 variable-width loops serve any block (the tactile skin's frame solve runs
-them, :mod:`~twinsense.capacitive.tactile.framesolver`); the ``...8`` ones
-blocks of exactly :data:`WIDTH` columns.
+them, :mod:`~twinsense.capacitive.tactile.framesolver`); the ``...8`` and
+``...6`` ones blocks of exactly 8 (:data:`WIDTH`) or 6 columns
+(:data:`FIXED_WIDTH`), with the proximity sensor's Gauss-Seidel V-cycle.
 
 Every loop computes a column in the same order whatever the other columns
 are, so the result of a column does not depend on the block it is solved in.
@@ -333,14 +334,17 @@ def cycle_up(indptr, indices, data, d, B, X, p_indptr, p_indices, p_data, Xc, ma
             X[i, k] = (X[i, k] + d[i] * T[i, k]) * mask[i]
             rz[k] += B[i, k] * X[i, k]  # the value as stored (rounded if X is float32)
 
-# Blocks of exactly WIDTH columns: the same sums as the variable-width loops above (the proximity
-# sensor's groups), with a row's products in named accumulators (registers). With a loop over a
-# run-time column count the compiler keeps them in memory, and the product with A took 1.4-1.8 ms
-# for 6 columns against 0.7-1.1 ms for 8 here (docs/capacitive-accuracy.md), so both stay: the
-# tactile skin's blocks shrink as its columns converge and split over threads, which a fixed
-# width would pad back to 8. The residual's register loop stands twice (residual8, cycle_down8):
-# one row helper returning the 8 sums for both gave the same bits but took 4.9 against 3.6 ms
-# (residual8) and 5.2 against 4.1 ms (cycle_down8, float32) on a 60k-row test matrix, best of 25.
+# Blocks of exactly WIDTH (or 6) columns: the proximity sensor's groups, with a row's products in
+# named accumulators (registers). With a loop over a run-time column count the compiler keeps them
+# in memory, and the product with A took 1.4-1.8 ms for 6 columns against 0.7-1.1 ms for 8 here
+# (docs/capacitive-accuracy.md), so both kinds stay: the tactile skin's blocks shrink as its
+# columns converge and split over threads, which a fixed width would pad back. The register loop
+# over a row stands in each kernel rather than in one helper returning the sums: a helper gave the
+# same bits but took 4.9 against 3.6 ms (residual8) and 5.2 against 4.1 ms (a V-cycle level,
+# float32) on a 60k-row test matrix, best of 25. The V-cycle's levels are symmetric Gauss-Seidel
+# (gs_down8, gs_up8): the damped-Jacobi levels they replaced cost the same per cycle (a forward
+# sweep from zero and the residual after it are one pass over A together, as were Jacobi's start
+# and residual) and needed 4-5 CG iterations on the robot-cell skin's reach where these need 4.
 WIDTH = 8
 
 

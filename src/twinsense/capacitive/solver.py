@@ -73,7 +73,9 @@ class SolverConfig:
     amg_strength_theta : float
         Strength-of-connection threshold of the AMG aggregation.
     smoothing_steps : int
-        Jacobi steps before and after each coarse correction.
+        Jacobi steps before and after each coarse correction (the NumPy
+        cycle); the compiled cycle (``compiled``) takes 1 and smooths with one
+        Gauss-Seidel sweep each way.
     coarse_refresh : bool
         Build the AMG hierarchy on the system without the scene's conductors
         (the empty scene's Dirichlet nodes only) and, for every solve, keep its
@@ -88,8 +90,11 @@ class SolverConfig:
     compiled : bool
         Split the system and run the PCG and its V-cycle (levels in float32,
         CG in float64) in the compiled loops of
-        :mod:`twinsense.capacitive.kernels` (one Jacobi smoothing step and
-        the AMG preconditioner only; other settings take the NumPy path).
+        :mod:`twinsense.capacitive.kernels`: blocks of 6 or 8 columns, and a
+        symmetric Gauss-Seidel V-cycle (a forward sweep going down, a
+        backward one going up: :class:`~twinsense.capacitive.amg.CompiledCycle`).
+        With ``smoothing_steps`` 1 and the AMG preconditioner only; other
+        settings take the NumPy path (damped-Jacobi cycle).
     condense : bool
         Eliminate the cells no object can reach once (static condensation,
         :mod:`twinsense.capacitive.condensation`) and solve only the active
