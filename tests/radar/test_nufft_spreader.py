@@ -66,7 +66,11 @@ def test_kernel_shape_is_finuffts_rule():
     assert kernel_shape(1e-6) == (7, pytest.approx(16.1, rel=1e-12, abs=1e-12))
     assert kernel_shape(1e-3)[0] == 4 and kernel_shape(1e-3)[1] == pytest.approx(4 * 2.38, rel=1e-12, abs=1e-12)
     assert kernel_shape(0.05)[0] == 3
-    assert kernel_for(64, 1e-6) is kernel_for(64, 1e-6)  # one setup per size and tolerance
+    # One setup per size and width: every tolerance of one width shares it (1e-6 and
+    # 5.5e-6 both ask for w = 7), another width has its own.
+    assert kernel_for(64, 1e-6) is kernel_for(64, 5.5e-6)
+    assert kernel_for(64, 1e-6) is not kernel_for(64, 1e-7)
+    assert kernel_for(64, 5.5e-6).tol == pytest.approx(1e-6, rel=1e-12, abs=0.0)
 
 
 def test_horner_table_fits_the_kernel():

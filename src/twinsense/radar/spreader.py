@@ -29,8 +29,8 @@ rows are a small share.
 
 from __future__ import annotations
 
-import functools
 import math
+import threading
 
 import numpy as np
 
@@ -57,21 +57,25 @@ def _phi(z: np.ndarray, w: int, beta: float) -> np.ndarray:
 
 
 class Kernel:
-    """Setup of one transform size and tolerance: the kernel's Horner table and the
-    deconvolution factors. Built once per (N, tol) (:func:`kernel_for`)."""
+    """Setup of one transform size and kernel width: the kernel's Horner table and the
+    deconvolution factors. ``tol`` matters only through the width it asks for, so one
+    setup serves every tolerance of that width (:func:`kernel_for` keeps one per (N, w):
+    the noise-derived tolerance differs in every frame, and a setup takes ~10 ms)."""
 
     def __init__(self, n_modes: int, tol: float):
         if n_modes < 2 or n_modes % 2:
             raise ValueError(f"n_modes must be even and >= 2, got {n_modes}")
         self.n_modes = n_modes
-        self.tol = tol
         w, beta = kernel_shape(tol)
         self.width, self.beta = w, beta
+        # The tightest tolerance this width serves (w = ceil(log10(10 / tol))).
+        self.tol = 10.0 ** (1 - w)
         self.nf = max(UPSAMPLE * n_modes, 2 * w)
         # Piecewise polynomials: grid point j of the support (offset z = s + j - w/2, s in
         # [0, 1) the point's fraction) as a polynomial in u = 2 s - 1, fitted at Chebyshev
-        # nodes; the degree grows until the fit errs by at most 1e-3 tol (max, relative to
-        # phi(0) = 1), so the kernel's own error stays ~1e-3 of the tolerance's.
+        # nodes; the degree grows until the fit errs by at most 0.05 of the width's tightest
+        # tolerance (max, relative to phi(0) = 1): the weights' own error stays a small
+        # share of the transform's.
         dense = np.linspace(-1.0, 1.0, 401)
         for deg in range(w + 2, 3 * w + 8):
             nodes = np.cos(np.pi * (np.arange(2 * deg + 2) + 0.5) / (2 * deg + 2))
@@ -80,7 +84,7 @@ class Kernel:
             # coef (deg + 1, w), lowest power first
             fit = np.polynomial.polynomial.polyval(dense, coef)  # (w, 401)
             exact = np.array([_phi(0.5 * (dense + 1.0) + j - 0.5 * w, w, beta) for j in range(w)])
-            if np.max(np.abs(fit - exact)) <= 0.05 * tol:
+            if np.max(np.abs(fit - exact)) <= 0.05 * self.tol:
                 break
         self.coef = np.ascontiguousarray(coef[::-1])  # highest power first (Horner)
         # Deconvolution: sum_l phi(l - t) e^{i k h l} = e^{i k h t} phihat(k) up to aliasing,
@@ -120,10 +124,20 @@ class Kernel:
         return (spectrum[self.index] * self.factor[:, None]).T
 
 
-@functools.lru_cache(maxsize=64)
+_KERNELS: dict[tuple[int, int], Kernel] = {}
+_KERNELS_LOCK = threading.Lock()
+
+
 def kernel_for(n_modes: int, tol: float) -> Kernel:
-    """The (cached) :class:`Kernel` of ``n_modes`` modes at tolerance ``tol``."""
-    return Kernel(n_modes, tol)
+    """The :class:`Kernel` of ``n_modes`` modes for tolerance ``tol``: one per (N, width),
+    kept for the process (a few widths and sizes in all)."""
+    key = (int(n_modes), kernel_shape(float(tol))[0])
+    kern = _KERNELS.get(key)
+    if kern is None:
+        kern = Kernel(int(n_modes), float(tol))
+        with _KERNELS_LOCK:  # two threads may build it at once: both get the first one kept
+            kern = _KERNELS.setdefault(key, kern)
+    return kern
 
 
 def nufft1d(x: np.ndarray, strengths: np.ndarray, n_modes: int, tol: float) -> np.ndarray:
