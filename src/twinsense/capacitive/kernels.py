@@ -26,7 +26,7 @@ __all__ = ["FIXED_WIDTH", "WIDTH", "block_product", "block_residual", "cg_update
            "cycle_down", "cycle_up", "diagonal_split", "dirichlet_split", "dropped_rows_product", "first_coarse_update",
            "group_width", "gs_down6", "gs_down8", "gs_up6", "gs_up8", "lanczos_tridiagonal", "new_direction",
            "product_into", "put_columns", "residual6", "residual8", "residual_row", "split_arrays",
-           "split_row", "spmm6", "spmm8", "take_columns"]
+           "split_row", "spmm6", "spmm8", "stiffness_from_residual", "take_columns"]
 
 
 @jit
@@ -691,6 +691,26 @@ def first_coarse_update(c0, g, h, tslot, rows, c_ind, diag, p_ptr, p_ind, suppor
         if gone[rows[q]] or gone[c_ind[q]]:
             c[q] = 0.0
     return True
+
+
+@jit
+def stiffness_from_residual(indptr, indices, data, fixed, X, R, KX):  # pragma: no cover - compiled
+    """``KX = K X`` (blocks (n, t)) for a solution ``X`` of the Dirichlet system of ``K`` (n, n) CSR, from its
+    residual ``R = B - A X``: on a free row ``(K X)_i = (A X)_i - B_i = -R_i``, so only the prescribed
+    rows (``fixed`` (n,) bool, a few thousand of the skin's 32k) take a product."""
+    n, t = X.shape
+    for i in range(n):
+        if fixed[i]:
+            for k in range(t):
+                KX[i, k] = 0.0
+            for p in range(indptr[i], indptr[i + 1]):
+                a = data[p]
+                j = indices[p]
+                for k in range(t):
+                    KX[i, k] += a * X[j, k]
+        else:
+            for k in range(t):
+                KX[i, k] = -R[i, k]
 
 
 # The same loops for blocks of exactly 6 columns: a skin of 6 terminals (the robot cell's pad-grid)

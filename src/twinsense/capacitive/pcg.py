@@ -160,6 +160,7 @@ def compiled_block_pcg(
     energy: np.ndarray | None = None,
     energy_tol: float = 0.0,
     workspace: dict | None = None,
+    residual: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`block_pcg` with its steps in compiled loops; the same recurrence column by column.
 
@@ -185,6 +186,9 @@ def compiled_block_pcg(
         The (n, c) blocks of a step, kept from call to call (the caller's
         dict, one solve at a time): fresh blocks of megabytes are fresh
         pages, whose faults cost a noticeable share of a frame.
+    residual : (n, t) float, optional
+        Receives CG's residual ``B - A X`` of the solution as its recurrence
+        kept it (a converged column's is frozen with it).
 
     Returns
     -------
@@ -201,6 +205,8 @@ def compiled_block_pcg(
     if t == group_width(t) and B.flags.c_contiguous and B.dtype == float:
         e = None if energy is None else np.asarray(energy, float)
         iters[:] = _pcg_group(A, B, X, precond, rtol, maxiter, e, energy_tol, bnorm, work, in_place=True)
+        if residual is not None:
+            residual[:] = work["R"]
         return X, iters
     for g in range(0, t, WIDTH):
         cols = np.arange(g, min(g + WIDTH, t))
@@ -209,6 +215,8 @@ def compiled_block_pcg(
         iters[cols] = _pcg_group(A, np.ascontiguousarray(B[:, cols]), Xg, precond, rtol, maxiter, e, energy_tol,
                                  bnorm[cols], work)
         X[:, cols] = Xg
+        if residual is not None:
+            residual[:, cols] = work["R"][:, :len(cols)]
     return X, iters
 
 
