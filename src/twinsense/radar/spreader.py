@@ -97,8 +97,6 @@ class Kernel:
         h = _TWO_PI / self.nf
         phihat = (0.5 * w * gw * _phi(z, w, beta)) @ np.cos(np.outer(z, k * h))
         self.factor = np.where(k % 2 == 0, 1.0, -1.0) / phihat  # (N,)
-        # FFT output index of each mode k (negative k at nf + k).
-        self.index = k % self.nf
 
     def transform(self, x: np.ndarray, strengths: np.ndarray) -> np.ndarray:
         """(D, N) complex: out[d, n] = sum_i strengths[d, i] exp(1j x_i (n - N/2)).
@@ -120,8 +118,14 @@ class Kernel:
         fine = grid[w:w + self.nf]
         fine[:w] += grid[w + self.nf:]   # wrap the padding onto the periodic grid
         fine[-w:] += grid[:w]
-        spectrum = np.fft.ifft(fine, axis=0) * self.nf  # sum_l g[l] e^{+2 pi i k l / nf}
-        return (spectrum[self.index] * self.factor[:, None]).T
+        # sum_l g[l] e^{+2 pi i k l / nf}: the unscaled inverse transform, each vector a
+        # contiguous row; then the modes -N/2..N/2-1 (negative k at nf + k) deconvolved.
+        spectrum = np.fft.ifft(fine.T, axis=1, norm="forward")  # (D, nf)
+        half = self.n_modes // 2
+        out = np.empty((fine.shape[1], self.n_modes), dtype=complex)
+        np.multiply(spectrum[:, self.nf - half:], self.factor[:half], out=out[:, :half])
+        np.multiply(spectrum[:, :half], self.factor[half:], out=out[:, half:])
+        return out
 
 
 _KERNELS: dict[tuple[int, int], Kernel] = {}
