@@ -322,3 +322,41 @@ def test_more_than_one_process_inside_a_daemonic_process_is_refused():
     with multiprocessing.get_context("fork").Pool(1) as pool:
         got = pool.map(_in_a_pool_worker, [0])[0]
     assert "processes = 2 is invalid: expected 1 inside a daemonic process" in got, got
+
+
+class Refuses(Probe):
+    """A sensor whose capture at ``at`` (or whose prepare) raises ``error``."""
+
+    def __init__(self, name, error, at=-1.0, in_prepare=False):
+        super().__init__(name)
+        self.error, self.at = error, at
+        if in_prepare:
+            self.prepare = self._refuse
+
+    def _refuse(self, scene, times):
+        raise self.error
+
+    def capture(self, scene, t, rng=None):
+        if t == self.at:
+            raise self.error
+        return super().capture(scene, t, rng)
+
+
+class NeedsTwo(Exception):
+    def __init__(self, a, b):  # pickles, but unpickling calls NeedsTwo(message): a TypeError
+        super().__init__(f"{a} and {b}")
+
+
+@pytest.mark.parametrize("in_prepare", [False, True])
+def test_a_config_error_in_a_capture_process_arrives_as_itself(in_prepare):
+    # The error a capture or a prepare raises reaches the caller as with processes=1: its type and fields.
+    for processes in (1, 2):
+        b = Refuses("b", ConfigError("b.gain", 3.0, "a gain below 2"), at=0.1, in_prepare=in_prepare)
+        with pytest.raises(ConfigError, match=r"b.gain = 3.0 is invalid: expected a gain below 2") as info:
+            simulate(plain_scene(), [Probe("a"), b], 0.3, processes=processes)
+        assert (info.value.field, info.value.value, info.value.allowed) == ("b.gain", 3.0, "a gain below 2")
+    # An exception that pickles but cannot be made again from its message: its type and text.
+    with pytest.raises(RuntimeError, match=r"NeedsTwo: x and y"):
+        simulate(plain_scene(), [Probe("a"), Refuses("b", NeedsTwo("x", "y"), at=0.1, in_prepare=in_prepare)],
+                 0.3, processes=2)
+    assert multiprocessing.active_children() == []

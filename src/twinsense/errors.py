@@ -13,6 +13,20 @@ from typing import Any
 class TwinsenseError(Exception):
     """Base class of all twinsense errors."""
 
+    def __reduce__(self):
+        # Subclasses take their fields, not the message, so the default (the class called with the
+        # message) fails to unpickle; rebuilt without __init__ instead: the same type, message and fields
+        # when an error crosses to another process (capture processes, parameter sweeps).
+        return _rebuild, (type(self), self.args, self.__dict__)
+
+
+def _rebuild(cls: type, args: tuple, state: dict) -> TwinsenseError:
+    """A pickled twinsense error made again: ``args`` (the message) and its fields, ``__init__`` not called."""
+    exc = cls.__new__(cls, *args)
+    exc.args = args
+    exc.__dict__.update(state)
+    return exc
+
 
 class ConfigError(TwinsenseError, ValueError):
     """A bad value for a named field.

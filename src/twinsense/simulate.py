@@ -625,8 +625,10 @@ def _limit_threads(threads: int) -> None:
 
 
 def _send_error(conn, exc: BaseException, what: str = "error", where: Any = None) -> None:
-    """``(what, (where, exc))`` over ``conn``; an exception that does not pickle goes as its type and text."""
+    """``(what, (where, exc))`` over ``conn``; an exception that does not pickle, or does not unpickle (a
+    class whose ``__init__`` takes other arguments than its message), goes as its type and text."""
     try:
+        pickle.loads(pickle.dumps(exc, protocol=5))  # the parent must be able to make it again
         _send(conn, (what, (where, exc)))
     except Exception:
         _send(conn, (what, (where, RuntimeError(f"{type(exc).__name__}: {exc}"))))
