@@ -206,7 +206,7 @@ def compiled_block_pcg(
         e = None if energy is None else np.asarray(energy, float)
         iters[:] = _pcg_group(A, B, X, precond, rtol, maxiter, e, energy_tol, bnorm, work, in_place=True)
         if residual is not None:
-            residual[:] = work["R"]
+            residual[:] = work["last"]["R"]
         return X, iters
     for g in range(0, t, WIDTH):
         cols = np.arange(g, min(g + WIDTH, t))
@@ -216,7 +216,7 @@ def compiled_block_pcg(
                                  bnorm[cols], work)
         X[:, cols] = Xg
         if residual is not None:
-            residual[:, cols] = work["R"][:, :len(cols)]
+            residual[:, cols] = work["last"]["R"][:, :len(cols)]
     return X, iters
 
 
@@ -230,14 +230,17 @@ def _pcg_group(A, B, X0, precond, rtol: float, maxiter: int, energy, energy_tol:
     n, m = B.shape
     w = group_width(m)
     spmm, residual, _, _ = FIXED_WIDTH[w]
-    if work.get("shape") != (n, w):
+    if work.get("n") != n:
         work.clear()
-        work.update(shape=(n, w), **{k: np.empty((n, w)) for k in ("B", "X", "R", "P", "AP")})
-    R, P, AP = (work[k] for k in ("R", "P", "AP"))
+        work["n"] = n
+    if w not in work:  # one set of blocks per width: 11 columns alternate a block of 8 and one of 6
+        work[w] = {k: np.empty((n, w)) for k in ("B", "X", "R", "P", "AP")}
+    work["last"] = work[w]
+    R, P, AP = (work[w][k] for k in ("R", "P", "AP"))
     if in_place:
         Bw, X = B, X0
     else:
-        Bw, X = work["B"], work["X"]
+        Bw, X = work[w]["B"], work[w]["X"]
         Bw[:, :m] = B
         Bw[:, m:] = 0.0
         X[:, :m] = X0
