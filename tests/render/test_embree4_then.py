@@ -9,6 +9,7 @@ a callback.
 
 import itertools
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -79,3 +80,26 @@ def test_bad_then_and_chunk_multiple_raise_config_errors():
     for bad in (0, -3, 1.5, True, "4"):
         with pytest.raises(ConfigError, match="chunk_multiple"):
             caster.cast(r, 0.0, chunk_multiple=bad)
+
+
+@pytest.mark.parametrize("case", ["instanced", "per object"])
+def test_a_failing_callback_is_raised_after_every_chunk_has_finished(case):
+    # The caller's arrays (kept buffers, a camera's work arrays) are free again once cast returns or
+    # raises: no chunk may still be casting or calling back then. Chunk 0's callback fails at once,
+    # the others' take 0.3 s each; the error comes out only after them, whichever path.
+    caster = SceneCaster(scene(case == "instanced"))
+    r = rays(False)
+    late, lock = [], threading.Lock()
+
+    def then(lo, hi, fields):
+        if lo == 0:
+            raise ValueError("chunk 0 fails")
+        time.sleep(0.3)
+        with lock:
+            late.append(lo)
+
+    with pytest.raises(ValueError, match="chunk 0 fails"):
+        caster.cast(r, 0.3, workers=2, then=then)
+    with lock:
+        done = sorted(late)
+    assert done == [16384, 32768]  # 47,257 rays in chunks of 16,384: both later chunks called back

@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 import weakref
 from collections.abc import Iterable
-from concurrent.futures import Future
+from concurrent.futures import Future, wait
 
 import numpy as np
 
@@ -150,6 +150,8 @@ class SceneCaster:
         (only rows lo..hi-1 are final then). Chunks are whole multiples of
         ``chunk_multiple`` rays, the last one excepted: a camera passes the rays of
         a pixel row and works on each chunk's rows while the next ones are cast.
+        An error raised in ``then`` is raised by ``cast`` once every chunk has
+        finished (none still writes into ``buffers`` or calls ``then`` after it).
 
         A sensor that does not move casts the same rays every frame: when
         both ray arrays are read-only (and everything they view is), the
@@ -220,6 +222,9 @@ class SceneCaster:
         if chunk_workers > 1 and len(bounds) > 1:
             tasks = [pool(chunk_workers).submit(chunk, b) for b in bounds]
             _resolve(states, lambda: self._states(t) if movers else {})
+            # Every chunk done before a failing one's error is raised: the caller's arrays (buffers,
+            # what then writes) are free once cast returns or raises.
+            wait(tasks)
             for task in tasks:
                 task.result()
         else:
