@@ -32,8 +32,9 @@ def scene(moving: bool) -> Scene:
 @pytest.mark.parametrize("threads", ["1", "2"])
 def test_chunked_phasors_are_the_whole_image_bits(moving, threads, monkeypatch, small_config):
     monkeypatch.setenv("TWINSENSE_THREADS", threads)
-    # 153 x 111 px, 2 x 2 rays: 67,932 rays, chunks of 26 pixel rows (16,112 rays; the rows of 612 rays
-    # and the cones' blocks of 64 fit whole), the last chunk partial (7 rows); an odd width and height.
+    # 153 x 111 px, 2 x 2 rays: 67,932 rays, chunks of 16 pixel rows (9,792 rays: the least multiple of
+    # a row's 612 rays that is one of the cones' blocks of 64 too), the last chunk partial (15 rows); an
+    # odd width and height.
     cfg = small_config(width=153, height=111, supersample=2, modulation_frequencies=(80.32e6, 60.24e6),
                        specular_exponent=30.0)
     s = scene(moving)
