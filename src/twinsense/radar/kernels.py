@@ -269,3 +269,145 @@ def abs_sum_max(rows):  # pragma: no cover
         if acc > best:
             best = acc
     return best
+
+
+# The movers' sort by range rate (synthesis.synthesize): a stable radix argsort.
+_DIGIT = 8
+_BINS = 1 << _DIGIT
+_LOW = np.uint64(0xFFFFFFFF)
+_SIGN = np.uint64(0x8000000000000000)
+
+
+@jit
+def rate_keys(rate, keys):  # pragma: no cover
+    """keys (n,) uint64 that sort as the finite float64 ``rate`` (n,) does: the sign bit
+    flipped for positives, every bit for negatives; -0.0 taken as +0.0 (NumPy's sort has
+    them equal, so a stable sort keeps their index order)."""
+    bits = rate.view(np.uint64)
+    for i in range(rate.shape[0]):
+        b = bits[i]
+        if rate[i] == 0.0:
+            b = np.uint64(0)
+        keys[i] = ~b if b & _SIGN else b | _SIGN
+
+
+@jit
+def _radix_top32(packed):  # pragma: no cover
+    """packed (n,) uint64 (a key's top 32 bits above a 32-bit index) sorted stably by the
+    top 32 bits: four LSD passes of 8 bits, a pass whose digit every entry shares
+    skipped. Returns the sorted array (``packed`` or a new one)."""
+    n = packed.shape[0]
+    hist = np.zeros((4, _BINS), np.int64)
+    mask = np.uint64(_BINS - 1)
+    for i in range(n):
+        k = packed[i]
+        for d in range(4):
+            hist[d, np.int64((k >> np.uint64(32 + _DIGIT * d)) & mask)] += 1
+    out = np.empty(n, np.uint64)
+    offset = np.empty(_BINS, np.int64)
+    for d in range(4):
+        h = hist[d]
+        if h.max() == n:
+            continue
+        total = 0
+        for b in range(_BINS):
+            offset[b] = total
+            total += h[b]
+        shift = np.uint64(32 + _DIGIT * d)
+        for i in range(n):
+            k = packed[i]
+            b = np.int64((k >> shift) & mask)
+            at = offset[b]
+            offset[b] = at + 1
+            out[at] = k
+        packed, out = out, packed
+    return packed
+
+
+@jit
+def _full_radix(keys):  # pragma: no cover
+    """Stable argsort of keys (n,) uint64: by the low 32 bits, then stably by the top 32."""
+    n = keys.shape[0]
+    packed = np.empty(n, np.uint64)
+    for i in range(n):
+        packed[i] = (keys[i] << np.uint64(32)) | np.uint64(i)
+    packed = _radix_top32(packed)
+    for m in range(n):
+        i = np.int64(packed[m] & _LOW)
+        packed[m] = (keys[i] & ~_LOW) | np.uint64(i)
+    packed = _radix_top32(packed)
+    idx = np.empty(n, np.int64)
+    for i in range(n):
+        idx[i] = np.int64(packed[i] & _LOW)
+    return idx
+
+
+@jit
+def stable_argsort(keys):  # pragma: no cover
+    """(n,) int64 indices that sort keys (n,) uint64 ascending, equal keys in index order
+    (``np.argsort(kind="stable")``'s result; n < 2^32).
+
+    Radix passes over the keys' top 32 bits (each packed with its index: 8 bytes an
+    entry), then each run of entries sharing them sorted by the full keys by insertion
+    (stable; range rates share their top 32 bits only in short runs). Past 16 moves per
+    key in the insertions, a radix sort of the full keys instead.
+    """
+    n = keys.shape[0]
+    packed = np.empty(n, np.uint64)
+    for i in range(n):
+        packed[i] = (keys[i] & ~_LOW) | np.uint64(i)
+    packed = _radix_top32(packed)
+    idx = np.empty(n, np.int64)
+    for i in range(n):
+        idx[i] = np.int64(packed[i] & _LOW)
+    budget = 16 * n
+    moves = 0
+    a = 0
+    while a < n:
+        top = packed[a] & ~_LOW
+        b = a + 1
+        while b < n and packed[b] & ~_LOW == top:
+            b += 1
+        for i in range(a + 1, b):
+            j = idx[i]
+            k = keys[j]
+            at = i
+            while at > a and keys[idx[at - 1]] > k:
+                idx[at] = idx[at - 1]
+                at -= 1
+                moves += 1
+            idx[at] = j
+            if moves > budget:
+                return _full_radix(keys)
+        a = b
+    return idx
+
+
+@jit
+def gather_movers(rows, p, v, w, pm, vm, wm):  # pragma: no cover
+    """Rows ``rows`` (k,) of p, v (n, 3) and w (n,) into pm, vm (k, 3) and wm (k,), in one
+    pass (``np.take``'s values)."""
+    for m in range(rows.shape[0]):
+        i = rows[m]
+        pm[m, 0] = p[i, 0]
+        pm[m, 1] = p[i, 1]
+        pm[m, 2] = p[i, 2]
+        vm[m, 0] = v[i, 0]
+        vm[m, 1] = v[i, 1]
+        vm[m, 2] = v[i, 2]
+        wm[m] = w[i]
+
+
+@jit
+def range_rates(p, v, rows, rate):  # pragma: no cover
+    """rate (k,) [m/s]: p.v / max(|p|, 1e-12) of the rows ``rows`` (k,) of p, v (n, 3), the
+    operations of synthesis._range_rate in its order (its bits)."""
+    for m in range(rows.shape[0]):
+        i = rows[m]
+        dot = p[i, 0] * v[i, 0]
+        dot = dot + p[i, 1] * v[i, 1]
+        dot = dot + p[i, 2] * v[i, 2]
+        s = p[i, 0] * p[i, 0]
+        s = s + p[i, 1] * p[i, 1]
+        s = s + p[i, 2] * p[i, 2]
+        rate[m] = dot / max(math.sqrt(s), 1e-12)
