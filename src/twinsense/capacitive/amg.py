@@ -449,8 +449,8 @@ class CompiledCycle:
     float64. Gauss-Seidel needs no damping, so a refreshed hierarchy needs no
     spectral-radius estimate for it, and on the robot-cell skin's reach it
     brings every frame to the energy rule's floor of 4 CG iterations (the
-    Jacobi cycle: 4-5; docs/capacitive-accuracy.md) at the same cost per
-    cycle. The output is zero on prescribed unknowns (``free`` False), like
+    Jacobi cycle: 4-5; docs/capacitive-accuracy.md) at about the Jacobi
+    cycle's cost (1.1 of it at equal width). The output is zero on prescribed unknowns (``free`` False), like
     the masked NumPy cycle in :func:`~twinsense.capacitive.pcg.block_pcg`.
 
     Parameters
