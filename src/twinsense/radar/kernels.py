@@ -411,3 +411,49 @@ def range_rates(p, v, rows, rate):  # pragma: no cover
         s = s + p[i, 1] * p[i, 1]
         s = s + p[i, 2] * p[i, 2]
         rate[m] = dot / max(math.sqrt(s), 1e-12)
+
+
+@jit
+def static_phases(p, pr, tx, rx, pairs, kx, kf, ks, x, ph):  # pragma: no cover
+    """Per (tx, rx) pair j and static scatterer i: the NUFFT frequency x[j, i] (float64)
+    and the reduced phase ph[j, i] (float32) of nufft.static_chunk, the operations of its
+    NumPy form in its order (nufft._ranges: |p|^2 + |e|^2 - 2 e_k p_k over the non-zero
+    components of e; then L = r_tx + r_rx, x = L kx and phi = (kf - L ks) L, both reduced),
+    so the same bits.
+
+    p, pr (m, 3) [m]: the points closing the transmit and the receive leg; tx (T, 3),
+    rx (R, 3) [m]; pairs (P, 2) int64: (transmitter, receiver) rows; x, ph (P, m).
+    """
+    n_tx, n_rx = tx.shape[0], rx.shape[0]
+    ee_tx = np.empty(n_tx)
+    ee_rx = np.empty(n_rx)
+    for k in range(n_tx):
+        ee_tx[k] = tx[k, 0] * tx[k, 0] + tx[k, 1] * tx[k, 1] + tx[k, 2] * tx[k, 2]
+    for k in range(n_rx):
+        ee_rx[k] = rx[k, 0] * rx[k, 0] + rx[k, 1] * rx[k, 1] + rx[k, 2] * rx[k, 2]
+    r_tx = np.empty(n_tx)
+    r_rx = np.empty(n_rx)
+    for i in range(p.shape[0]):
+        for leg in range(2):
+            q = p if leg == 0 else pr
+            el = tx if leg == 0 else rx
+            ee = ee_tx if leg == 0 else ee_rx
+            out = r_tx if leg == 0 else r_rx
+            c0, c1, c2 = q[i, 0], q[i, 1], q[i, 2]
+            s2 = c0 * c0
+            s2 = s2 + c1 * c1
+            s2 = s2 + c2 * c2
+            for k in range(el.shape[0]):
+                d = s2 + ee[k]
+                if el[k, 0] != 0.0:
+                    d = d - (2.0 * el[k, 0]) * c0
+                if el[k, 1] != 0.0:
+                    d = d - (2.0 * el[k, 1]) * c1
+                if el[k, 2] != 0.0:
+                    d = d - (2.0 * el[k, 2]) * c2
+                out[k] = math.sqrt(d)
+        for j in range(pairs.shape[0]):
+            length = r_tx[pairs[j, 0]] + r_rx[pairs[j, 1]]
+            x[j, i] = _reduce(length * kx)
+            phi = (kf - length * ks) * length
+            ph[j, i] = np.float32(_reduce(phi))

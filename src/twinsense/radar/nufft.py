@@ -40,6 +40,7 @@ from twinsense.radar.kernels import (
     block_series,
     leg_offsets,
     moving_phases,
+    static_phases,
 )
 from twinsense.radar.spreader import kernel_for, spread_series_1d
 
@@ -177,7 +178,9 @@ class Geometry:
         self.ks = math.pi * slope / SPEED_OF_LIGHT**2
         self.fc, self.slope, self.fs = fc, slope, fs
         self.tx_per_chirp = np.ascontiguousarray(arr.tx_positions[self.tx_of], dtype=float)  # (M, 3)
-        self.rx_array = np.array(self.rx, dtype=float).reshape(-1, 3)  # for the compiled kernel
+        self.rx_array = np.array(self.rx, dtype=float).reshape(-1, 3)  # for the compiled kernels
+        self.tx_array = np.array(self.tx, dtype=float).reshape(-1, 3)
+        self.pair_array = np.array(self.pairs, dtype=np.int64).reshape(-1, 2)
 
 
 def _ranges(p: np.ndarray, elements: list[np.ndarray]) -> list[np.ndarray]:
@@ -212,30 +215,43 @@ def _reduce(phase: np.ndarray) -> np.ndarray:
 
 
 def static_chunk(p: np.ndarray, pr: np.ndarray, w: np.ndarray, geo: Geometry,
-                  eps: float) -> np.ndarray:
+                  eps: float, compiled: bool = True, spread_tol: float | None = None) -> np.ndarray:
     """(n_pairs, N) rows of static scatterers ``p``/``pr`` (m, 3) with weights ``w`` (m,).
+
+    ``spread_tol``: the spreader's tolerance (default eps / 2, as every 1-D transform of
+    the synthesis; the noise-tolerance estimate asks for its 1e-3 itself).
 
     Per (tx, rx) pair and scatterer: the path length L in float64, the phase
     phi0 reduced to [-pi, pi] in float64, then cos and sin in float32 (error
     ~1e-7 rad, far inside the 1e-5 budget and ~30x faster than float64),
     and one type-1 NUFFT of the strengths w exp(j phi0) at frequencies x.
-    These are long passes over contiguous arrays, which NumPy's vectorised
-    loops run faster than a compiled scalar loop (measured: 0.3 against
-    0.8 ms CPU for 16k scatterers), so they stay NumPy.
+    The lengths, frequencies and phases come from one compiled pass per
+    scatterer (:func:`twinsense.radar.kernels.static_phases`, the bits of the
+    NumPy passes kept with ``compiled`` False: ~20 passes over the chunk with
+    their temporaries); the cos and sin stay NumPy's (its float32 loops are
+    vectorised, a compiled scalar loop ~3x slower).
     """
-    r_tx = _ranges(p, geo.tx)
-    r_rx = _ranges(pr, geo.rx)
     m = len(p)
     rows = np.empty((len(geo.pairs), geo.n_samp), dtype=complex)
+    if compiled:
+        xs, phs = np.empty((len(geo.pairs), m)), np.empty((len(geo.pairs), m), np.float32)
+        static_phases(p, pr, geo.tx_array, geo.rx_array, geo.pair_array, geo.kx, geo.kf, geo.ks,
+                      xs, phs)
+    else:
+        r_tx = _ranges(p, geo.tx)
+        r_rx = _ranges(pr, geo.rx)
     ph32 = np.empty(m, np.float32)
     trig = np.empty(m, np.float32)
     for j, (k, a) in enumerate(geo.pairs):
-        length = r_tx[k] + r_rx[a]
-        x = _reduce(length * geo.kx)
-        phi = length * geo.ks
-        np.subtract(geo.kf, phi, out=phi)
-        phi *= length
-        ph32[:] = _reduce(phi)
+        if compiled:
+            x, ph32 = xs[j], phs[j]
+        else:
+            length = r_tx[k] + r_rx[a]
+            x = _reduce(length * geo.kx)
+            phi = length * geo.ks
+            np.subtract(geo.kf, phi, out=phi)
+            phi *= length
+            ph32[:] = _reduce(phi)
         strength = np.empty(m, dtype=complex)
         parts = strength.view(float).reshape(m, 2)
         parts[:, 0] = np.cos(ph32, out=trig)
@@ -244,7 +260,8 @@ def static_chunk(p: np.ndarray, pr: np.ndarray, w: np.ndarray, geo: Geometry,
         # The spreader at eps / 2, as every 1-D transform: 0.08-0.33 eps on chunks of wrist
         # scatterers from 1e-6 to 1e-3 (at eps itself up to 1.45 eps; finufft at eps, as
         # before: up to 3.6 eps, above the 2 eps the noise tolerance rests on).
-        rows[j] = transform_1d(x, strength[None], geo.n_samp, eps * _TOL_SPREAD, eps)[0]
+        rows[j] = transform_1d(x, strength[None], geo.n_samp,
+                               eps * _TOL_SPREAD if spread_tol is None else spread_tol, eps)[0]
     return rows
 
 
