@@ -202,3 +202,25 @@ def test_cast_buffers_are_checked_and_filled():
     for bad in (np.zeros(4), np.zeros(5, np.float32), np.zeros((5, 2))[:, 0], [0.0] * 5):
         with pytest.raises(ConfigError, match=r"buffers\['distance'\]"):
             caster.cast(rays, 0.0, ("distance",), buffers={"distance": bad})
+
+
+def test_renders_of_one_renderer_on_two_threads_are_those_one_after_another():
+    # The kept cast arrays and scatterer arrays serve one render at a time; a render that overlaps
+    # it on another thread gets fresh ones (as a ToF camera's captures do): every frame the bits of
+    # the same render one after another.
+    from concurrent.futures import ThreadPoolExecutor
+
+    cfg = preset_config("paper_bgt60tr13c", render_width=256, render_height=128)
+    scene = _scene(True)
+    scene.add_object("carrier", Box((0.01, 0.01, 0.01)), "plastic",
+                     ConstantVelocity(Pose(), (0.3, 0.0, 0.0), (0.0, 0.5, 0.0)), layers={"capacitive"})
+    mount = Mount(Pose(), parent="carrier")
+    times = [0.05 * k for k in range(16)]
+    r = ScatterRenderer(cfg, workers=1)
+    ref = ScatterRenderer(cfg, workers=1)
+    want = [ref.render(scene, mount.state_at(scene, t), t) for t in times]
+    with ThreadPoolExecutor(2) as ex:
+        got = list(ex.map(lambda t: r.render(scene, mount.state_at(scene, t), t), times))
+    for g, w in zip(got, want):
+        for f in FIELDS:
+            assert _same_bytes(getattr(g, f), getattr(w, f)), f

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import sys
+import threading
 import weakref
 from dataclasses import dataclass
 
@@ -163,6 +164,22 @@ _NO_OBJECT = np.zeros(1, dtype=bool)
 _BLOCK = 32768
 
 
+def _refs(items: list, j: int) -> int:
+    """sys.getrefcount of ``items[j]``, counted as :data:`_ALONE` is."""
+    return sys.getrefcount(items[j])
+
+
+# The count of an item that its list alone refers to, measured the same way: the list's reference
+# and the call's own (an interpreter that borrows references to locals, as CPython 3.14 does,
+# would count a local variable's differently, so none is used).
+_ALONE = _refs([object()], 0)
+
+
+def _alone(items: list, j: int) -> bool:
+    """Nothing but the list ``items`` refers to ``items[j]``."""
+    return _refs(items, j) <= _ALONE
+
+
 def _in_blocks(n: int, workers: int, run) -> None:
     """``run(lo, hi)`` over blocks of ``n`` rows, on ``workers`` threads when more than one
     block (the compiled passes release the GIL); every row's result is the same whatever
@@ -197,8 +214,9 @@ class ScatterRenderer:
     after the cast (points, velocities relative to the sensor, RCS,
     amplitudes) run as compiled passes over blocks of pixels on the worker
     threads (:mod:`twinsense.radar.scatterer_kernels`); False runs their NumPy
-    form, the reference they equal bit for bit. A renderer renders one frame at
-    a time (it keeps the cast's arrays between frames).
+    form, the reference they equal bit for bit. The compiled passes keep the
+    cast's arrays and a dropped frame's scatterer arrays between frames, for one
+    render at a time; a render that overlaps it on another thread gets new ones.
     """
 
     def __init__(self, config: RadarConfig, backend: str = "embree", workers: int | None = None,
@@ -230,6 +248,7 @@ class ScatterRenderer:
         self._snap: _Snapshot | None = None
         self._buffers: dict | None = None  # the cast's output arrays, kept (compiled passes)
         self._spare: list | None = None  # the last frame's scatterer arrays (see _outputs)
+        self._kept_lock = threading.Lock()  # held by the render using _buffers and _spare
 
     @property
     def compiled(self) -> bool:
@@ -284,26 +303,34 @@ class ScatterRenderer:
             if snap is not None:
                 return self._render_over(snap, scene, sensor_state, t, rays)
         fields = _DIRECT_FIELDS + (("point", "normal") if self.config.multipath else ())
-        if self._compiled:
-            # The cast writes into arrays kept between frames (the scatterers get their own).
-            hits = caster_for(scene, "radar", self.backend).cast(
-                rays, t, fields, self.workers, buffers=self._hit_buffers(len(rays.directions), fields))
-        else:
-            hits = cast(scene, rays, t, kind="radar", backend=self.backend, fields=fields,
-                        workers=self.workers)
-        want_amp = not self.config.multipath
-        if self._compiled:
-            idx, direct, amp = self._direct_compiled(scene, sensor_state, hits, want_amp)
-        else:
-            idx, direct, amp = self._direct_numpy(scene, sensor_state, hits, want_amp)
-        if want_amp:
-            self._last = (weakref.ref(direct), amp)
-            return direct
-        refl, spec = self._scene_luts(scene)
-        idx = np.arange(len(hits)) if idx is None else idx
-        second = self._second_bounce(scene, sensor_state, t, hits, idx,
-                                     np.take(rays.directions, idx, axis=0), refl, spec)
-        return Scatterers.concatenate([direct, second]) if len(second) else direct
+        # The kept arrays serve one render at a time: one overlapping it on another thread
+        # gets new ones.
+        mine = self._compiled and self._kept_lock.acquire(blocking=False)
+        try:
+            if self._compiled:
+                # The cast writes into arrays kept between frames (the scatterers get their own).
+                hits = caster_for(scene, "radar", self.backend).cast(
+                    rays, t, fields, self.workers,
+                    buffers=self._hit_buffers(len(rays.directions), fields) if mine else None)
+            else:
+                hits = cast(scene, rays, t, kind="radar", backend=self.backend, fields=fields,
+                            workers=self.workers)
+            want_amp = not self.config.multipath
+            if self._compiled:
+                idx, direct, amp = self._direct_compiled(scene, sensor_state, hits, want_amp, mine)
+            else:
+                idx, direct, amp = self._direct_numpy(scene, sensor_state, hits, want_amp)
+            if want_amp:
+                self._last = (weakref.ref(direct), amp)
+                return direct
+            refl, spec = self._scene_luts(scene)
+            idx = np.arange(len(hits)) if idx is None else idx
+            second = self._second_bounce(scene, sensor_state, t, hits, idx,
+                                         np.take(rays.directions, idx, axis=0), refl, spec)
+            return Scatterers.concatenate([direct, second]) if len(second) else direct
+        finally:
+            if mine:
+                self._kept_lock.release()
 
     def _direct_numpy(self, scene, sensor_state, hits, want_amp: bool):
         """(hit rows or None if every ray hit, direct Scatterers, amplitudes or None): the
@@ -333,11 +360,11 @@ class ScatterRenderer:
                                            take(self._gain), rcs, dist)
         return idx, Scatterers(points, velocities, rcs, obj_hit), amp
 
-    def _direct_compiled(self, scene, sensor_state, hits, want_amp: bool):
+    def _direct_compiled(self, scene, sensor_state, hits, want_amp: bool, mine: bool = True):
         """(hit rows or None if every ray hit, direct Scatterers, amplitudes or None) of the
         cast ``hits``: one compiled pass over blocks of pixels on the worker threads
         (:func:`~twinsense.radar.scatterer_kernels.direct_scatterers`), the bits of
-        :meth:`_direct_numpy`."""
+        :meth:`_direct_numpy`. ``mine``: this render holds the kept arrays."""
         obj = hits.object_id
         rows, k = hit_rows(obj)
         idx = None if k == len(obj) else rows
@@ -354,7 +381,7 @@ class ScatterRenderer:
         else:
             v_o = w_s = _ZERO3
             moving_obj = np.array([not o.is_static for o in scene.objects] + [False])
-        points, vel, rcs, obj_hit, amp = self._outputs(k, want_amp)
+        points, vel, rcs, obj_hit, amp = self._outputs(k, want_amp, mine)
 
         def run(lo, hi):
             direct_scatterers(lo, hi, rows, self._dirs_cols, self._solid_angle, self._gain,
@@ -370,23 +397,27 @@ class ScatterRenderer:
             np.take(obj, idx, out=obj_hit)
         return idx, Scatterers(points, vel, rcs, obj_hit), amp if want_amp else None
 
-    def _outputs(self, k: int, want_amp: bool) -> list[np.ndarray]:
+    def _outputs(self, k: int, want_amp: bool, mine: bool = True) -> list[np.ndarray]:
         """[points (k, 3), velocities (k, 3), rcs (k,), object ids (k,) int32, amplitudes (k,)
         (or (0,) if not wanted)] for this frame's scatterers: the last frame's arrays where
         nothing outside this renderer refers to them any more (its frame was dropped), else
-        new ones. Fresh arrays for 342,000 scatterers (24 MB) cost ~1,900 page faults, 3-8 ms
-        of CPU, every frame."""
+        new ones (always new unless ``mine``, the render holding the kept arrays). Fresh
+        arrays for 342,000 scatterers (24 MB) cost ~1,900 page faults, 3-8 ms of CPU, every
+        frame."""
+        shapes = ((k, 3), (k, 3), (k,), (k,), (k if want_amp else 0,))
+        dtypes = (np.float64, np.float64, np.float64, np.int32, np.float64)
+        if not mine:
+            return [np.empty(shape, dtype) for shape, dtype in zip(shapes, dtypes)]
         self._last = None  # it holds the last amplitudes
         spare, self._spare = self._spare, None
-        shapes = ((k, 3), (k, 3), (k,), (k,), (k if want_amp else 0,))
         out = []
         for j, shape in enumerate(shapes):
-            a = None if spare is None else spare[j]
-            # Held by ``spare`` and ``a`` alone (getrefcount adds its own argument): no
-            # frame, scatterers, view or buffer export refers to it any more.
-            if a is None or a.shape != shape or sys.getrefcount(a) > 3:
-                a = np.empty(shape, np.int32 if j == 3 else np.float64)
-            out.append(a)
+            # Referred to by ``spare`` alone: no frame, scatterers, view or buffer export
+            # refers to it any more.
+            if spare is not None and spare[j].shape == shape and _alone(spare, j):
+                out.append(spare[j])
+            else:
+                out.append(np.empty(shape, dtypes[j]))
         self._spare = out
         return out
 
