@@ -202,6 +202,9 @@ def test_cast_buffers_are_checked_and_filled():
     for bad in (np.zeros(4), np.zeros(5, np.float32), np.zeros((5, 2))[:, 0], [0.0] * 5):
         with pytest.raises(ConfigError, match=r"buffers\['distance'\]"):
             caster.cast(rays, 0.0, ("distance",), buffers={"distance": bad})
+    for bad in ([buffers["distance"]], "distance", (("distance", buffers["distance"]),)):
+        with pytest.raises(ConfigError, match=r"buffers = .* is invalid: expected None or a dict"):
+            caster.cast(rays, 0.0, ("distance",), buffers=bad)
 
 
 def test_renders_of_one_renderer_on_two_threads_are_those_one_after_another():

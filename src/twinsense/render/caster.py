@@ -167,6 +167,8 @@ class SceneCaster:
                                     or workers < 1):
             raise ConfigError("workers", workers, "None or an integer >= 1 (threads)")
         want = check_fields(fields)
+        if buffers is not None and not isinstance(buffers, dict):
+            raise ConfigError("buffers", type(buffers).__name__, "None or a dict {field: array}")
         if then is not None and not callable(then):
             raise ConfigError("then", then, "None or a callable then(lo, hi, fields)")
         if isinstance(chunk_multiple, bool) or not isinstance(chunk_multiple, (int, np.integer)) or chunk_multiple < 1:
