@@ -210,6 +210,46 @@ def meets_domain(inc: Inclusion, domain: np.ndarray, mesh_to_world=None) -> bool
     return _overlap(_transformed_box(domain, rt, -rt @ rel[:, 3]), inc.local_bounds)
 
 
+CULL_PAD = 1e-9
+"""[m] Both boxes of :func:`_meet_domain_all` are widened by this much: its vectorised products round
+differently from :func:`meets_domain`'s, and the widening keeps it from dropping an object that test
+keeps (a borderline object then passes and is mapped exactly, to no cells)."""
+
+
+def _meet_domain_all(inclusions: Sequence[Inclusion], domain: np.ndarray, mesh_to_world=None) -> np.ndarray:
+    """(k,) bool: :func:`meets_domain` of every inclusion, the posed ones in a few array operations.
+
+    The same two box tests (the object's box in the mesh frame against the domain, the domain's
+    box in the object's frame against the object's own box), each widened by :data:`CULL_PAD`, for
+    all objects with a pose at once: a robot cell's 33 objects took 2.7 ms one by one (a dozen small
+    NumPy calls each), about 0.2 ms here.
+    """
+    out = np.ones(len(inclusions), bool)
+    posed = [i for i, inc in enumerate(inclusions) if inc.pose is not None and inc.local_bounds is not None]
+    for i in set(range(len(inclusions))) - set(posed):
+        out[i] = meets_domain(inclusions[i], domain, mesh_to_world)
+    if not posed:
+        return out
+    ro = np.stack([np.asarray(inclusions[i].pose.rotation, float) for i in posed])  # (k, 3, 3)
+    po = np.stack([np.asarray(inclusions[i].pose.position, float) for i in posed])  # (k, 3)
+    lb = np.stack([np.asarray(inclusions[i].local_bounds, float) for i in posed])  # (k, 2, 3)
+    if mesh_to_world is None:
+        rot, pos = ro, po
+    else:
+        rm, pm = np.asarray(mesh_to_world.rotation, float), np.asarray(mesh_to_world.position, float)
+        rot, pos = rm.T @ ro, (po - pm) @ rm  # the object in the mesh frame
+    corners = lb[:, _CORNER_ROWS, _CORNER_COLS]  # (k, 8, 3), object frame
+    c = corners @ rot.transpose(0, 2, 1) + pos[:, None, :]
+    meets = np.all(c.max(axis=1) >= domain[0] - CULL_PAD, axis=1) & np.all(c.min(axis=1) <= domain[1] + CULL_PAD,
+                                                                            axis=1)
+    d = _box_corners(domain)[None] - pos[:, None, :]  # the domain's corners, taken into each object frame
+    c = d @ rot
+    meets &= np.all(c.max(axis=1) >= lb[:, 0] - CULL_PAD, axis=1) & np.all(c.min(axis=1) <= lb[:, 1] + CULL_PAD,
+                                                                          axis=1)
+    out[posed] = meets
+    return out
+
+
 def inclusions_from_scene(scene, t: float, kind: str = "capacitive") -> list[Inclusion]:
     """Inclusions of every scene object visible to ``kind`` at time ``t`` [s]."""
     out = []
@@ -260,9 +300,10 @@ def map_inclusions(
     grounded = np.zeros(mesh.n_nodes, bool)
     floating, names = [], []
     domain = mesh.bounds
-    for inc in inclusions:
-        # Culling first: most objects of a cell are far from a small skin.
-        if not meets_domain(inc, domain, mesh_to_world):
+    # Culling first: most objects of a cell are far from a small skin.
+    may_meet = _meet_domain_all(inclusions, domain, mesh_to_world)
+    for inc, meets in zip(inclusions, may_meet, strict=True):
+        if not meets:
             continue
         rel = _relative(inc, mesh_to_world) if cache is not None else None
         inside = None if rel is None else cache.lookup(inc.name, inc.shape, rel)
