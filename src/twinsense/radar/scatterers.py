@@ -243,8 +243,9 @@ class ScatterRenderer:
         self._gain = g * g if ant.tx_pattern == ant.rx_pattern else g * ant.rx_pattern.gain(d)
         # (weak reference to the last render's scatterers, their amplitudes)
         self._last: tuple[weakref.ref, np.ndarray] | None = None
-        self._rays_key: bytes | None = None
-        self._rays: Rays | None = None
+        # (pose key, world rays) of the last pose, one object: a render on another thread that
+        # replaces it never pairs its key with another pose's rays.
+        self._rays: tuple[bytes, Rays] | None = None
         self._snap: _Snapshot | None = None
         self._buffers: dict | None = None  # the cast's output arrays, kept (compiled passes)
         self._spare: list | None = None  # the last frame's scatterer arrays (see _outputs)
@@ -267,7 +268,8 @@ class ScatterRenderer:
     def _world_rays(self, pose) -> Rays:
         """World rays of the render from ``pose`` (kept while the pose does not change)."""
         key = np.concatenate([pose.position, pose.rotation.ravel()]).tobytes()
-        if key != self._rays_key:
+        kept = self._rays
+        if kept is None or key != kept[0]:
             world = np.empty_like(self._dirs)
             rot = pose.rotation
             if self._compiled:
@@ -286,9 +288,8 @@ class ScatterRenderer:
             if self.reuse_static_hits:
                 origin.setflags(write=False)
                 world.setflags(write=False)
-            self._rays = Rays(origin, world)
-            self._rays_key = key
-        return self._rays
+            kept = self._rays = (key, Rays(origin, world))
+        return kept[1]
 
     def render(self, scene, sensor_state, t: float) -> Scatterers:
         """Scatterers of ``scene`` at time ``t`` [s] seen from ``sensor_state``.
