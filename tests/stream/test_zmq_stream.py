@@ -236,3 +236,18 @@ def test_missing_extra_names_it(monkeypatch):
     monkeypatch.setitem(sys.modules, "zmq", None)
     with pytest.raises(ImportError, match=r"twinsense\[stream\]"):
         Subscriber("tcp://127.0.0.1:5555")
+
+
+def test_serve_warns_that_a_scenario_s_processes_are_not_used():
+    # A served run captures in one process (its servers' threads and sockets must not be forked):
+    # a scenario asking for 2 capture processes still runs, with a warning naming the key.
+    from twinsense.stream import serve_scenario
+
+    d = yaml.safe_load((ROOT / "examples" / "office_depth.yaml").read_text())
+    d.update(duration=0.2, processes=2)
+    sc = scenario_from_dict(d, base_dir=ROOT / "examples")
+    assert sc.processes == 2
+    keep = Keep()
+    with pytest.warns(UserWarning, match="processes: 2 is not used by serve"):
+        res = serve_scenario(sc, [keep], rate=0)
+    assert res.result.frame_counts == {"depth": 2}

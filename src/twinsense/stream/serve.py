@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -141,7 +142,16 @@ def serve(scene, sensors, duration: float, sinks: Sequence[FrameSink], *, rate: 
 def serve_scenario(sc, sinks: Sequence[FrameSink], *, rate: float = 1.0, out_dir=None,
                    stop: Callable[[], BaseException | None] | None = None,
                    on_open: Callable[[list], None] | None = None) -> ServeResult:
-    """:func:`serve` a loaded :class:`~twinsense.scenario.Scenario`; ``out_dir`` also records it there."""
+    """:func:`serve` a loaded :class:`~twinsense.scenario.Scenario`; ``out_dir`` also records it there.
+
+    A served run captures in this one process: its sinks hold server threads
+    and sockets that forked capture processes must not inherit, so a
+    scenario's ``processes`` key (for ``twinsense run``) is not used here and
+    a warning says so.
+    """
+    if getattr(sc, "processes", 1) != 1:
+        warnings.warn(f"processes: {sc.processes} is not used by serve: a served run captures in one process",
+                      UserWarning, stacklevel=2)
     out = sc.recording_path(out_dir) if out_dir is not None else None
     return serve(sc.scene, sc.sensors, sc.duration, sinks, rate=rate, out=out, seed=sc.seed, scenario=sc.raw,
                  stop=stop, limits=sc.limits, on_open=on_open)
