@@ -457,3 +457,76 @@ def static_phases(p, pr, tx, rx, pairs, kx, kf, ks, x, ph):  # pragma: no cover
             x[j, i] = _reduce(length * kx)
             phi = (kf - length * ks) * length
             ph[j, i] = np.float32(_reduce(phi))
+
+
+
+@jit
+def block_rows_1d(out, key_i, key_j, ivals, upow, vpow, c_i, c_j, c_val, pvals, rows,
+                  phase):  # pragma: no cover
+    """A 1-D block's rows and its chunk-wide phase (nufft._block_rows for 1-D vectors), the
+    operations of its NumPy form in its order, so its bits:
+
+    rows[m, n] = sum over i in ``ivals`` of U_m^i acc_i[n], acc_i = sum over the vectors d
+    with key_i[d] = i (in order) of out[d] V^key_j[d]; phase[m, n] = sum over i in
+    ``pvals`` of U_m^i poly_i[n], poly_i = sum over the non-zero coefficients c (in order)
+    of monomials (i, j) of c V^j, reduced to [-pi, pi].
+
+    out (D, N) complex: the vectors' transforms; key_i, key_j (D,): their monomials;
+    ivals (I,), pvals (P,): the powers of U that occur, ascending; upow (>= max i + 1, M):
+    U^i per chirp row; vpow (>= max j + 1, N): V^j per sample (NumPy's powers, passed in);
+    c_i, c_j, c_val (C,): the chunk-wide coefficients; rows (M, N) complex, zeroed;
+    phase (M, N) float64 (untouched when P = 0).
+    """
+    n_samp = out.shape[1]
+    n_rows = rows.shape[0]
+    acc_re = np.empty(n_samp)
+    acc_im = np.empty(n_samp)
+    for q in range(ivals.shape[0]):
+        i = ivals[q]
+        first = True
+        for d in range(out.shape[0]):
+            if key_i[d] != i:
+                continue
+            j = key_j[d]
+            for n in range(n_samp):
+                re, im = out[d, n].real, out[d, n].imag
+                if j:
+                    re = re * vpow[j, n]
+                    im = im * vpow[j, n]
+                if first:
+                    acc_re[n], acc_im[n] = re, im
+                else:
+                    acc_re[n] += re
+                    acc_im[n] += im
+            first = False
+        for m in range(n_rows):
+            u = upow[i, m]
+            for n in range(n_samp):
+                rows[m, n] = complex(rows[m, n].real + u * acc_re[n], rows[m, n].imag + u * acc_im[n])
+    if pvals.shape[0] == 0:
+        return
+    poly = np.empty(n_samp)
+    for m in range(n_rows):
+        for n in range(n_samp):
+            phase[m, n] = 0.0
+    for q in range(pvals.shape[0]):
+        i = pvals[q]
+        first = True
+        for c in range(c_val.shape[0]):
+            if c_i[c] != i or c_val[c] == 0.0:
+                continue
+            j = c_j[c]
+            for n in range(n_samp):
+                t = c_val[c] * vpow[j, n]
+                if first:
+                    poly[n] = t
+                else:
+                    poly[n] += t
+            first = False
+        for m in range(n_rows):
+            u = upow[i, m]
+            for n in range(n_samp):
+                phase[m, n] += u * poly[n]
+    for m in range(n_rows):
+        for n in range(n_samp):
+            phase[m, n] = _reduce(phase[m, n])

@@ -37,6 +37,7 @@ from twinsense.radar.kernels import (
     OP_SET,
     abs_sum_max,
     block_coefficients_low,
+    block_rows_1d,
     block_series,
     leg_offsets,
     moving_phases,
@@ -1126,11 +1127,17 @@ def _spread_block_1d(blk: _Block2D, strength: np.ndarray, n_samp: int, tol: floa
     return keys, kern.finish(grid)
 
 
-def _block_rows(blk: _Block2D, keys: list, out: np.ndarray, jb: int, n_samp: int) -> np.ndarray:
+def _block_rows(blk: _Block2D, keys: list, out: np.ndarray, jb: int, n_samp: int,
+                compiled: bool = True) -> np.ndarray:
     """(J, N) rows of a block from its vectors' transforms ``out`` (D, J, N), or (D, N)
-    for 1-D ones, of the monomials ``keys``: their sum times the chunk-wide factor."""
+    for 1-D ones, of the monomials ``keys``: their sum times the chunk-wide factor.
+    ``compiled``: a 1-D block's sums and phase in one compiled call
+    (:func:`twinsense.radar.kernels.block_rows_1d`, the bits of the NumPy passes below,
+    kept as the reference with ``compiled`` False: ~20 passes over the (J, N) rows)."""
     uu = (np.arange(jb) - jb // 2) / blk.mu_scale
     vv = (np.arange(n_samp) - n_samp // 2) / blk.nu_scale
+    if compiled and blk.w is None:
+        return _block_rows_compiled(blk, keys, out, uu, vv)
     rows = np.zeros((jb, n_samp), dtype=complex)
     if blk.w is None:
         # sum_d out_d(nu) U^i V^j = sum_i U^i (sum_{d: i_d = i} out_d V^j): 1-D sums first.
@@ -1158,6 +1165,34 @@ def _block_rows(blk: _Block2D, keys: list, out: np.ndarray, jb: int, n_samp: int
             common += (uu**i)[:, None] * acc[None, :]
         ph32 = _reduce(common).astype(np.float32)
         phasor = np.empty((jb, n_samp), dtype=complex)
+        phasor.real = np.cos(ph32)
+        phasor.imag = np.sin(ph32)
+        rows *= phasor
+    return rows
+
+
+def _block_rows_compiled(blk: _Block2D, keys: list, out: np.ndarray, uu: np.ndarray,
+                         vv: np.ndarray) -> np.ndarray:
+    """:func:`_block_rows` of a 1-D block by :func:`twinsense.radar.kernels.block_rows_1d`
+    (the powers of U and V from NumPy, as there), then the phasor's cos and sin in float32
+    and the product by NumPy, as there."""
+    common = [(i, j, c) for (i, j), c in blk.common.items()]
+    ivals = sorted({i for i, _ in keys})
+    pvals = sorted({i for i, _, c in common if c != 0.0})
+    n_u = max([*ivals, *pvals, 0]) + 1
+    n_v = max([j for _, j in keys] + [j for _, j, _ in common] + [0]) + 1
+    upow = np.array([uu**i for i in range(n_u)])
+    vpow = np.array([vv**j for j in range(n_v)])
+    rows = np.zeros((len(uu), len(vv)), dtype=complex)
+    phase = np.empty((len(uu), len(vv)))
+    block_rows_1d(np.ascontiguousarray(out), np.array([i for i, _ in keys], np.int64),
+                  np.array([j for _, j in keys], np.int64), np.array(ivals, np.int64), upow, vpow,
+                  np.array([i for i, _, _ in common], np.int64),
+                  np.array([j for _, j, _ in common], np.int64),
+                  np.array([c for _, _, c in common], float), np.array(pvals, np.int64), rows, phase)
+    if pvals:
+        ph32 = phase.astype(np.float32)
+        phasor = np.empty(rows.shape, dtype=complex)
         phasor.real = np.cos(ph32)
         phasor.imag = np.sin(ph32)
         rows *= phasor
