@@ -33,3 +33,31 @@ def test_compiled_block_rows_are_the_numpy_rows_bit_for_bit(monkeypatch, eps):
         blk = args[0]
         assert blk.w is None and any(blk.common.values())
         assert real(*args).tobytes() == real(*args, compiled=False).tobytes()
+
+
+def test_slow_rest_and_rest_rows_are_the_numpy_bits():
+    # The block plan's two compiled passes (the 1-D variant's slow-time rest and the rests'
+    # rows with their largest summed |rest|) against the NumPy operations they replace.
+    from twinsense.radar.kernels import rest_rows, slow_rest
+
+    rng = np.random.default_rng(22)
+    m = 2001
+    c10 = rng.uniform(-40.0, 40.0, m)
+    delta = np.empty(m)
+    hi, lo = slow_rest(c10, 1.25, 8.0, delta)
+    ref = nufft._reduce(c10 - 1.25)
+    ref *= 8.0
+    assert delta.tobytes() == ref.tobytes() and (hi, lo) == (ref.max(), ref.min())
+    src = rng.normal(0.0, 1e-3, (6, m))
+    rows, scale, mid = np.array([4, -1, 0]), np.array([3.0, 1.0, 0.7]), np.array([1e-4, 0.0, -2e-5])
+    stack = np.empty((3, m))
+    best = rest_rows(src, rows, scale, mid, delta, stack)
+    want = np.empty((3, m))
+    for r, k in enumerate(rows):
+        if k < 0:
+            want[r] = delta
+        else:
+            np.multiply(src[k], scale[r], out=want[r])
+            want[r] -= mid[r]
+    assert stack.tobytes() == want.tobytes()
+    assert best == float(np.max(sum((np.abs(r) for r in want), np.zeros(m))))

@@ -530,3 +530,38 @@ def block_rows_1d(out, key_i, key_j, ivals, upow, vpow, c_i, c_j, c_val, pvals, 
     for m in range(n_rows):
         for n in range(n_samp):
             phase[m, n] = _reduce(phase[m, n])
+
+
+@jit
+def slow_rest(c10, w_c, mu_scale, delta):  # pragma: no cover
+    """The 1-D variant's slow-time rest (nufft._plan_block): delta = reduce(c10 - w_c)
+    mu_scale (m,), NumPy's operations in its order; returns its (max, min)."""
+    hi = -np.inf
+    lo = np.inf
+    for i in range(c10.shape[0]):
+        t = _reduce(c10[i] - w_c) * mu_scale
+        delta[i] = t
+        if t > hi:
+            hi = t
+        if t < lo:
+            lo = t
+    return hi, lo
+
+
+@jit
+def rest_rows(src, rows, scale, mid, delta, stack):  # pragma: no cover
+    """The block's rests (nufft._plan_block) as rows of stack (R, m): src[rows[r]] scale[r]
+    - mid[r], or ``delta`` where rows[r] < 0; returns max_i sum_r |stack[r, i]| (summed
+    from 0 in row order, :func:`abs_sum_max`'s bits)."""
+    n_rows, m = stack.shape
+    best = 0.0
+    for i in range(m):
+        acc = 0.0
+        for r in range(n_rows):
+            k = rows[r]
+            t = delta[i] if k < 0 else src[k, i] * scale[r] - mid[r]
+            stack[r, i] = t
+            acc += abs(t)
+        if acc > best:
+            best = acc
+    return best

@@ -41,6 +41,8 @@ from twinsense.radar.kernels import (
     block_series,
     leg_offsets,
     moving_phases,
+    rest_rows,
+    slow_rest,
     static_phases,
 )
 from twinsense.radar.spreader import kernel_for, spread_series_1d
@@ -753,10 +755,16 @@ def _coefficient_sources(order: int, a_step: float, b: float) -> tuple[list, np.
 
 def _coeffs_compiled(leg_tx: _Leg, leg_rx: _Leg, order: int, geo: Geometry, a_step: float,
                      span: np.ndarray) -> tuple[dict, float, dict]:
+    """:func:`_coeffs_array`'s monomials, bound and extremes."""
+    return _coeffs_array(leg_tx, leg_rx, order, geo, a_step, span)[:3]
+
+
+def _coeffs_array(leg_tx: _Leg, leg_rx: _Leg, order: int, geo: Geometry, a_step: float,
+                  span: np.ndarray) -> tuple[dict, float, dict, tuple]:
     """:func:`_monomial_coeffs` of the two legs' delay series, the bound dmax and each
     monomial's (max, min) over the scatterers, from one compiled pass
     (:func:`twinsense.radar.kernels.block_coefficients_low`, delay orders 1 to 3): the
-    same bits."""
+    same bits. Also the (K, m) array the monomials' rows are views of, and each one's row."""
     keys, factor = _coefficient_sources(order, a_step, 1.0 / geo.fs)
     m = len(leg_tx.r0)
     coeffs = np.empty((len(keys), m))
@@ -768,7 +776,7 @@ def _coeffs_compiled(leg_tx: _Leg, leg_rx: _Leg, order: int, geo: Geometry, a_st
     # any rest is formed.
     extremes = {key: (float(a), float(b))
                 for key, a, b in zip(keys, coeffs.max(axis=1), coeffs.min(axis=1))}
-    return dict(zip(keys, coeffs)), float(np.max(acc)), extremes
+    return dict(zip(keys, coeffs)), float(np.max(acc)), extremes, (coeffs, dict(zip(keys, range(len(keys)))))
 
 
 def _plan_block(p, v, pr, vr, tx, rx, chirps, t_mid, a_step, geo: Geometry,
@@ -821,7 +829,8 @@ def _plan_block(p, v, pr, vr, tx, rx, chirps, t_mid, a_step, geo: Geometry,
     # The compiled pass covers delay orders 1-3 (nearly every block); NumPy the others.
     compiled = compiled and order <= 3
     if compiled:
-        coeffs, dmax, extremes = _coeffs_compiled(leg_tx, leg_rx, order, geo, a_step, span)
+        coeffs, dmax, extremes, (coeff_array, row_of) = _coeffs_array(leg_tx, leg_rx, order, geo,
+                                                                       a_step, span)
     else:
         tau = (leg_tx.series(order) + leg_rx.series(order)) * (1.0 / SPEED_OF_LIGHT)
         # (A loop, not a (m, K) @ (K,) product: BLAS threads on tall, thin products
@@ -862,9 +871,14 @@ def _plan_block(p, v, pr, vr, tx, rx, chirps, t_mid, a_step, geo: Geometry,
     if slow is not False and mu_half > 0:
         raw_hi, raw_lo = extremes[(1, 0)] if compiled else (float(c10.max()), float(c10.min()))
         w_c = 0.5 * (raw_hi + raw_lo)
-        delta = _reduce(c10 - w_c)
-        delta *= float(mu_s)
-        b10 = max(float(delta.max()), -float(delta.min())) * (1.0 + 1e-12)
+        if compiled:
+            delta = np.empty(len(c10))
+            d_hi, d_lo = slow_rest(c10, w_c, float(mu_s), delta)
+        else:
+            delta = _reduce(c10 - w_c)
+            delta *= float(mu_s)
+            d_hi, d_lo = float(delta.max()), float(delta.min())
+        b10 = max(d_hi, -d_lo) * (1.0 + 1e-12)
         if b10 + sum(bounds.values()) <= _SLOW_REST_MAX:
             variants.append((True, {**bounds, (1, 0): b10}))
     if not variants:
@@ -914,17 +928,23 @@ def _plan_block(p, v, pr, vr, tx, rx, chirps, t_mid, a_step, geo: Geometry,
     # sum, left to right from 0, as sum(|r|) over the rows).
     res_keys = [key for key in common if key in bounds]
     stack = np.empty((len(res_keys), len(p)))
-    resid: dict = {}
-    for r, key in enumerate(res_keys):
-        c = coeffs[key]
-        if key != (1, 0):
-            np.multiply(c, scales[key], out=stack[r])
-            stack[r] -= common[key]
-        else:
-            stack[r] = c
-        resid[key] = stack[r]
+    if compiled and res_keys:
+        # One compiled pass: the rows as below and their largest summed |rest| (the bits).
+        pmax = rest_rows(coeff_array, np.array([-1 if k == (1, 0) else row_of[k] for k in res_keys],
+                                               np.int64),
+                         np.array([scales[k] for k in res_keys]), np.array([common[k] for k in res_keys]),
+                         coeffs[(1, 0)] if (1, 0) in res_keys else phi0, stack)
+    else:
+        for r, key in enumerate(res_keys):
+            c = coeffs[key]
+            if key != (1, 0):
+                np.multiply(c, scales[key], out=stack[r])
+                stack[r] -= common[key]
+            else:
+                stack[r] = c
+        pmax = abs_sum_max(stack) if res_keys else 0.0
+    resid = {key: stack[r] for r, key in enumerate(res_keys)}
     bounds = {k: bounds[k] for k in resid}
-    pmax = abs_sum_max(stack) if res_keys else 0.0
     exp_order = _taylor_order(pmax, _SERIES_TOL * eps)
     # The estimate's selection when its order holds (the same bounds, in the same order).
     keep = (est_keep if exp_order == est_order
