@@ -224,7 +224,7 @@ class BlockAMG:
         self._omega0 = self.scaled_dinv[0][:, 0] * self.A[0].diagonal() if self.scaled_dinv else None
         self._factor_coarse()
         self._patterns = None if pattern is None else coarse_patterns(pattern, self.P, self.R)
-        self._cycle_work = None  # CompiledCycle's blocks, reused from call to call
+        self._cycle_work = {}  # CompiledCycle's blocks by block width, reused from call to call
         self._cycle_prolongators = None  # CompiledCycle's copies of the prolongators, made once
         self._first = None if pattern is None or not self.P else self._first_level(A)
 
@@ -506,14 +506,15 @@ class CompiledCycle:
     def _workspace(self, c: int) -> list:
         """(X, Bc, T) blocks of every level, kept on the hierarchy and reused: a fresh block of a
         megabyte or more is fresh pages from the system on every call, and their page faults cost
-        about as much as a level's pass. One cycle at a time per hierarchy (a sensor's frames are
-        solved one after another)."""
-        work = self.ml._cycle_work
-        if work is None or work[0] != c:
-            work = (c, [(np.empty((len(d), c), CYCLE_DTYPE), np.empty((nc, c), CYCLE_DTYPE),
-                         np.empty((len(d), c), CYCLE_DTYPE)) for _, _, d, _, _, nc in self.levels])
-            self.ml._cycle_work = work
-        return work[1]
+        about as much as a level's pass. One set per block width: 11 terminals alternate a block of
+        8 and one of 6 every frame, and one set for the last width would be made anew for each. One
+        cycle at a time per hierarchy (a sensor's frames are solved one after another)."""
+        work = self.ml._cycle_work.get(c)
+        if work is None:
+            work = [(np.empty((len(d), c), CYCLE_DTYPE), np.empty((nc, c), CYCLE_DTYPE),
+                     np.empty((len(d), c), CYCLE_DTYPE)) for _, _, d, _, _, nc in self.levels]
+            self.ml._cycle_work[c] = work
+        return work
 
 
 class CompactCycle:
