@@ -59,5 +59,7 @@ def test_the_synthesis_bytes_do_not_depend_on_the_sort(monkeypatch):
     cfg = paper_bgt60tr13c_config()
     cfg = cfg.with_overrides(chirp=dataclasses.replace(cfg.chirp, num_samples=64, num_chirps=4))
     cube = synthesis.synthesize(p, v, w, cfg, eps=1e-4)
+    # Chunks gathered and run on two worker threads, summed in chunk order: the same bytes.
+    assert cube.tobytes() == synthesis.synthesize(p, v, w, cfg, eps=1e-4, workers=2).tobytes()
     monkeypatch.setattr(synthesis, "COMPILED_SORT", False)
     assert cube.tobytes() == synthesis.synthesize(p, v, w, cfg, eps=1e-4).tobytes()
