@@ -332,3 +332,30 @@ def test_solver_objects_refuse_a_config_that_is_not_a_solver_config(bad):
     # Without the check a dict or string is kept and fails later with an AttributeError deep in solve().
     with pytest.raises(ConfigError, match="solver"):
         PCGSolver(bad)
+
+
+def test_a_pattern_with_an_unsorted_row_is_not_marked_sorted(frame):
+    # The split marks its matrices sorted when the pattern's rows are, and the Gauss-Seidel sweeps split
+    # each row at its diagonal by that: a pattern whose row is not sorted (made other than by
+    # AssemblyPattern.of) must leave the matrices unmarked, so the cycle sorts its own copy.
+    A_ref, _, _, fixed, _ = split_system(frame)
+    pat = frame.pattern
+    assert pat.sorted_rows
+    i = int(np.flatnonzero(~fixed)[len(fixed) // 3])
+    p = int(pat.indptr[i])
+    swap = np.arange(pat.nnz)
+    swap[[p, p + 1]] = swap[[p + 1, p]]  # the row's first two entries swapped
+    frame.pattern = dataclasses.replace(pat, indices=pat.indices[swap])
+    frame.k_data = frame.k_data[swap]
+    assert not frame.pattern.sorted_rows
+    A, _, _, _, _ = split_system(frame)
+    assert not A.has_sorted_indices  # scipy's own scan of the rows
+    assert (A != A_ref).nnz == 0
+    ml, _ = _base_hierarchy(frame)
+    free = ~fixed
+    assert ml.refresh(A, free)
+    R = np.ascontiguousarray(np.random.default_rng(2).standard_normal((A.shape[0], 6)) * free[:, None])
+    Z = CompiledCycle(ml, free)(R, np.empty(6))
+    ref = _gauss_seidel_cycle(ml, R, free)
+    # As in test_compiled_cycle_is_the_symmetric_gauss_seidel_cycle: float32 levels, 1e-5 of the largest.
+    assert np.abs(Z - ref).max() <= 1e-5 * np.abs(ref).max()

@@ -10,6 +10,7 @@ entry: a permittivity change of a few elements is then a scatter-add into
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
@@ -82,8 +83,15 @@ class AssemblyPattern:
     def nnz(self) -> int:
         return len(self.indices)
 
-    sorted_rows = True
-    """Every row's column indices ascend (the keys ``row * n + col`` come from ``np.unique``)."""
+    @cached_property
+    def sorted_rows(self) -> bool:
+        """Every row's column indices ascend. True for :meth:`of` (its keys ``row * n + col`` come from
+        ``np.unique``); checked once per pattern, since a pattern made otherwise need not be, and the
+        split marks its matrices sorted by this (the Gauss-Seidel cycle splits each row at its diagonal)."""
+        if len(self.indices) < 2:
+            return True
+        rows = np.repeat(np.arange(self.n), np.diff(self.indptr))
+        return bool(np.all((np.diff(self.indices.astype(np.int64)) > 0) | (np.diff(rows) != 0)))
 
     def assemble(self, local: np.ndarray, weights: np.ndarray) -> np.ndarray:
         """CSR data of ``sum_e weights[e] * local[e]``.
