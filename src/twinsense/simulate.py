@@ -9,6 +9,7 @@ import os
 import pickle
 import queue
 import signal
+import sys
 import threading
 import time
 from collections import deque
@@ -617,11 +618,26 @@ def _limit_threads(threads: int) -> None:
     before the fork: the libraries already loaded are limited through threadpoolctl, and the variables
     are set for any loaded later in this process.
     """
-    from threadpoolctl import threadpool_limits
-
     for var in ("TWINSENSE_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ[var] = str(threads)
-    threadpool_limits(limits=threads)  # kept for the process's life (not used as a context)
+    _thread_pools().limit(limits=threads)  # kept for the process's life (not used as a context)
+
+
+# The native thread pools of this process (threadpoolctl's controller) and the number of modules loaded
+# when they were found: finding them walks every loaded library (30-40 ms of CPU in the robot cell's
+# process), which each capture process did again at every run. Found in the parent before the fork,
+# they serve every child; found again once a module has been loaded since (it may bring a library).
+_POOLS: list = []
+
+
+def _thread_pools():
+    """threadpoolctl's controller of the native thread pools loaded in this process (kept, see _POOLS)."""
+    from threadpoolctl import ThreadpoolController
+
+    n = len(sys.modules)
+    if not _POOLS or _POOLS[0][0] != n:
+        _POOLS[:] = [(n, ThreadpoolController())]
+    return _POOLS[0][1]
 
 
 def _send_error(conn, exc: BaseException, what: str = "error", where: Any = None) -> None:
@@ -707,6 +723,7 @@ class _Processes:
         self._slowest = 0.0  # [s] the slowest frame handed back so far
         self._seen: set[int] = set()  # sensors whose first frame was handed back
         threads = max(1, default_workers() // len(self._groups))
+        _thread_pools()  # found here once, not in every child (see _POOLS)
         depth = 2 * len(sensors)
         self._procs, self._queues, self._readers, self._conns = [], [], [], []
         try:

@@ -1,7 +1,7 @@
 """What the scene keeps between frames: link poses per time, geometry bounds.
 
-Link poses of a forward-kinematics state are built once per link and time, with the bits of the public
-constructor.
+Link poses and states of a forward-kinematics state are built once per link and time, the poses with
+the bits of the public constructor.
 
 A ``TreeState`` is cached per time and every sensor asks for every moving link at each capture, so
 ``TreeState.pose`` keeps each link's pose. It must equal, bit for bit, ``Pose(position, rotation)`` of
@@ -10,6 +10,7 @@ A geometry's bounds are kept (its mesh's vertices are read-only): the mesh's own
 """
 
 import numpy as np
+import pytest
 
 from twinsense import Pose
 from twinsense.robots import load_robot
@@ -37,8 +38,13 @@ def test_link_poses_are_the_checked_poses_and_built_once():
                 assert ms.pose is pose
                 assert np.array_equal(ms.linear_velocity, st.linear_velocities[i])
                 assert np.array_equal(ms.angular_velocity, st.angular_velocities[i])
-                # The velocities handed out are the caller's own: writing them leaves the state as it was.
-                ms.linear_velocity[:] = 7.0
+                # One state per link and time, shared by every sensor that asks (by index or name); its
+                # velocities read-only, as a static object's: no caller can change another's state.
+                assert st.state(i) is ms and st.state(st.link_names[i]) is ms
+                for v in (ms.linear_velocity, ms.angular_velocity):
+                    assert not v.flags.writeable
+                    with pytest.raises(ValueError):
+                        v[:] = 7.0
                 assert not np.any(st.linear_velocities[i] == 7.0)
 
 

@@ -217,6 +217,9 @@ class TreeState:
     _poses: dict = field(repr=False, default_factory=dict)
     # Every link's rotation re-orthonormalised, made at the first pose asked for (one entry).
     _normalised: list = field(repr=False, default_factory=list)
+    # Link states built so far (pose and read-only velocities, as a static object's): every sensor of a
+    # process that captures at this time asks for every moving link; each is built once.
+    _states: dict = field(repr=False, default_factory=dict)
 
     def index(self, link: str | int) -> int:
         if isinstance(link, (int, np.integer)) and not isinstance(link, bool):
@@ -249,8 +252,16 @@ class TreeState:
         return pose
 
     def state(self, link: str | int) -> MotionState:
+        """Link ``link``'s pose and velocities (read-only (3,) arrays [m/s], [rad/s]); one object per link
+        and time, shared by every caller."""
         i = self.index(link)
-        return MotionState(self.pose(i), self.linear_velocities[i].copy(), self.angular_velocities[i].copy())
+        st = self._states.get(i)
+        if st is None:
+            lin, ang = self.linear_velocities[i].copy(), self.angular_velocities[i].copy()
+            lin.setflags(write=False)
+            ang.setflags(write=False)
+            st = self._states[i] = MotionState(self.pose(i), lin, ang)
+        return st
 
     def point_velocity(self, link: str | int, points_world) -> np.ndarray:
         """Velocity (n, 3) [m/s] of points (n, 3) fixed to ``link``, given in world coordinates: v + w x r."""
