@@ -285,7 +285,8 @@ def test_maxwell_matrix_from_the_residual_is_the_stiffness_product(frame):
     # its potentials, so the two still belong together.
     assert res.iterations.min() < res.iterations.max()
     # The same X^T K X but for the recurrence's drift of R from B - A X (a few 1e-16 of |A| |X| per CG
-    # step, 5-6 steps) against the product's rounding: measured 1.7e-16 of the largest entry; 1e-12.
+    # step, 5-6 steps) and a row-by-row sum against the product's rounding: measured 1.6e-15 of the
+    # largest entry; 1e-12.
     assert np.abs(res.full - direct).max() <= 1e-12 * np.abs(direct).max()
 
 
@@ -359,3 +360,47 @@ def test_a_pattern_with_an_unsorted_row_is_not_marked_sorted(frame):
     ref = _gauss_seidel_cycle(ml, R, free)
     # As in test_compiled_cycle_is_the_symmetric_gauss_seidel_cycle: float32 levels, 1e-5 of the largest.
     assert np.abs(Z - ref).max() <= 1e-5 * np.abs(ref).max()
+
+
+
+def test_first_coarse_update_prunes_kills_and_refuses():
+    # The compiled update c = c0 - g - g^T + h on a dense 3 x 3 coarse pattern, P the identity (each
+    # coarse unknown is one fine node), against the NumPy steps it replaced: the same sums (exact: the
+    # same three float operations per entry), the dead unknowns' rows and columns zero, then _pruned.
+    from twinsense.capacitive.kernels import first_coarse_update
+
+    n = 3
+    rows, cols = np.repeat(np.arange(n), n), np.tile(np.arange(n), n)
+    tslot, diag = cols * n + rows, np.arange(n) * (n + 1)
+    P = sp.identity(n, format="csr")
+
+    def update(c0, g, support):
+        c = np.empty(n * n)
+        ok = first_coarse_update(c0.ravel(), g.ravel(), np.zeros(n * n), tslot, rows, cols, diag, P.indptr,
+                                 P.indices, support, PRUNE, c)
+        return ok, c.reshape(n, n)
+
+    def numpy_steps(c0, g, support):
+        c = c0 - g - g.T
+        c[~(support[:, None] & support[None, :])] = 0.0
+        return _pruned(sp.csr_matrix(c)).toarray()
+
+    # A near-empty unknown (1e-30 of the largest diagonal, its build value as well): pruned.
+    c0 = np.array([[2.0, -1.0, 1e-16], [-1.0, 2.0, 0.0], [1e-16, 0.0, 1e-30]])
+    g, every = np.zeros((n, n)), np.ones(n, bool)
+    ok, c = update(c0, g, every)
+    assert ok
+    np.testing.assert_array_equal(c, numpy_steps(c0, g, every))
+    np.testing.assert_array_equal(c, [[2.0, -1.0, 0.0], [-1.0, 2.0, 0.0], [0.0, 0.0, 0.0]])
+    # A dead unknown (its fine support prescribed) with a nonzero update: exactly zero row and column.
+    c0 = np.array([[2.0, -1.0, 0.1], [-1.0, 2.0, 0.0], [0.1, 0.0, 1.0]])
+    g = np.array([[0.0, 0.0, 0.0], [0.3, 0.2, 0.0], [0.0, 0.0, 0.0]])
+    support = np.array([True, False, True])
+    ok, c = update(c0, g, support)
+    assert ok
+    np.testing.assert_array_equal(c, numpy_steps(c0, g, support))
+    np.testing.assert_array_equal(c, [[2.0, 0.0, 0.1], [0.0, 0.0, 0.0], [0.1, 0.0, 1.0]])
+    # A live unknown whose diagonal cancels to below 1e-9 of its build value: refused.
+    g = np.zeros((n, n))
+    g[2, 2] = 0.5 * (1.0 - 1e-12)
+    assert not update(c0, g, every)[0]

@@ -24,9 +24,9 @@ from twinsense.compiled import jit
 
 __all__ = ["FIXED_WIDTH", "WIDTH", "block_product", "block_residual", "cg_update", "cholesky_columns", "column_dots",
            "cycle_down", "cycle_up", "diagonal_split", "dirichlet_split", "dropped_rows_product", "first_coarse_update",
-           "group_width", "gs_down6", "gs_down8", "gs_up6", "gs_up8", "lanczos_tridiagonal", "new_direction",
-           "product_into", "put_columns", "residual6", "residual8", "residual_row", "split_arrays",
-           "split_row", "spmm6", "spmm8", "stiffness_from_residual", "take_columns"]
+           "group_width", "gs_down6", "gs_down8", "gs_up6", "gs_up8", "lanczos_tridiagonal", "maxwell_from_residual",
+           "new_direction", "product_into", "put_columns", "residual6", "residual8", "residual_row", "split_arrays",
+           "split_row", "spmm6", "spmm8", "take_columns"]
 
 
 @jit
@@ -694,23 +694,46 @@ def first_coarse_update(c0, g, h, tslot, rows, c_ind, diag, p_ptr, p_ind, suppor
 
 
 @jit
-def stiffness_from_residual(indptr, indices, data, fixed, X, R, KX):  # pragma: no cover - compiled
-    """``KX = K X`` (blocks (n, t)) for a solution ``X`` of the Dirichlet system of ``K`` (n, n) CSR, from its
-    residual ``R = B - A X``: on a free row ``(K X)_i = (A X)_i - B_i = -R_i``, so only the prescribed
-    rows (``fixed`` (n,) bool, a few thousand of the skin's 32k) take a product."""
+def maxwell_from_residual(k_indptr, k_indices, k_data, X, R, fixed):  # pragma: no cover - compiled
+    """(t, t) ``X^T K X`` of solved potentials ``X`` (n, t) from their residual ``R = B - A X`` (n, t) [F].
+
+    ``K`` (n, n) CSR, ``A`` its Dirichlet system, ``fixed`` (n,) bool the
+    prescribed rows. On a free row ``(K X)_i = (A X - B)_i = -R_i`` (``B``
+    carries the prescribed nodes' couplings), so only the prescribed rows
+    with a nonzero potential (the terminals' nodes, a few thousand of the
+    robot-cell skin's 32k; grounded rows add nothing) take their ``K`` row
+    products: the terminal charges. The free rows' term ``-X^T R`` keeps the
+    result the energy form (error quadratic in the potentials' error), not
+    the charge form alone (linear). The proximity sensor's and the tactile
+    skin's frame solves both take their Maxwell matrix here.
+    """
     n, t = X.shape
+    G = np.zeros((t, t))
+    s = np.empty(t)
     for i in range(n):
         if fixed[i]:
-            for k in range(t):
-                KX[i, k] = 0.0
-            for p in range(indptr[i], indptr[i + 1]):
-                a = data[p]
-                j = indices[p]
-                for k in range(t):
-                    KX[i, k] += a * X[j, k]
+            live = False
+            for a in range(t):
+                if X[i, a] != 0.0:
+                    live = True
+            if not live:
+                continue
+            for b in range(t):
+                acc = 0.0
+                for p in range(k_indptr[i], k_indptr[i + 1]):
+                    acc += k_data[p] * X[k_indices[p], b]
+                s[b] = acc
+            for a in range(t):
+                x = X[i, a]
+                if x != 0.0:
+                    for b in range(t):
+                        G[a, b] += x * s[b]
         else:
-            for k in range(t):
-                KX[i, k] = -R[i, k]
+            for a in range(t):
+                x = X[i, a]
+                for b in range(t):
+                    G[a, b] -= x * R[i, b]
+    return G
 
 
 # The same loops for blocks of exactly 6 columns: a skin of 6 terminals (the robot cell's pad-grid)

@@ -470,12 +470,12 @@ class MaxwellSolver:
                 # The same X^T K X (the variational Maxwell matrix, its error quadratic in X's), with
                 # the recurrence's drift from B - A X (~1e-16 of |A| |X| per step) in place of the
                 # product's rounding.
-                from twinsense.capacitive.kernels import stiffness_from_residual
+                from twinsense.capacitive.kernels import maxwell_from_residual
 
-                stiffness_from_residual(K.indptr, K.indices, K.data, fixed, X, info.residual, KX)
+                full = maxwell_from_residual(K.indptr, K.indices, K.data, X, info.residual, fixed)
             else:
                 _product_energies(K, X, KX, energy)
-            full = X.T @ KX
+                full = X.T @ KX
             full = 0.5 * (full + full.T)
         else:
             A, B, fixed, X_fixed = sysm.system()

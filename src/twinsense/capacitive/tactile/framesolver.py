@@ -19,7 +19,7 @@ an exact solve on the nodes around the residual's peaks corrects the start
 (:mod:`~twinsense.capacitive.tactile.subdomain`: the contacts' local error
 no longer takes global steps, about half of them); and the Maxwell matrix
 comes from CG's residual on the free rows and the terminals' own rows
-(:func:`~twinsense.capacitive.tactile.kernels.maxwell_from_residual`), not
+(:func:`~twinsense.capacitive.kernels.maxwell_from_residual`), not
 from a second product with ``K``.
 
 The V-cycle runs in float32 (:data:`~twinsense.capacitive.amg.CYCLE_DTYPE`): a preconditioner only
@@ -50,6 +50,7 @@ import scipy.sparse as sp
 
 from twinsense.capacitive.amg import BlockAMG, CompactCycle
 from twinsense.capacitive.fem import reduce_floating
+from twinsense.capacitive.kernels import maxwell_from_residual
 from twinsense.capacitive.pcg import compact_block_pcg
 from twinsense.capacitive.solver import (
     MaxwellResult,
@@ -59,7 +60,7 @@ from twinsense.capacitive.solver import (
     energy_tolerance,
     split_system,
 )
-from twinsense.capacitive.tactile.kernels import maxwell_from_residual, start_system
+from twinsense.capacitive.tactile.kernels import start_system
 from twinsense.capacitive.tactile.subdomain import correct_locally
 from twinsense.errors import ConfigError
 from twinsense.render.parallel import default_workers
@@ -158,7 +159,7 @@ class FrameSolver:
         """Solve for every terminal and return the capacitances."""
         sysm = self.system
         cfg = self.config
-        A, K, B, fixed, column, X0, R0, rr0, energy = _start(sysm, self._X)
+        A, K, B, fixed, _, X0, R0, rr0, energy = _start(sysm, self._X)
         self.local_nodes = 0
         if self.local_correction and self._X is not None:
             # Without a warm start the residual is everywhere: nothing local to correct.
@@ -172,7 +173,7 @@ class FrameSolver:
         elif int(iters.max()) > max(8, cfg.rebuild_factor * self._reference_iters):
             self._force_rebuild = True
         self._X = X
-        full = maxwell_from_residual(K.indptr, K.indices, K.data, X, R, fixed, column)
+        full = maxwell_from_residual(K.indptr, K.indices, K.data, X, R, fixed)
         full = 0.5 * (full + full.T)
         mat = reduce_floating(full, len(sysm.terminals))
         return MaxwellResult(mat, full, iters, rebuilt)

@@ -6,8 +6,8 @@ displacement decays away from a contact but never reaches zero). In NumPy
 their re-assembly is a chain of (m, 4, 4) temporaries, a boolean mask over
 every cell and one ``bincount`` over the whole CSR data; here it is three
 loops that touch each moved node and cell once. Then the frame solve's own
-steps: the warm start's local correction, the fused start of the solve and
-the Maxwell matrix from CG's residual (the block PCG's loops are
+steps: the warm start's local correction and the fused start of the solve
+(the block PCG's loops and the Maxwell matrix from CG's residual are
 :mod:`twinsense.capacitive.kernels`').
 """
 
@@ -18,7 +18,7 @@ import numpy as np
 from twinsense.capacitive.kernels import residual_row, split_arrays, split_row
 from twinsense.compiled import jit
 
-__all__ = ["grow_rows", "maxwell_from_residual", "moved_cells", "residual_rows", "residual_seeds", "restamp",
+__all__ = ["grow_rows", "moved_cells", "residual_rows", "residual_seeds", "restamp",
            "start_system", "submatrix", "tet_stiffness_nb", "update_cell_boxes"]
 
 
@@ -303,35 +303,5 @@ def start_system(indptr, indices, k_data, fixed, column, t, previous):  # pragma
     A = (a_ptr, a_ind[:na].copy(), a_dat[:na].copy())
     K = (k_ptr, k_ind[:nk].copy(), k_dat[:nk].copy())
     return A, K, B, X0, R0, rr0, energy
-
-
-@jit
-def maxwell_from_residual(k_indptr, k_indices, k_data, X, R, fixed, column):  # pragma: no cover - compiled
-    """(t, t) ``X^T K X`` of solved potentials ``X`` (n, t) from their residual ``R = B - A X`` (n, t) [F].
-
-    On a free row ``(K X)_i = (A X - B)_i = -R_i`` (``B`` carries the
-    prescribed nodes' couplings), so only the terminals' own rows (``column``
-    (n,) int: the terminal at 1 V on that node, -1 none; ``fixed`` (n,) bool)
-    need their ``K`` row products: the terminal charges. The free rows' term
-    ``-X^T R`` keeps the result the energy form (error quadratic in the
-    potentials' error), not the charge form alone (linear).
-    """
-    n, t = X.shape
-    G = np.zeros((t, t))
-    for i in range(n):
-        if fixed[i]:
-            c = column[i]
-            if c >= 0:  # X[i, c] = 1, the other columns 0
-                for b in range(t):
-                    s = 0.0
-                    for p in range(k_indptr[i], k_indptr[i + 1]):
-                        s += k_data[p] * X[k_indices[p], b]
-                    G[c, b] += s
-        else:
-            for a in range(t):
-                x = X[i, a]
-                for b in range(t):
-                    G[a, b] -= x * R[i, b]
-    return G
 
 
