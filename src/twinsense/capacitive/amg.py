@@ -55,11 +55,9 @@ def spectral_radius(A: sp.csr_matrix, rng: np.random.Generator, steps: int = LAN
     """
     d = A.diagonal()
     s = np.divide(1.0, np.sqrt(d), out=np.zeros_like(d), where=d > 0)
-    v = rng.random(A.shape[0]) * (d > 0)
-    nv = _norm(v)
-    if nv == 0.0:
+    v = _lanczos_start(d, rng)
+    if v is None:
         return 1.0
-    v /= nv
     v_prev = np.zeros_like(v)
     alphas, betas = [], []
     beta = 0.0
@@ -74,6 +72,16 @@ def spectral_radius(A: sp.csr_matrix, rng: np.random.Generator, steps: int = LAN
         betas.append(beta)
         v_prev, v = v, w / beta
     return _largest_ritz(np.array(alphas), np.array(betas))
+
+
+def _lanczos_start(d: np.ndarray, rng: np.random.Generator) -> np.ndarray | None:
+    """The unit start (n,) of a Lanczos estimate for the diagonal ``d`` (n,): uniform draws of ``rng``,
+    zero on rows without a positive diagonal; None when no row has one (nothing to estimate)."""
+    v = rng.random(len(d)) * (d > 0)
+    nv = _norm(v)
+    if nv == 0.0:
+        return None
+    return v / nv
 
 
 def _largest_ritz(alphas: np.ndarray, betas: np.ndarray) -> float:
@@ -93,12 +101,9 @@ def compiled_spectral_radius(A: sp.csr_matrix, rng: np.random.Generator, steps: 
     """
     from twinsense.capacitive.kernels import lanczos_tridiagonal
 
-    d = A.diagonal()
-    v = rng.random(A.shape[0]) * (d > 0)
-    nv = _norm(v)
-    if nv == 0.0:
+    v = _lanczos_start(A.diagonal(), rng)
+    if v is None:
         return 1.0
-    v /= nv
     alphas, betas = np.empty(steps), np.empty(steps)
     k = lanczos_tridiagonal(A.indptr, A.indices, np.asarray(A.data, float), v, alphas, betas)
     return _largest_ritz(alphas[:k], betas[: max(k - 1, 0)])
