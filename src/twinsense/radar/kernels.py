@@ -12,14 +12,21 @@ NUFFTs included, 21 against 29 ms).
 The operations are those of the NumPy reference
 (``nufft.moving_phases_numpy``) in float64, in the same order, without
 fastmath; the results are the same bits
-(``tests/radar/test_synthesis_kernels.py``). The static scatterers stay
-NumPy: their few long passes over contiguous arrays run faster vectorised.
+(``tests/radar/test_synthesis_kernels.py``). The static scatterers' path
+lengths and phases are one pass too (:func:`static_phases`); their cos and
+sin stay NumPy's (vectorised float32 loops; ``tests/radar/test_static_phases.py``).
 
 The 2-D mover path (``nufft.moving_chunk_2d``) has its per-block passes
 here too: :func:`leg_offsets`, :func:`block_coefficients_low` (the delay
-series and the phase coefficients per monomial, delay orders 1-3) and
-:func:`block_series` (the exp series of the per-scatterer rests), each with
-the bits of its NumPy form (``tests/radar/test_synthesis_block_kernels.py``).
+series and the phase coefficients per monomial, delay orders 1-3),
+:func:`slow_rest` and :func:`rest_rows` (the per-scatterer rests),
+:func:`block_series` (the exp series of the rests) and :func:`block_rows_1d`
+(a 1-D block's monomial sums and chunk-wide phase), each with the bits of
+its NumPy form (``tests/radar/test_synthesis_block_kernels.py``,
+``tests/radar/test_block_rows_kernel.py``). Before the chunks, the movers'
+range rates (:func:`range_rates`), their stable sort (:func:`stable_argsort`
+on :func:`rate_keys`: NumPy's stable order) and each chunk's gather
+(:func:`gather_movers`; ``tests/radar/test_mover_sort.py``).
 """
 
 from __future__ import annotations
