@@ -29,7 +29,12 @@ walking (every frame at a new time, so every moving object moves):
 Same-run anchor: a bare single-thread embreex cast of the same rays against the
 scene posed at that time, one world-space BVH built beforehand.
 
+``--cell-only --before COMMIT``: the whole cell's runs (both windows, the three ways) in fresh processes,
+one with that commit's ``src`` (unpacked to a temporary folder) and one with this tree's, in turn
+``--rounds`` times, so that both codes see the same machine load.
+
 Run:  .venv/bin/python benchmarks/bench_robot_cell.py [--frames N] [--cell-only | --skin-only] [--repeats N]
+      .venv/bin/python benchmarks/bench_robot_cell.py --cell-only --before COMMIT [--rounds N]
 """
 
 from __future__ import annotations
@@ -37,8 +42,12 @@ from __future__ import annotations
 import argparse
 import multiprocessing
 import os
+import subprocess
+import sys
+import tempfile
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import trimesh
@@ -260,6 +269,24 @@ def skin_solver_paths(scene, skin, frames: int, t0: float = T_REACH) -> None:
           f"capacitance_atol {atol * 1e15:.4f} fF; each within 3 x of the exact discrete solution)")
 
 
+def before_after(commit: str, rounds: int, seconds: float) -> None:
+    """The whole cell's runs with ``commit``'s code and this tree's, each in a fresh process, in turn."""
+    root = Path(__file__).resolve().parents[1]
+    with tempfile.TemporaryDirectory() as tmp:
+        archive = subprocess.run(["git", "-C", str(root), "archive", commit, "src"], capture_output=True,
+                                 check=True).stdout
+        subprocess.run(["tar", "-x", "-C", tmp], input=archive, check=True)
+        trees = {f"before ({commit[:10]})": str(Path(tmp) / "src"), "after (this tree)": str(root / "src")}
+        for r in range(rounds):
+            for label, src in trees.items():
+                out = subprocess.run([sys.executable, __file__, "--cell-only", "--seconds", str(seconds)],
+                                     env={**os.environ, "PYTHONPATH": src}, capture_output=True, text=True,
+                                     check=True, cwd=Path(__file__).parent).stdout
+                print(f"== round {r + 1}, {label}")
+                print("\n".join(line for line in out.splitlines() if line.startswith("  whole cell")
+                                or line.startswith("load")))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--frames", type=int, default=10)
@@ -268,8 +295,14 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=1, help="whole-cell runs of each way per window")
     ap.add_argument("--skin-only", action="store_true", help="only the forearm skin's cases")
     ap.add_argument("--wrist-tof-only", action="store_true", help="only the wrist ToF camera (collision meshes)")
+    ap.add_argument("--before", help="with --cell-only: a commit whose code runs in turn with this tree's")
+    ap.add_argument("--rounds", type=int, default=2, help="with --before: runs of each code")
     args = ap.parse_args()
     print_machine()
+    if args.cell_only and args.before:
+        before_after(args.before, args.rounds, args.seconds)
+        print_load_at_end()
+        return
     if args.cell_only:
         cell_runs(args.seconds, args.repeats)
         print_load_at_end()

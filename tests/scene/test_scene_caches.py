@@ -53,3 +53,18 @@ def test_geometry_bounds_are_the_mesh_bounds_kept_read_only():
         b = g.bounds
         assert b.tobytes() == np.asarray(g.mesh.bounds, dtype=float).tobytes()
         assert g.bounds is b and not b.flags.writeable
+
+
+def test_person_base_pose_is_the_checked_pose_of_its_plan():
+    # The person's base pose skips Pose(...)'s checks (a product of two proper rotations and a finite
+    # floor point); it must be that constructor's pose bit for bit, walking, turning and reaching.
+    from twinsense.demos.robot_cell import PERSON, build_arm_cell_scene
+    from twinsense.scene.human import _rot_x, _rot_z
+
+    motion = build_arm_cell_scene().object(f"{PERSON}/thorax").motion.body.joint_motion.person
+    for t in np.linspace(0.0, 6.0, 61):
+        base = motion._at(float(t))[2]
+        plan = motion._plan(float(t), True)
+        want = Pose(plan.p, _rot_z(plan.yaw) @ _rot_x(plan.roll))
+        assert bits_equal(base.pose, want)
+        assert not base.pose.rotation.flags.writeable and not base.pose.position.flags.writeable
