@@ -738,10 +738,13 @@ class _Leg:
         return self._series[order]
 
 
-def _coefficient_sources(order: int, a_step: float, b: float) -> tuple[list, np.ndarray]:
+@functools.lru_cache(maxsize=64)
+def _coefficient_sources(order: int, a_step: float, b: float) -> tuple[tuple, np.ndarray]:
     """The contributions of :func:`_monomial_coeffs` in its order, for the compiled pass:
-    the monomials (list of (i, j), in order of first contribution) and each
-    contribution's factor (C(k, i) A^i B^(k-i) for g_k, times B for h_k)."""
+    the monomials (tuple of (i, j), in order of first contribution) and each
+    contribution's factor (C(k, i) A^i B^(k-i) for g_k, times B for h_k). Cached: a
+    frame's blocks share their order, chirp spacing and sample period (the callers only
+    read the results)."""
     index: dict[tuple[int, int], int] = {}
     factor = []
     for k in range(order + 1):
@@ -750,7 +753,7 @@ def _coefficient_sources(order: int, a_step: float, b: float) -> tuple[list, np.
             for key, fac in (((i, k - i), f), ((i, k - i + 1), f * b)):
                 index.setdefault(key, len(index))
                 factor.append(fac)
-    return list(index), np.array(factor, float)
+    return tuple(index), np.array(factor, float)
 
 
 def _coeffs_compiled(leg_tx: _Leg, leg_rx: _Leg, order: int, geo: Geometry, a_step: float,
