@@ -30,7 +30,8 @@ Same-run anchor: a bare single-thread embreex cast of the same rays against the
 scene posed at that time, one world-space BVH built beforehand.
 
 ``--cell-only --before COMMIT``: the whole cell's runs (both windows, the three ways) in fresh processes,
-one with that commit's ``src`` (unpacked to a temporary folder) and one with this tree's, in turn
+one with that commit's ``src`` (unpacked to a temporary folder; or a folder holding a ``twinsense``
+package tree) and one with this tree's, in turn
 ``--rounds`` times, so that both codes see the same machine load.
 
 Run:  .venv/bin/python benchmarks/bench_robot_cell.py [--frames N] [--cell-only | --skin-only] [--repeats N]
@@ -273,10 +274,14 @@ def before_after(commit: str, rounds: int, seconds: float) -> None:
     """The whole cell's runs with ``commit``'s code and this tree's, each in a fresh process, in turn."""
     root = Path(__file__).resolve().parents[1]
     with tempfile.TemporaryDirectory() as tmp:
-        archive = subprocess.run(["git", "-C", str(root), "archive", commit, "src"], capture_output=True,
-                                 check=True).stdout
-        subprocess.run(["tar", "-x", "-C", tmp], input=archive, check=True)
-        trees = {f"before ({commit[:10]})": str(Path(tmp) / "src"), "after (this tree)": str(root / "src")}
+        if Path(commit).is_dir():  # a package tree made by hand (e.g. this tree with some files as they were)
+            before = str(Path(commit))
+        else:
+            archive = subprocess.run(["git", "-C", str(root), "archive", commit, "src"], capture_output=True,
+                                     check=True).stdout
+            subprocess.run(["tar", "-x", "-C", tmp], input=archive, check=True)
+            before = str(Path(tmp) / "src")
+        trees = {f"before ({commit[-24:]})": before, "after (this tree)": str(root / "src")}
         for r in range(rounds):
             for label, src in trees.items():
                 out = subprocess.run([sys.executable, __file__, "--cell-only", "--seconds", str(seconds)],
@@ -295,7 +300,8 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=1, help="whole-cell runs of each way per window")
     ap.add_argument("--skin-only", action="store_true", help="only the forearm skin's cases")
     ap.add_argument("--wrist-tof-only", action="store_true", help="only the wrist ToF camera (collision meshes)")
-    ap.add_argument("--before", help="with --cell-only: a commit whose code runs in turn with this tree's")
+    ap.add_argument("--before", help="with --cell-only: a commit (or a src folder) whose code runs in turn with "
+                    "this tree's")
     ap.add_argument("--rounds", type=int, default=2, help="with --before: runs of each code")
     args = ap.parse_args()
     print_machine()
