@@ -404,3 +404,23 @@ def test_first_coarse_update_prunes_kills_and_refuses():
     g = np.zeros((n, n))
     g[2, 2] = 0.5 * (1.0 - 1e-12)
     assert not update(c0, g, every)[0]
+
+
+@pytest.mark.parametrize("t", [5, 6, 8])
+def test_fixed_width_products_are_the_variable_width_ones(frame, t):
+    # The start's energies take the fixed-width loops (spmm6 / spmm8 and column_dots) when the block has
+    # their width: the same sums in the same order as block_product, so the same bits; both are scipy's
+    # K X to rounding (a row's ~15 products, 1e-14 of the largest entry bounds it).
+    from twinsense.capacitive.kernels import block_product
+    from twinsense.capacitive.solver import _product_energies
+
+    _, K, _, _, _ = split_system(frame)
+    X = np.random.default_rng(t).standard_normal((K.shape[0], t))
+    got, e_got = np.empty_like(X), np.empty(t)
+    ref, e_ref = np.empty_like(X), np.empty(t)
+    _product_energies(K, X, got, e_got)
+    block_product(K.indptr, K.indices, K.data, X, ref, e_ref)
+    assert got.tobytes() == ref.tobytes() and e_got.tobytes() == e_ref.tobytes()
+    want = K @ X
+    assert np.abs(got - want).max() <= 1e-14 * np.abs(want).max()
+    np.testing.assert_allclose(e_got, np.einsum("ij,ij->j", X, want), rtol=1e-12, atol=0)
