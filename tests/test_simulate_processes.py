@@ -47,8 +47,8 @@ class Probe:
 
 
 def test_lanes_are_shared_by_expected_cpu():
-    # frame_rate x kind cost: wall ToF 10 x 46 = 460, radar 10 x 37 = 370, wrist ToF 20 x 46 = 920. Largest
-    # first to the least loaded: wrist (920) alone in process 0, then wall ToF (460) and radar (370) together.
+    # frame_rate x kind cost: wall ToF 10 x 38 = 380, radar 10 x 24 = 240, wrist ToF 20 x 38 = 760. Largest
+    # first to the least loaded: wrist (760) alone in process 0, then wall ToF (380) and radar (240) together.
     assert lane_groups(cell_sensors(), 2) == [[2], [0, 1]]
     # More processes than sensors: one sensor each; one process: all.
     assert lane_groups(cell_sensors(), 5) == [[2], [0], [1]]
@@ -145,13 +145,13 @@ def test_without_fork_more_than_one_process_is_refused(monkeypatch):
 
 
 def test_the_robot_cells_lanes():
-    # wall ToF 10 x 46 = 460, radar 10 x 37 = 370, wrist ToF 10 x 46 = 460, skin 20 x 20 = 400: wall ToF to
-    # process 0, wrist ToF to 1 (460 each), the skin to the first of the tie (860), the radar to 1 (830).
+    # wall ToF 10 x 38 = 380, radar 10 x 24 = 240, wrist ToF 10 x 38 = 380, skin 20 x 40 = 800: the skin to
+    # process 0, wall ToF to 1 (380), wrist ToF to 1 (760 < 800), the radar to 1 (1000): the skin alone.
     from twinsense.demos.robot_cell import build_arm_cell_sensors
 
     sensors = build_arm_cell_sensors()
     assert [s.name for s in sensors] == ["wall_tof", "radar", "wrist_tof", "skin"]
-    assert lane_groups(sensors, 2) == [[0, 3], [1, 2]]
+    assert lane_groups(sensors, 2) == [[3], [0, 1, 2]]
 
 
 def test_run_limits_are_checked_before_any_process_is_forked(tmp_path):

@@ -521,11 +521,16 @@ class _Ahead:
 
 
 # Expected CPU of one frame per kind [ms], for sharing the lanes among capture processes: the robot
-# cell's frames captured one after another from 0.9 s (bench_robot_cell.py, CPU of the capturing thread
-# plus the render workers' and background threads' share: ToF 224 x 171 with 2 x 2 rays 38-55 ms,
-# radar 96 x 48 rays with a 64 x 64 cube 37 ms, the forearm skin 20 ms), a VLP-16 revolution 84 ms and
-# an ultrasonic ring's cycle 34 ms (BENCHMARKS.md), rounded. A kind not listed counts as the skin's.
-_KIND_COST = {"tof": 46.0, "radar": 37.0, "capacitive": 20.0, "camera": 20.0, "lidar": 84.0, "ultrasonic": 34.0}
+# cell's sensors each alone on one thread, as in a capture process, over its costliest second (the
+# person's hand at the skin, 3.2-4.2 s; docs/moving-sensors.md): ToF 224 x 171 with 2 x 2 rays 19-45 ms
+# (the wall camera's static hits kept, the wrist camera moving), radar 96 x 48 rays with a 64 x 64 cube
+# 24 ms, the forearm skin 33-45 ms (2 ms away from the person); a VLP-16 revolution 84 ms and an
+# ultrasonic ring's cycle 34 ms (BENCHMARKS.md), rounded. A kind not listed counts as a depth camera's.
+# On the robot cell this gives {skin} and {wall ToF, radar, wrist ToF}: both ToF cameras in one
+# process also share one caster (warmed, and its pages copied from the parent, once). In turn with
+# {wall ToF, skin}, {radar, wrist ToF}, 3 rounds per 1-s window at load 2.5: from 0.9 s 1.12-1.14 against
+# 1.30-1.62 s of CPU; over the reach 1.82-2.15 against 1.87-2.28 s (within the load's spread).
+_KIND_COST = {"tof": 38.0, "radar": 24.0, "capacitive": 40.0, "camera": 20.0, "lidar": 84.0, "ultrasonic": 34.0}
 _OTHER_KIND_COST = 20.0
 
 
