@@ -17,7 +17,7 @@ def test_the_controller_is_kept_until_a_module_is_loaded():
     first = _thread_pools()
     assert isinstance(first, ThreadpoolController)
     assert _thread_pools() is first
-    name = next(m for m in ("colorsys", "sndhdr", "wave", "netrc") if m not in sys.modules)
+    name = next(m for m in ("colorsys", "quopri", "wave", "netrc", "sndhdr") if m not in sys.modules)
     importlib.import_module(name)
     again = _thread_pools()
     assert again is not first and _thread_pools() is again
