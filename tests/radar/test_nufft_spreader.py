@@ -6,6 +6,7 @@ import finufft
 import numpy as np
 import pytest
 
+from twinsense.errors import ConfigError
 from twinsense.radar.spreader import Kernel, kernel_for, kernel_shape, nufft1d
 
 
@@ -90,3 +91,38 @@ def test_horner_table_fits_the_kernel():
 def test_odd_mode_count_refused():
     with pytest.raises(ValueError, match="even"):
         Kernel(63, 1e-6)
+
+
+def test_points_outside_the_period_wrap():
+    # exp(1j x k) has period 2 pi in x for integer k: points a few periods (or a fraction of
+    # one) outside [-pi, pi] give the exact sum's modes as well. Before the wrap such points
+    # were spread past the grid's padding (~w / 2 points): wrong modes and writes outside
+    # the array. Same l2 limit 2 tol as the in-range test.
+    rng = np.random.default_rng(11)
+    tol, n = 1e-6, 64
+    x = np.concatenate([rng.uniform(-np.pi, np.pi, 50), [np.pi + 0.3, -np.pi - 0.3, 7.0 * np.pi + 0.1,
+                                                          -9.5 * np.pi, 1e3]])
+    s = rng.normal(size=(2, len(x))) + 1j * rng.normal(size=(2, len(x)))
+    assert _rel(nufft1d(x, s, n, tol), _exact(x, s, n)) <= 2.0 * tol
+
+
+@pytest.mark.parametrize("kwargs, field", [
+    ({"tol": float("nan")}, "nufft1d.tol"),
+    ({"tol": 0.0}, "nufft1d.tol"),
+    ({"tol": 1.5}, "nufft1d.tol"),
+    ({"n_modes": 63}, "nufft1d.n_modes"),
+    ({"n_modes": 0}, "nufft1d.n_modes"),
+    ({"x": np.array([0.1, np.nan])}, "nufft1d.x"),
+    ({"x": np.zeros(3)}, "nufft1d.strengths"),
+])
+def test_bad_input_names_the_field(kwargs, field):
+    args = {"x": np.array([0.1, -0.2]), "strengths": np.ones(2, complex), "n_modes": 16, "tol": 1e-6}
+    args.update(kwargs)
+    with pytest.raises(ConfigError) as err:
+        nufft1d(**args)
+    assert err.value.field == field
+
+
+def test_empty_point_set_gives_zero_modes():
+    out = nufft1d(np.empty(0), np.empty((3, 0), complex), 16, 1e-6)
+    assert out.shape == (3, 16) and not np.any(out)
