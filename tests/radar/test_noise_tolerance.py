@@ -163,3 +163,21 @@ def test_the_noise_estimate_is_made_only_when_the_movers_work_is_at_least_a_stat
     assert radar._tolerance(p, w, n_moving=100) == loose  # 100 x 4 = 400: worth the estimate
     assert radar._tolerance(p, w) == loose  # no count given: always estimated
     assert radar._tolerance(p, w, n_moving=100, parts=2) == max(DEFAULT_EPS, loose / 2)
+
+
+@pytest.mark.parametrize("kwargs, field", [
+    ({"eps": float("nan")}, "noise_tolerance.eps"),
+    ({"eps": 0.0}, "noise_tolerance.eps"),
+    ({"workers": 0}, "noise_tolerance.workers"),
+    ({"workers": 1.5}, "noise_tolerance.workers"),
+    ({"share": -1.0}, "noise_tolerance.share"),
+    ({"noise_power": float("nan")}, "noise_tolerance.noise_power"),
+])
+def test_noise_tolerance_bad_input_names_the_field(kwargs, field):
+    # Before the checks a NaN eps came back as the tolerance (max(nan, e) is nan) and a
+    # NaN noise power fell through to the estimate: each now a ConfigError naming its field.
+    rng = np.random.default_rng(5)
+    p, _, w = _wrist_scene(rng, 20)
+    with pytest.raises(ConfigError) as err:
+        noise_tolerance(p, w, _config(NoiseConfig("variance", variance=1.0)), **kwargs)
+    assert err.value.field == field

@@ -227,8 +227,12 @@ def noise_tolerance(points: np.ndarray, weights: np.ndarray, config: RadarConfig
     workers : int
         Threads for the estimate (chunks of scatterers, summed in a fixed order).
     """
+    eps = V.number("noise_tolerance.eps", eps, lo=1e-14, hi=LOOSEST_EPS)
+    workers = V.integer("noise_tolerance.workers", workers, lo=1, hi=64)
+    share = V.number("noise_tolerance.share", share, lo=0.0, lo_open=True)
     if noise_power is None:
         noise_power = effects.noise_power(config)
+    noise_power = V.number("noise_tolerance.noise_power", noise_power, lo=0.0)
     w = np.asarray(weights, dtype=complex)
     if noise_power <= 0.0 or len(w) == 0:
         return float(eps)
