@@ -287,13 +287,19 @@ _SIGN = np.uint64(0x8000000000000000)
 
 @jit
 def rate_keys(rate, keys):  # pragma: no cover
-    """keys (n,) uint64 that sort as the finite float64 ``rate`` (n,) does: the sign bit
+    """keys (n,) uint64 that sort as the float64 ``rate`` (n,) does: the sign bit
     flipped for positives, every bit for negatives; -0.0 taken as +0.0 (NumPy's sort has
-    them equal, so a stable sort keeps their index order)."""
+    them equal, so a stable sort keeps their index order); every NaN, whatever its sign
+    bit (x86's 0/0 and inf/inf set it), the largest key: NumPy sorts NaNs last, among
+    themselves in index order."""
     bits = rate.view(np.uint64)
     for i in range(rate.shape[0]):
+        r = rate[i]
+        if r != r:
+            keys[i] = ~np.uint64(0)
+            continue
         b = bits[i]
-        if rate[i] == 0.0:
+        if r == 0.0:
             b = np.uint64(0)
         keys[i] = ~b if b & _SIGN else b | _SIGN
 
