@@ -181,3 +181,16 @@ def test_noise_tolerance_bad_input_names_the_field(kwargs, field):
     with pytest.raises(ConfigError) as err:
         noise_tolerance(p, w, _config(NoiseConfig("variance", variance=1.0)), **kwargs)
     assert err.value.field == field
+
+
+@pytest.mark.parametrize("points, weights, field", [
+    (np.zeros((3, 2)), np.ones(3, complex), "noise_tolerance.points"),
+    (np.full((3, 3), np.nan), np.ones(3, complex), "noise_tolerance.points"),
+    (np.ones((3, 3)), np.ones(2, complex), "noise_tolerance.weights"),
+])
+def test_noise_tolerance_checks_the_scatterers(points, weights, field):
+    # Before: (3, 2) points were read three coordinates a row by the compiled pass (past
+    # the array), NaN points gave eps back silently and 2 weights for 3 points an estimate.
+    with pytest.raises(ConfigError) as err:
+        noise_tolerance(points, weights, _config(NoiseConfig("variance", variance=1.0)))
+    assert err.value.field == field

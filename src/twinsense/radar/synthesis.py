@@ -122,19 +122,20 @@ def _array(field: str, value, dtype, shape_text: str, shape_ok) -> np.ndarray:
     return a
 
 
-def _check_inputs(points, velocities, weights, points_rx=None, velocities_rx=None):
-    p = _array("synthesize.points", points, float, "(n, 3)", lambda s: len(s) == 2 and s[1] == 3)
+def _check_inputs(points, velocities, weights, points_rx=None, velocities_rx=None,
+                  where: str = "synthesize"):
+    p = _array(f"{where}.points", points, float, "(n, 3)", lambda s: len(s) == 2 and s[1] == 3)
     n3 = f"({len(p)}, 3)"
     same = lambda s: s == p.shape  # noqa: E731
-    v = np.zeros_like(p) if velocities is None else _array("synthesize.velocities", velocities, float, n3, same)
-    w = _array("synthesize.weights", weights, complex, f"({len(p)},)", lambda s: s == (len(p),))
+    v = np.zeros_like(p) if velocities is None else _array(f"{where}.velocities", velocities, float, n3, same)
+    w = _array(f"{where}.weights", weights, complex, f"({len(p)},)", lambda s: s == (len(p),))
     if points_rx is None:
         if velocities_rx is not None:
-            raise ConfigError("synthesize.velocities_rx", "an array", "None when points_rx is None")
+            raise ConfigError(f"{where}.velocities_rx", "an array", "None when points_rx is None")
         return p, v, w, p, v
-    pr = _array("synthesize.points_rx", points_rx, float, n3, same)
+    pr = _array(f"{where}.points_rx", points_rx, float, n3, same)
     vr = (np.zeros_like(pr) if velocities_rx is None
-          else _array("synthesize.velocities_rx", velocities_rx, float, n3, same))
+          else _array(f"{where}.velocities_rx", velocities_rx, float, n3, same))
     return p, v, w, pr, vr
 
 
@@ -233,11 +234,10 @@ def noise_tolerance(points: np.ndarray, weights: np.ndarray, config: RadarConfig
     if noise_power is None:
         noise_power = effects.noise_power(config)
     noise_power = V.number("noise_tolerance.noise_power", noise_power, lo=0.0)
-    w = np.asarray(weights, dtype=complex)
+    # The compiled pass reads three coordinates per row: shapes and finiteness first.
+    p, _, w, pr, _ = _check_inputs(points, None, weights, points_rx, where="noise_tolerance")
     if noise_power <= 0.0 or len(w) == 0:
         return float(eps)
-    p = np.ascontiguousarray(points, dtype=float)
-    pr = p if points_rx is None else np.ascontiguousarray(points_rx, dtype=float)
     geo = Geometry(config, config.chirp.num_chirps)
     bounds = [(lo, min(lo + CHUNK, len(w))) for lo in range(0, len(w), CHUNK)]
     # The spreader at the estimate's 1e-3 itself (its l2 error 0.7-1.3 of that: a power error
