@@ -126,3 +126,24 @@ def test_bad_input_names_the_field(kwargs, field):
 def test_empty_point_set_gives_zero_modes():
     out = nufft1d(np.empty(0), np.empty((3, 0), complex), 16, 1e-6)
     assert out.shape == (3, 16) and not np.any(out)
+
+
+@pytest.mark.parametrize("tol", [5e-14, 5e-15])
+def test_tightest_widths_fit_without_runaway_degree(tol):
+    # Widths 15 and 16 (the synthesis' eps >= 1e-14 runs the spreader at eps / 2 >= 5e-15):
+    # the monomial fit stalls at ~4e-15 (rounding), so 0.05 of 1e-14 or 1e-15 cannot be met;
+    # the fit stops at its 1e-14 floor with a degree near the width's (it ran to 52-55
+    # before). The transform stays at its rounding-level accuracy: the l2 limit is 2 tol
+    # plus 1e-14 for the rounding of the spread sums and of the exact sum itself
+    # (measured 1.06e-14 at 5e-15, 2.5e-14 at 5e-14).
+    k = kernel_for(64, tol)
+    assert k.coef.shape[0] - 1 <= k.width + 4
+    s = np.linspace(0.0, 1.0, 997, endpoint=False)
+    for j in range(k.width):
+        z = s + j - 0.5 * k.width
+        exact = np.exp(k.beta * (np.sqrt(np.maximum(1.0 - (2.0 * z / k.width) ** 2, 0.0)) - 1.0))
+        assert np.max(np.abs(np.polynomial.polynomial.polyval(2.0 * s - 1.0, k.coef[::-1, j]) - exact)) <= 1e-14
+    rng = np.random.default_rng(9)
+    x = rng.uniform(-np.pi, np.pi, 400)
+    st = rng.normal(size=(2, 400)) + 1j * rng.normal(size=(2, 400))
+    assert _rel(nufft1d(x, st, 64, tol), _exact(x, st, 64)) <= 2.0 * tol + 1e-14
