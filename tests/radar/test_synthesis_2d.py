@@ -288,10 +288,11 @@ def test_each_scatterers_error_is_within_its_budget(slow):
     # truncation, dropped degrees and monomials, series order and skipped terms), plus
     # 1e-10 for the NUFFTs (1e-12 of the summed strengths' majorants, ~10 vectors, and
     # the rounding of the grid sums). At the block's own tolerance the NUFFTs add
-    # finufft's relative l2 error: the constant vector's tolerance (eps / 2 for 2-D
-    # vectors, eps / 4 for 1-D ones) and as much for the others together, times
-    # finufft's excess of up to ~3x on single points (measured 1.6x in 1-D, 3.1x in 2-D
-    # at 1e-3, 2.2x at 1e-6): <= 3 eps of the block's l2 norm with the expansion's eps.
+    # the transforms' relative l2 error: eps / 2 for finufft's 2-D vectors (the constant
+    # one; as much for the others together) and eps / 2 for the 1-D variant's vectors on
+    # the compiled spreader, times the excess over the tolerance on single points (up to
+    # ~3x: 3.1x in 2-D at 1e-3, 2.2x at 1e-6): <= 3 eps of the block's l2 norm with the
+    # expansion's eps.
     eps = 1e-6
     cfg = _config()
     geo, centres = _geometry(cfg)
