@@ -189,7 +189,8 @@ def noise_tolerance(points: np.ndarray, weights: np.ndarray, config: RadarConfig
 
     The fast synthesis errs by at most 2 e relative to the cube in the l2
     sense, ``|fast - exact| <= 2 e |exact|`` over the cube, for its tolerance
-    e: finufft's tolerance is a relative l2 error of its output, and the
+    e: the transforms (the compiled spreader in 1-D, finufft in 2-D, each at
+    e / 2) err by about their tolerance relative to their output in l2, and the
     series remainders and skipped terms, at most e of each scatterer's
     amplitude at every sample together, scale with the signal as well. The
     error power per sample is then at most 4 e^2 P, with P the cube's mean
