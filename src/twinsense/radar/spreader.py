@@ -1,8 +1,8 @@
 """A compiled 1-D type-1 NUFFT for many strength vectors on the same points.
 
-    out[d, n] = sum_i strengths[d, i] exp(1j x_i (n - N/2)),   n = 0 .. N-1
+    out[d, n] = sum_i strengths[d, i] exp(1j x_i (n - N//2)),   n = 0 .. N-1
 
-(finufft's type 1 with ``isign=+1`` and ``modeord=0``) by the classic
+(finufft's type 1 with ``isign=+1`` and ``modeord=0``, N even or odd) by the classic
 spread - FFT - deconvolve scheme (Barnett, Magland, af Klinteberg, "A
 parallel non-uniform fast Fourier transform library based on an
 'exponential of semicircle' kernel", SIAM J. Sci. Comput. 41 (2019)): each
@@ -70,8 +70,8 @@ class Kernel:
     the noise-derived tolerance differs in every frame, and a setup takes ~10 ms)."""
 
     def __init__(self, n_modes: int, tol: float):
-        if n_modes < 2 or n_modes % 2:
-            raise ValueError(f"n_modes must be even and >= 2, got {n_modes}")
+        if n_modes < 1:
+            raise ValueError(f"n_modes must be >= 1, got {n_modes}")
         self.n_modes = n_modes
         w, beta = kernel_shape(tol)
         self.width, self.beta = w, beta
@@ -109,7 +109,7 @@ class Kernel:
         self.factor = np.where(k % 2 == 0, 1.0, -1.0) / phihat  # (N,)
 
     def transform(self, x: np.ndarray, strengths: np.ndarray) -> np.ndarray:
-        """(D, N) complex: out[d, n] = sum_i strengths[d, i] exp(1j x_i (n - N/2)).
+        """(D, N) complex: out[d, n] = sum_i strengths[d, i] exp(1j x_i (n - N//2)).
 
         ``x`` (m,) float in [-pi, pi]; ``strengths`` (D, m) complex."""
         grid = self.grid(strengths.shape[0])
@@ -129,12 +129,12 @@ class Kernel:
         fine[:w] += grid[w + self.nf:]   # wrap the padding onto the periodic grid
         fine[-w:] += grid[:w]
         # sum_l g[l] e^{+2 pi i k l / nf}: the unscaled inverse transform, each vector a
-        # contiguous row; then the modes -N/2..N/2-1 (negative k at nf + k) deconvolved.
+        # contiguous row; then the modes -(N//2)..N-1-N//2 (negative k at nf + k) deconvolved.
         spectrum = np.fft.ifft(fine.T, axis=1, norm="forward")  # (D, nf)
         half = self.n_modes // 2
         out = np.empty((fine.shape[1], self.n_modes), dtype=complex)
         np.multiply(spectrum[:, self.nf - half:], self.factor[:half], out=out[:, :half])
-        np.multiply(spectrum[:, :half], self.factor[half:], out=out[:, half:])
+        np.multiply(spectrum[:, :self.n_modes - half], self.factor[half:], out=out[:, half:])
         return out
 
 
@@ -158,12 +158,10 @@ def nufft1d(x: np.ndarray, strengths: np.ndarray, n_modes: int, tol: float) -> n
     """Type-1 NUFFT of one or many strength vectors on the points ``x`` (m,) in [-pi, pi].
 
     ``strengths`` (m,) or (D, m) complex; returns (N,) or (D, N) complex with
-    out[..., n] = sum_i strengths[..., i] exp(1j x_i (n - N/2)), to about ``tol``
+    out[..., n] = sum_i strengths[..., i] exp(1j x_i (n - N//2)), to about ``tol``
     relative (l2). Points outside [-pi, pi] are taken modulo 2 pi."""
     tol = V.number("nufft1d.tol", tol, lo=0.0, hi=1.0, lo_open=True, hi_open=True)
-    n_modes = V.integer("nufft1d.n_modes", n_modes, lo=2)
-    if n_modes % 2:
-        raise ConfigError("nufft1d.n_modes", n_modes, "an even integer >= 2")
+    n_modes = V.integer("nufft1d.n_modes", n_modes, lo=1)
     x = np.asarray(x, dtype=float)
     s = np.asarray(strengths, dtype=complex)
     if x.ndim != 1 or s.ndim not in (1, 2) or s.shape[-1] != len(x):
