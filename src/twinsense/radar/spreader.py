@@ -16,7 +16,9 @@ upsampling factor 2 and a relative tolerance ``tol``: w = ceil(log10(10 /
 tol)) points, beta = 2.30 w (2.20, 2.26, 2.38 for w = 2, 3, 4); the error
 is then about ``tol`` relative in the l2 sense, as finufft's
 (``tests/radar/test_nufft_spreader.py`` checks it against the exact sum
-and against finufft).
+and against finufft: within 2 tol from 1e-3 to 1e-9; below ~1e-13 the
+rounding of the sums, ~1e-14 relative, dominates: 1.1e-14 at 5e-15).
+Points outside [-pi, pi) are taken modulo 2 pi.
 
 Why not finufft itself: the fast synthesis transforms 5-15 strength
 vectors per set of points (the Taylor series of a mover block), and
