@@ -209,6 +209,43 @@ _TILE = 256  # scatterers per tile: a tile's terms stay in the L1 cache
 
 
 @jit
+def series_tile(resid, lo, n, program, scale, t_re, t_im, s_re, s_im):  # pragma: no cover
+    """Run a series ``program`` (see :func:`block_series`) over the ``n`` scatterers from
+    ``lo``: ``t_re``/``t_im`` (n_terms, >= n) the terms, ``s_re``/``s_im`` (n_series, >= n)
+    the series, written in place. One home for block_series and the spreader's fused pass."""
+    for i in range(n):
+        t_re[0, i] = 1.0
+        t_im[0, i] = 0.0
+    for q in range(program.shape[0]):
+        op, dst, src, r = program[q, 0], program[q, 1], program[q, 2], program[q, 3]
+        if op == OP_SET:
+            for i in range(n):
+                c = resid[r, lo + i]
+                a, b = t_re[src, i], t_im[src, i]
+                t_re[dst, i] = -(b * c)
+                t_im[dst, i] = a * c
+        elif op == OP_ACC:
+            for i in range(n):
+                c = resid[r, lo + i]
+                a, b = t_re[src, i], t_im[src, i]
+                t_re[dst, i] -= b * c
+                t_im[dst, i] += a * c
+        elif op == OP_SCALE:
+            f = scale[q]
+            for i in range(n):
+                t_re[dst, i] *= f
+                t_im[dst, i] *= f
+        elif op == OP_SERIES_SET:
+            for i in range(n):
+                s_re[dst, i] = t_re[src, i]
+                s_im[dst, i] = t_im[src, i]
+        else:
+            for i in range(n):
+                s_re[dst, i] += t_re[src, i]
+                s_im[dst, i] += t_im[src, i]
+
+
+@jit
 def block_series(resid, program, scale, out_slots, n_terms, n_series, out):  # pragma: no cover
     """Series of a 2-D block (nufft._run_block): out[d, i] = the coefficient of the d-th
     kept monomial of exp(j R) for scatterer i, R = sum_r resid[r, i] U^a V^b.
@@ -227,36 +264,7 @@ def block_series(resid, program, scale, out_slots, n_terms, n_series, out):  # p
     s_im = np.empty((n_series, _TILE))
     for lo in range(0, m, _TILE):
         n = min(_TILE, m - lo)
-        for i in range(n):
-            t_re[0, i] = 1.0
-            t_im[0, i] = 0.0
-        for q in range(program.shape[0]):
-            op, dst, src, r = program[q, 0], program[q, 1], program[q, 2], program[q, 3]
-            if op == OP_SET:
-                for i in range(n):
-                    c = resid[r, lo + i]
-                    a, b = t_re[src, i], t_im[src, i]
-                    t_re[dst, i] = -(b * c)
-                    t_im[dst, i] = a * c
-            elif op == OP_ACC:
-                for i in range(n):
-                    c = resid[r, lo + i]
-                    a, b = t_re[src, i], t_im[src, i]
-                    t_re[dst, i] -= b * c
-                    t_im[dst, i] += a * c
-            elif op == OP_SCALE:
-                f = scale[q]
-                for i in range(n):
-                    t_re[dst, i] *= f
-                    t_im[dst, i] *= f
-            elif op == OP_SERIES_SET:
-                for i in range(n):
-                    s_re[dst, i] = t_re[src, i]
-                    s_im[dst, i] = t_im[src, i]
-            else:
-                for i in range(n):
-                    s_re[dst, i] += t_re[src, i]
-                    s_im[dst, i] += t_im[src, i]
+        series_tile(resid, lo, n, program, scale, t_re, t_im, s_re, s_im)
         for d in range(out_slots.shape[0]):
             k = out_slots[d]
             for i in range(n):

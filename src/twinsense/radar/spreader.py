@@ -41,7 +41,7 @@ import numpy as np
 from twinsense import validation as V
 from twinsense.compiled import jit
 from twinsense.errors import ConfigError
-from twinsense.radar.kernels import OP_ACC, OP_SCALE, OP_SERIES_SET, OP_SET
+from twinsense.radar.kernels import series_tile
 
 _TWO_PI = 2.0 * math.pi
 UPSAMPLE = 2  # fine grid over modes: finufft's classic factor (its width rule below is for it)
@@ -270,36 +270,7 @@ def spread_series_1d(resid, program, scale, out_slots, n_terms, n_series, streng
     a = np.empty((_TILE, 2 * n_vec))
     for lo in range(0, m, _TILE):
         n = min(_TILE, m - lo)
-        for i in range(n):
-            t_re[0, i] = 1.0
-            t_im[0, i] = 0.0
-        for q in range(program.shape[0]):
-            op, dst, src, r = program[q, 0], program[q, 1], program[q, 2], program[q, 3]
-            if op == OP_SET:
-                for i in range(n):
-                    c = resid[r, lo + i]
-                    re, im = t_re[src, i], t_im[src, i]
-                    t_re[dst, i] = -(im * c)
-                    t_im[dst, i] = re * c
-            elif op == OP_ACC:
-                for i in range(n):
-                    c = resid[r, lo + i]
-                    re, im = t_re[src, i], t_im[src, i]
-                    t_re[dst, i] -= im * c
-                    t_im[dst, i] += re * c
-            elif op == OP_SCALE:
-                f = scale[q]
-                for i in range(n):
-                    t_re[dst, i] *= f
-                    t_im[dst, i] *= f
-            elif op == OP_SERIES_SET:
-                for i in range(n):
-                    s_re[dst, i] = t_re[src, i]
-                    s_im[dst, i] = t_im[src, i]
-            else:
-                for i in range(n):
-                    s_re[dst, i] += t_re[src, i]
-                    s_im[dst, i] += t_im[src, i]
+        series_tile(resid, lo, n, program, scale, t_re, t_im, s_re, s_im)
         _tile_weights(x, lo, n, coef, nf, ker, u, first)
         for d in range(n_vec):
             k = out_slots[d]
