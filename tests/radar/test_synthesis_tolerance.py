@@ -90,3 +90,14 @@ def test_odd_sample_count_within_2_eps():
     v[::2] = 0.0
     eps = 1e-5
     assert _rel(synthesize(p, v, w, cfg, eps=eps), synthesize_exact(p, v, w, cfg)) <= 2.0 * eps
+
+
+def test_finufft_plans_kept_per_thread_are_bounded():
+    # The finufft path (kept for comparisons) makes plans per tolerance; a moving radar's
+    # tolerance changes every frame, so only the newest few sets stay.
+    import twinsense.radar.nufft as nufft
+
+    for k in range(3 * nufft._MAX_PLANS):
+        nufft._thread_plans(64, 1e-6 * (1.0 + k))
+    assert len(nufft._LOCAL.plans) == nufft._MAX_PLANS
+    assert (64, 1e-6 * (3 * nufft._MAX_PLANS)) in nufft._LOCAL.plans

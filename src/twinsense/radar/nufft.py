@@ -269,6 +269,7 @@ def static_chunk(p: np.ndarray, pr: np.ndarray, w: np.ndarray, geo: Geometry,
 
 
 _LOCAL = threading.local()
+_MAX_PLANS = 8  # sets of finufft plans kept per thread
 
 
 def _thread_plans(num_samples: int, eps: float) -> _Plans:
@@ -278,6 +279,10 @@ def _thread_plans(num_samples: int, eps: float) -> _Plans:
         cache = _LOCAL.plans = {}
     key = (num_samples, eps)
     if key not in cache:
+        if len(cache) >= _MAX_PLANS:
+            # A moving radar's tolerance comes from each frame's noise, so a new eps per
+            # frame: keep the newest few sets of plans, not one per frame ever seen.
+            del cache[next(iter(cache))]
         cache[key] = _Plans(num_samples, eps)
     return cache[key]
 
@@ -1105,11 +1110,6 @@ def _run_block(blk: _Block2D, wt: np.ndarray, geo: Geometry, eps: float,
         while key != (0, 0) and tol * 10.0 <= 1e-2 and tol * 10.0 * blk.keep[key] * others <= first:
             tol *= 10.0
         levels.setdefault(tol, []).append(key)
-    if blk.w is None and SPREAD_1D:
-        # 1-D along the samples: every vector on the same points, so one compiled spread
-        # evaluates each point's kernel weights once for all of them (at the constant
-        # vector's tolerance: a narrower kernel for the others would save little).
-        levels = {first: list(series)}
     keys, outs = [], []
     for tol, group in sorted(levels.items()):
         strengths = np.empty((len(group), len(wt)), dtype=complex)
