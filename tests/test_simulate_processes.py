@@ -235,6 +235,32 @@ def test_a_hung_capture_process_is_ended_after_the_timeout(tmp_path):
     assert multiprocessing.active_children() == []
 
 
+class Stopped(Exception):
+    """The reason a test's stop callback gives."""
+
+
+def test_a_stop_ends_a_wait_on_a_hung_process_before_its_timeout(tmp_path):
+    # The stop (Ctrl-C through the command line) is polled while the parent waits on a process: it
+    # asks only once the wait for b's hung frame has begun (0.5 s after a's frame at 0.1 s), so the
+    # run must end with the stop's reason, not with the timeout's error 60 s later.
+    seen, when = [], []
+
+    def on_frame(s, f):
+        seen.append((s.name, f.t))
+        if (s.name, f.t) == ("a", 0.1):
+            when.append(time.monotonic())
+
+    def stop():
+        return Stopped("stop asked") if when and time.monotonic() - when[0] > 0.5 else None
+
+    with pytest.raises(Stopped, match="stop asked"):
+        simulate(plain_scene(), [Probe("a", 20.0), Hangs("b", hang_at=0.1)], 0.3, tmp_path / "run.h5",
+                 processes=2, process_timeout=60.0, on_frame=on_frame, stop=stop)
+    assert seen == [("a", 0.0), ("b", 0.0), ("a", 0.05), ("a", 0.1)]
+    assert (tmp_path / "run.partial.h5").exists() and not (tmp_path / "run.h5").exists()
+    assert multiprocessing.active_children() == []
+
+
 def test_a_hung_prepare_is_ended_after_the_timeout_and_leaves_no_file(tmp_path):
     with pytest.raises(CaptureProcessError, match=r"capture process \d \(sensors 'b'\) did not prepare its sensors "
                                                   r"within 2 s \(process_timeout = 2 s per frame\)"):

@@ -304,7 +304,7 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
         # Forked before the recording is opened (no HDF5 file is shared with a child) and before the
         # progress bar's refresh thread starts. Each process prepares its own sensors; the recording is
         # opened once all are prepared, so a prepare that fails leaves no file (as one after another).
-        procs = _Processes(scene, sensors, rngs, make_runs, n_procs, prepare, process_timeout)
+        procs = _Processes(scene, sensors, rngs, make_runs, n_procs, prepare, process_timeout, stop)
     else:
         procs = None
         for i in range(len(sensors)):
@@ -703,6 +703,9 @@ def _lane_child(conn, scene: Scene, sensors: list, rngs: list, runs: Iterator, m
         conn.close()
 
 
+_STOP_POLL = 0.2  # [s] how often a wait for a capture process polls the run's stop
+
+
 class _Processes:
     """The clock's runs captured by a few forked processes, each owning a fixed group of lanes.
 
@@ -717,8 +720,10 @@ class _Processes:
     """
 
     def __init__(self, scene: Scene, sensors: list, rngs: list, make_runs: Callable[[], Iterator],
-                 processes: int, prepare: Callable[[int], None], timeout: float | None = None):
+                 processes: int, prepare: Callable[[int], None], timeout: float | None = None,
+                 stop: Callable[[], BaseException | None] | None = None):
         ctx = multiprocessing.get_context("fork")
+        self._stop = stop
         self._sensors = sensors
         self._groups = lane_groups(sensors, processes)
         self._owner = {i: k for k, g in enumerate(self._groups) for i in g}
@@ -797,7 +802,7 @@ class _Processes:
             n = sum(callable(getattr(self._sensors[i], "prepare", None)) for i in group)
             wait = process_wait(self._timeout, 0.0, n, first=True)
             try:
-                what, payload = self._queues[k].get(timeout=max(start + wait - time.monotonic(), 0.0))
+                what, payload = self._take(k, max(start + wait - time.monotonic(), 0.0))
             except queue.Empty:
                 raise CaptureProcessError(
                     f"capture process {k} (sensors {self._names(k)}) did not prepare its sensors within "
@@ -810,6 +815,21 @@ class _Processes:
         if failed:
             raise failed[min(failed)]
 
+    def _take(self, k: int, wait: float):
+        """Process ``k``'s next message within ``wait`` [s] (queue.Empty past it), polling the run's
+        ``stop`` every _STOP_POLL seconds meanwhile: a stop (Ctrl-C through the command line) ends a
+        run that waits on a slow or hung process as it ends one that captures."""
+        end = time.monotonic() + wait
+        while True:
+            left = end - time.monotonic()
+            try:
+                return self._queues[k].get(timeout=max(min(left, _STOP_POLL), 0.0))
+            except queue.Empty:
+                if left <= _STOP_POLL:
+                    raise
+            if self._stop is not None and (reason := self._stop()) is not None:
+                raise reason
+
     def __iter__(self):
         for i, times in self._runs:
             yield i, times, lambda i=i, times=times: self._get(i, times)
@@ -818,7 +838,7 @@ class _Processes:
         k = self._owner[i]
         wait = process_wait(self._timeout, self._slowest, len(times), first=i not in self._seen)
         try:
-            what, payload = self._queues[k].get(timeout=wait)
+            what, payload = self._take(k, wait)
         except queue.Empty:
             # Alive but silent past the deadline (a capture stuck in a lock, a library that never
             # returns): the caller's error path ends the processes.
