@@ -68,3 +68,11 @@ def test_person_base_pose_is_the_checked_pose_of_its_plan():
         want = Pose(plan.p, _rot_z(plan.yaw) @ _rot_x(plan.roll))
         assert bits_equal(base.pose, want)
         assert not base.pose.rotation.flags.writeable and not base.pose.position.flags.writeable
+        # The base state is kept for its time and shared by every caller (the body's forward kinematics,
+        # PersonBase.state): its velocities are read-only, so a caller's write cannot reach the next one.
+        assert motion._at(float(t))[2] is base
+        for v in (base.linear_velocity, base.angular_velocity):
+            assert not v.flags.writeable
+            with pytest.raises(ValueError):
+                v[:] = 7.0
+        assert base.linear_velocity.tobytes() == plan.v.tobytes()

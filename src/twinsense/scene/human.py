@@ -663,6 +663,10 @@ class PersonMotion:
         omega = np.array([0.0, 0.0, plan.yaw_d]) + rz[:, 0] * plan.roll_d
         # A product of two proper rotations and a finite floor point (finite t): the checks of
         # Pose(...) skipped (~0.25 ms, most of a new time's cost of the person), the same bits.
+        # The state is kept (self._last) and handed to every caller at this time: its velocities are
+        # read-only, as a link's (TreeState.state), so no caller can change what another one reads.
+        plan.v.setflags(write=False)
+        omega.setflags(write=False)
         base = MotionState(Pose._trusted(plan.p, rot), plan.v, omega)
         out = (plan.q, plan.qd, base)
         self._last = (key, out)
