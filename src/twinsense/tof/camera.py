@@ -15,7 +15,7 @@ from twinsense.render import Rays, cast
 from twinsense.render.parallel import default_workers
 from twinsense.scene.pose import Pose
 from twinsense.scene.scene import Mount, Scene
-from twinsense.tof.chain_kernels import chain_frame
+from twinsense.tof.chain_kernels import ChainRows, chain_frame
 from twinsense.tof.config import ToFConfig
 from twinsense.tof.frame import ToFFrame
 from twinsense.tof.multipath import indirect_phasors
@@ -156,8 +156,13 @@ class ToFCamera:
                 times = cfg.raw_frame_times(t) + 0.5 * cfg.exposure_time
                 phasors: PixelPhasors | list[PixelPhasors] = [
                     self._render_phasors(scene, float(ti)) for ti in times]
-            else:
-                phasors = self._render_phasors(scene, t, pose)
+                return self._frame(phasors, noise, pose, t, mine)
+            fed = _FedChain(self, noise, pose, mine) if self.compiled_chain and not cfg.multipath else None
+            phasors = self._render_phasors(scene, t, pose, fed)
+            if fed is not None and fed.chain is not None:
+                # The chain ran on each chunk's rows as the cast made their phasors: what is left.
+                products = fed.chain.finish(default_workers())
+                return ToFFrame.of(products, t=float(t), raw_times=cfg.raw_frame_times(t), pose=pose, config=cfg)
             return self._frame(phasors, noise, pose, t, mine)
         finally:
             if mine:
@@ -223,13 +228,14 @@ class ToFCamera:
         samples, _ = self._renderer.samples(scene, pose.rotation, pose.position, t)
         return samples
 
-    def _render_phasors(self, scene: Scene, t: float, pose: Pose | None = None) -> PixelPhasors:
-        """Expected pixel phasors at time ``t`` (``pose``: the camera's at ``t``, if known)."""
+    def _render_phasors(self, scene: Scene, t: float, pose: Pose | None = None, on_rows=None) -> PixelPhasors:
+        """Expected pixel phasors at time ``t`` (``pose``: the camera's at ``t``, if known; ``on_rows``:
+        see :meth:`ToFRenderer.phasors`, direct light only)."""
         cfg = self.config
         if pose is None:
             pose = self.mount.pose_at(scene, t)
         if not cfg.multipath:
-            return self._renderer.phasors(scene, pose.rotation, pose.position, t)
+            return self._renderer.phasors(scene, pose.rotation, pose.position, t, on_rows)
         samples, normals = self._renderer.samples(scene, pose.rotation, pose.position, t, normals=True)
         phasors = pixel_phasors(samples, self.radiometry)
         occluded = None
@@ -243,6 +249,32 @@ class ToFCamera:
 
         return phasors + indirect_phasors(samples.distance, normals, samples.albedo, self.radiometry,
                                           occluded)
+
+
+class _FedChain:
+    """``on_rows`` of :meth:`ToFRenderer.phasors`: the compiled chain (:class:`ChainRows`) made at the
+    first chunk, on the phasor arrays being filled, and fed every chunk's rows on the thread that cast
+    them; ``chain`` stays None when the renderer makes the phasors otherwise (kept static phasors)."""
+
+    def __init__(self, camera: ToFCamera, noise: Future | None, pose: Pose, mine: bool):
+        self._camera = camera
+        self._noise = noise
+        self._pose = pose
+        self._mine = mine
+        self._lock = threading.Lock()
+        self.chain: ChainRows | None = None
+
+    def __call__(self, real, imag, tap_sum, r0: int, r1: int) -> None:
+        chain = self.chain
+        if chain is None:
+            with self._lock:  # the first two chunks may finish at once
+                if self.chain is None:
+                    cam, noise = self._camera, self._noise
+                    self.chain = ChainRows(real, imag, tap_sum, lambda: None if noise is None else noise.result(),
+                                           cam.config, cam._pixel_dirs, self._pose.rotation, self._pose.position,
+                                           NOISE_BLOCK_ROWS, cam._chain_scratch if self._mine else None)
+                chain = self.chain
+        chain.feed(r0, r1)
 
 
 _BACKGROUND: list[ThreadPoolExecutor] = []

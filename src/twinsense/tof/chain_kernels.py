@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import functools
 import math
+import threading
 
 import numpy as np
 from scipy import ndimage
@@ -432,33 +433,146 @@ def chain_frame(real: np.ndarray, imag: np.ndarray, tap_sum: np.ndarray, noise: 
         Where the work arrays (distance and validity before the flying pixels) are kept between calls
         (one dict per camera, not shared by calls that run at the same time).
     """
-    cfg = config
-    f, h, w = real.shape
-    if cfg.noise:
+    if config.noise:  # checked before any work (the passes check it again)
         if noise is None:
             raise ConfigError("chain_frame.noise", None, "the frame's noise slabs (draw_noise_slabs) "
                               "when ToFConfig.noise is on")
-        check_slabs("chain_frame.noise", noise, cfg)
-    sigma = cfg.crosstalk_sigma_px
-    weights = crosstalk_weights(sigma) if sigma > 0 else np.ones(1)
-    distance = _work(scratch, ("distance", h, w), lambda: np.empty((h, w), np.float32))
-    invalid = _work(scratch, ("invalid", h, w), lambda: np.empty((h, w), np.uint8))
-    def image(dtype):
-        return np.empty((h, w), dtype)
+        check_slabs("chain_frame.noise", noise, config)
+    return ChainRows(real, imag, tap_sum, lambda: noise, config, pixel_dirs, rotation, position, block_rows,
+                     scratch).finish(workers)
 
-    out = FrameProducts(raw=np.empty((f, PHASE_STEPS, h, w), np.uint16 if cfg.quantization else np.float32),
-                        gray=image(np.uint16), amplitude=image(np.float32), distance=image(np.float32),
-                        depth=image(np.float32), noise=image(np.float32), confidence=image(np.uint8),
-                        invalid=image(np.uint8), points_sensor=np.empty((h, w, 3), np.float32),
-                        points_world=np.empty((h, w, 3), np.float32))
-    slabs = noise if cfg.noise else np.zeros(1, np.float32)
-    pixel_args = (real, imag, tap_sum, weights, sigma > 0, slabs, block_rows, bool(cfg.noise),
-                  *_pixel_constants(cfg), out.raw, out.gray, out.amplitude, distance, out.noise, invalid)
-    in_bands(lambda r0, r1: _pixel_rows(r0, r1, *pixel_args), h, workers)
-    rot = np.asarray(np.asarray(rotation, float).T, np.float32)
-    pos = np.asarray(position, float).astype(np.float32)
-    dirs = np.ascontiguousarray(pixel_dirs, np.float32)
-    geometry_args = (distance, out.noise, invalid, dirs, rot, pos, *_geometry_constants(cfg),
-                     out.invalid, out.distance, out.depth, out.confidence, out.points_sensor, out.points_world)
-    in_bands(lambda r0, r1: _geometry_rows(r0, r1, *geometry_args), h, workers)
-    return out
+
+class ChainRows:
+    """The two compiled passes of :func:`chain_frame`, run on rows as their phasors become final.
+
+    A camera whose phasors are made chunk by chunk while its rays are cast
+    (:meth:`twinsense.tof.rendering.ToFRenderer.phasors`, ``on_rows``) calls
+    :meth:`feed` with each chunk's pixel rows on the thread that made them: pass 1
+    runs at once on every row whose cross-talk neighbours (the kernel's radius
+    above and below) are all final, pass 2 on every row whose pass-1 neighbours
+    (one above and below: the flying-pixel test) are; so at the end of the cast
+    only the rows at the last chunk's edges are left. :meth:`finish` runs
+    whatever is left (everything, in bands on the worker threads, when nothing
+    was fed) and returns the products. A pixel is computed the same in any
+    call, so the frame is the same bits as the two whole-image passes whatever
+    the chunks, their order and the threads.
+
+    ``noise()`` returns the frame's noise slabs (or None without noise); it is
+    called once, before the first row's pass 1 (it may wait for the draw).
+    The arrays are the caller's and must not change until :meth:`finish`;
+    ``feed`` may be called from several threads at once, with disjoint rows.
+    """
+
+    def __init__(self, real: np.ndarray, imag: np.ndarray, tap_sum: np.ndarray, noise, config: ToFConfig,
+                 pixel_dirs: np.ndarray, rotation: np.ndarray, position: np.ndarray, block_rows: int,
+                 scratch: dict | None = None):
+        cfg = config
+        f, h, w = real.shape
+        self._h = h
+        self._cfg = cfg
+        self._noise = noise
+        sigma = cfg.crosstalk_sigma_px
+        weights = crosstalk_weights(sigma) if sigma > 0 else np.ones(1)
+        self._radius = (len(weights) - 1) // 2
+        distance = _work(scratch, ("distance", h, w), lambda: np.empty((h, w), np.float32))
+        invalid = _work(scratch, ("invalid", h, w), lambda: np.empty((h, w), np.uint8))
+
+        def image(dtype):
+            return np.empty((h, w), dtype)
+
+        self.out = out = FrameProducts(
+            raw=np.empty((f, PHASE_STEPS, h, w), np.uint16 if cfg.quantization else np.float32),
+            gray=image(np.uint16), amplitude=image(np.float32), distance=image(np.float32),
+            depth=image(np.float32), noise=image(np.float32), confidence=image(np.uint8),
+            invalid=image(np.uint8), points_sensor=np.empty((h, w, 3), np.float32),
+            points_world=np.empty((h, w, 3), np.float32))
+        self._pixel_args = None  # made with the noise, at the first pass 1
+        self._pixel_head = (real, imag, tap_sum, weights, sigma > 0)
+        self._pixel_tail = (block_rows, bool(cfg.noise), *_pixel_constants(cfg), out.raw, out.gray,
+                            out.amplitude, distance, out.noise, invalid)
+        rot = np.asarray(np.asarray(rotation, float).T, np.float32)
+        pos = np.asarray(position, float).astype(np.float32)
+        dirs = np.ascontiguousarray(pixel_dirs, np.float32)
+        self._geometry_args = (distance, out.noise, invalid, dirs, rot, pos, *_geometry_constants(cfg),
+                               out.invalid, out.distance, out.depth, out.confidence, out.points_sensor,
+                               out.points_world)
+        self._lock = threading.Lock()
+        # Per row: phasors final, pass 1 taken, pass 1 done, pass 2 taken.
+        self._final = np.zeros(h, bool)
+        self._taken1 = np.zeros(h, bool)
+        self._done1 = np.zeros(h, bool)
+        self._taken2 = np.zeros(h, bool)
+
+    def _pixel_rows(self, r0: int, r1: int) -> None:
+        args = self._pixel_args
+        if args is None:
+            with self._lock:  # the noise fetched once (the first caller may wait for the draw)
+                if self._pixel_args is None:
+                    slabs = self._noise() if self._cfg.noise else None
+                    if self._cfg.noise:
+                        if slabs is None:
+                            raise ConfigError("chain_frame.noise", None, "the frame's noise slabs "
+                                              "(draw_noise_slabs) when ToFConfig.noise is on")
+                        check_slabs("chain_frame.noise", slabs, self._cfg)
+                    else:
+                        slabs = np.zeros(1, np.float32)
+                    self._pixel_args = (*self._pixel_head, slabs, *self._pixel_tail)
+                args = self._pixel_args
+        _pixel_rows(r0, r1, *args)
+
+    def _geometry_rows(self, r0: int, r1: int) -> None:
+        _geometry_rows(r0, r1, *self._geometry_args)
+
+    def _take(self, ready: np.ndarray, radius: int, taken: np.ndarray) -> list[tuple[int, int]]:
+        """Runs [r0, r1) of rows not yet taken whose rows within ``radius`` are all ``ready``;
+        marks them taken (call under the lock)."""
+        h = self._h
+        if radius:
+            # A row is ready when no row in [r - radius, r + radius] (clipped) is missing.
+            missing = np.concatenate(([0], np.cumsum(~ready)))
+            r = np.arange(h)
+            lo, hi = np.maximum(r - radius, 0), np.minimum(r + radius + 1, h)
+            ok = missing[hi] - missing[lo] == 0
+        else:
+            ok = ready.copy()
+        ok &= ~taken
+        rows = np.flatnonzero(ok)
+        if len(rows) == 0:
+            return []
+        taken[rows] = True
+        cuts = np.flatnonzero(np.diff(rows) != 1) + 1
+        return [(int(run[0]), int(run[-1]) + 1) for run in np.split(rows, cuts)]
+
+    def feed(self, r0: int, r1: int) -> None:
+        """Pixel rows [r0, r1) have their final phasors: run both passes as far as they can go."""
+        with self._lock:
+            self._final[r0:r1] = True
+            runs = self._take(self._final, self._radius, self._taken1)
+        for a, b in runs:
+            self._pixel_rows(a, b)
+        if not runs:
+            return
+        with self._lock:
+            for a, b in runs:
+                self._done1[a:b] = True
+            runs = self._take(self._done1, 1, self._taken2)
+        for a, b in runs:
+            self._geometry_rows(a, b)
+
+    def finish(self, workers: int = 1) -> FrameProducts:
+        """The frame's products once every row's phasors are final (rows never fed: all passes here,
+        in ``workers`` bands when no row was fed)."""
+        h = self._h
+        if not self._final.any():
+            self._final[:] = True
+            self._taken1[:] = True
+            self._taken2[:] = True
+            in_bands(self._pixel_rows, h, workers)
+            in_bands(self._geometry_rows, h, workers)
+            return self.out
+        rest = np.flatnonzero(~self._final)
+        if len(rest):
+            self.feed(int(rest[0]), h)  # rows at the end never fed (fed ones are marked again: no-op)
+        if not (self._taken1.all() and self._taken2.all()):  # pragma: no cover - every row is fed above
+            raise RuntimeError("ChainRows: rows left without both passes")
+        return self.out

@@ -126,12 +126,20 @@ class ToFRenderer:
             normals_sensor = rotate_rows(hits.normal, rotation).astype(np.float32).reshape(*shape, 3)
         return samples, normals_sensor
 
-    def phasors(self, scene: Scene, rotation: np.ndarray, position: np.ndarray, t: float) -> PixelPhasors:
+    def phasors(self, scene: Scene, rotation: np.ndarray, position: np.ndarray, t: float,
+                on_rows=None) -> PixelPhasors:
         """Pixel phasors (F, H, W) at time ``t`` [s], direct light only.
 
         From the second frame at the same pose on, the static-scene phasors
         of the pose are kept and only the pixels in which a moving object is
         nearer than the static hit are recomputed.
+
+        ``on_rows(real, imag, tap_sum, r0, r1)``, if given, is called when the
+        phasors are made chunk by chunk as the rays are cast (a pose seen for
+        the first time), once per chunk as soon as its pixel rows [r0, r1) are
+        final, on the thread that cast it, with the (whole-image) phasor arrays
+        being filled; the chain after the phasors runs on those rows meanwhile
+        (:class:`twinsense.tof.chain_kernels.ChainRows`). Not called otherwise.
         """
         caster = caster_for(scene, self.kind)
         fresh = (rotation.tobytes() + position.tobytes()) not in self._rays
@@ -153,6 +161,8 @@ class ToFRenderer:
 
                     def then(lo, hi, f):
                         band(lo // row, hi // row, f["distance"], f["cos_incidence"], f["object_id"])
+                        if on_rows is not None:
+                            on_rows(real, imag, taps, lo // row, hi // row)
 
                     # Each chunk of whole pixel rows goes on to its phasors on the thread that
                     # cast it, while the other chunks are cast (no wait for the whole image,
