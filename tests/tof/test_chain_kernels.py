@@ -20,6 +20,7 @@ from twinsense.scene.scene import Mount
 from twinsense.tof import ToFCamera, ToFConfig
 from twinsense.tof.chain_kernels import blurred_stack, chain_frame, crosstalk_weights
 from twinsense.tof.frame import FrameProducts, InvalidReason, ToFFrame
+from twinsense.tof.normals import standard_normals
 from twinsense.tof.pipeline import NOISE_BLOCK_ROWS, draw_noise_slabs, noise_rows, noise_seeds, slab_noise
 
 LOOK_X = Pose.look_at((0.0, 0.0, 0.0), (1.0, 0.0, 0.0))
@@ -156,17 +157,18 @@ def test_noise_slabs_are_the_frames_stream_block_after_block():
     cut = slab_noise(cfg, slabs)
     np.testing.assert_array_equal(cut.raw, whole.raw)
     np.testing.assert_array_equal(cut.gray, whole.gray)
-    # The stream is SFC64 seeded with the seed, drawn block after block in separate calls: each
-    # block's raw images (F, 4, k, W), then its gray image (k, W). The slabs are one call over
-    # all blocks: NumPy's generator carries its state (the half-used 64-bit word too) from call
-    # to call, so the same bits.
-    g = np.random.Generator(np.random.SFC64(int(seeds[0])))
+    # The stream is the frame's normals (twinsense.tof.normals, seeded with the seed), cut block
+    # after block: each block's raw images (F, 4, k, W), then its gray image (k, W).
+    stream = standard_normals(int(seeds[0]), np.empty(9 * cfg.height * cfg.width, np.float32))
     k, w = NOISE_BLOCK_ROWS, cfg.width
+    at = 0
     for b in range(-(-cfg.height // k)):
         rows = min(k, cfg.height - b * k)
         np.testing.assert_array_equal(whole.raw[:, :, b * k:b * k + rows],
-                                      g.standard_normal((2, 4, rows, w), dtype=np.float32))
-        np.testing.assert_array_equal(whole.gray[b * k:b * k + rows], g.standard_normal((rows, w), dtype=np.float32))
+                                      stream[at:at + 8 * rows * w].reshape(2, 4, rows, w))
+        np.testing.assert_array_equal(whole.gray[b * k:b * k + rows],
+                                      stream[at + 8 * rows * w:at + 9 * rows * w].reshape(rows, w))
+        at += 9 * rows * w
     # Drawn again into the same (kept) array: the same draws.
     np.testing.assert_array_equal(draw_noise_slabs(cfg, seeds, slabs.copy()), slabs)
 
