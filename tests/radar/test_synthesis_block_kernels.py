@@ -1,7 +1,7 @@
 """The 2-D mover path's compiled per-block passes against their NumPy references.
 
 The compiled passes (``twinsense.radar.kernels``: ``leg_offsets``,
-``block_coefficients_low``, ``block_series``) make the
+``block_coefficients``, ``block_series``) make the
 same floating-point operations in the same order as the NumPy forms
 (``nufft._Leg(compiled=False)``, ``_leg_series`` + ``_monomial_coeffs``,
 ``_series_numpy``), without fastmath, so the results are compared bit for bit.

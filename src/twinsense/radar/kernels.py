@@ -17,8 +17,8 @@ lengths and phases are one pass too (:func:`static_phases`); their cos and
 sin stay NumPy's (vectorised float32 loops; ``tests/radar/test_static_phases.py``).
 
 The 2-D mover path (``nufft.moving_chunk_2d``) has its per-block passes
-here too: :func:`leg_offsets`, :func:`block_coefficients_low` (the delay
-series and the phase coefficients per monomial, delay orders 1-3),
+here too: :func:`leg_offsets`, :func:`block_coefficients` (the delay
+series, the phase coefficients per monomial and their extremes, any delay order),
 :func:`slow_rest` and :func:`rest_rows` (the per-scatterer rests),
 :func:`block_series` (the exp series of the rests) and :func:`block_rows_1d`
 (a 1-D block's monomial sums and chunk-wide phase), each with the bits of
@@ -131,76 +131,104 @@ def leg_offsets(pos, vel, t_mid, element, t_span, d, r0, y):  # pragma: no cover
         y[i] = t_span * s / r
 
 
-@jit
-def _leg_terms(d, vel, i):  # pragma: no cover
-    """Row i's Taylor terms 0-3 of |d + vel t| (nufft._leg_series, same operations) [m, m/s, ...]."""
-    d0, d1, d2 = d[i, 0], d[i, 1], d[i, 2]
-    w0, w1, w2 = vel[i, 0], vel[i, 1], vel[i, 2]
-    l0 = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-    half_inv = 0.5 / l0
-    l1 = (2.0 * (d0 * w0 + d1 * w1 + d2 * w2)) * half_inv
-    l2 = ((w0 * w0 + w1 * w1 + w2 * w2) - l1 * l1) * half_inv
-    l3 = (-(l1 * l2) - l2 * l1) * half_inv
-    return l0, l1, l2, l3
+_CTILE = 128  # scatterers per tile of block_coefficients: its series rows stay in the L1 cache
 
 
 @jit
-def block_coefficients_low(d_tx, v_tx, d_rx, v_rx, order, inv_c, two_pi_fc, pi_s, two_pi_s,
-                           span, factor, coeffs, acc):  # pragma: no cover
-    """Per scatterer of a 2-D block, for delay orders 1 to 3: both legs' Taylor series of
+def block_coefficients(d_tx, v_tx, d_rx, v_rx, order, inv_c, two_pi_fc, pi_s, two_pi_s, span,
+                       c_row, c_src, c_first, factor, coeffs, acc, hi, lo):  # pragma: no cover
+    """Per scatterer of a 2-D block, for any delay order K >= 1: both legs' Taylor series of
     |d + vel t| (nufft._leg_series), the delay tau = (tx + rx) / c, the bound
-    acc = sum_{k>=1} |tau_k| span[k] (m,) and the phase coefficients of
-    nufft._monomial_coeffs, coeffs (n_monomials, m), with g_k = 2 pi fc tau_k -
-    pi S (tau * tau)_k and h_k = 2 pi S tau_k: the same operations in the same order.
+    acc = sum_{k>=1} |tau_k| span[k] (m,), the phase coefficients of nufft._monomial_coeffs,
+    coeffs (n_monomials, m), and each monomial's largest and smallest value over the
+    scatterers, hi and lo (n_monomials,), with g_k = 2 pi fc tau_k - pi S (tau * tau)_k and
+    h_k = 2 pi S tau_k: the operations of the NumPy forms in their order (their bits).
 
-    Written out per order: a generic loop over the orders and the contributions
-    (small per-scatterer arrays) ran ~8x slower, slower than NumPy, which keeps
-    the higher orders. ``factor``: the contributions' factors
-    (nufft._coefficient_sources); the monomials in their order: (0,0), (0,1),
-    (0,2), (1,0), (1,1), then from order 2 (0,3), (1,2), (2,0), (2,1), then from
-    order 3 (0,4), (1,3), (2,2), (3,0), (3,1).
+    The contributions (nufft._coefficient_sources) in their order: ``c_row`` (C,) the
+    monomial's row, ``c_src`` (C,) 2 k for g_k and 2 k + 1 for h_k, ``c_first`` (C,) 1 where
+    the contribution is its monomial's first (set, else added), ``factor`` (C,).
+    Tiles of scatterers with the scatterers innermost in every step (independent
+    operations the compiler pipelines and vectorises; a sum over the orders per scatterer
+    innermost waits on each addition), so one generic loop over the orders costs about
+    what their arithmetic costs.
     """
-    for i in range(d_tx.shape[0]):
-        e0, e1, e2, e3 = _leg_terms(d_tx, v_tx, i)
-        f0, f1, f2, f3 = _leg_terms(d_rx, v_rx, i)
-        t0 = (e0 + f0) * inv_c
-        t1 = (e1 + f1) * inv_c
-        t2 = (e2 + f2) * inv_c
-        t3 = (e3 + f3) * inv_c
-        g0 = two_pi_fc * t0 - pi_s * (t0 * t0)
-        g1 = two_pi_fc * t1 - pi_s * (t0 * t1 + t1 * t0)
-        g2 = two_pi_fc * t2 - pi_s * ((t0 * t2 + t1 * t1) + t2 * t0)
-        g3 = two_pi_fc * t3 - pi_s * (((t0 * t3 + t1 * t2) + t2 * t1) + t3 * t0)
-        h0 = two_pi_s * t0
-        h1 = two_pi_s * t1
-        h2 = two_pi_s * t2
-        h3 = two_pi_s * t3
-        coeffs[0, i] = g0 * factor[0]
-        coeffs[1, i] = h0 * factor[1] + g1 * factor[2]
-        coeffs[3, i] = g1 * factor[4]
-        if order == 1:
-            acc[i] = abs(t1) * span[1]
-            coeffs[2, i] = h1 * factor[3]
-            coeffs[4, i] = h1 * factor[5]
-            continue
-        coeffs[2, i] = h1 * factor[3] + g2 * factor[6]
-        coeffs[4, i] = h1 * factor[5] + g2 * factor[8]
-        coeffs[7, i] = g2 * factor[10]
-        if order == 2:
-            acc[i] = abs(t1) * span[1] + abs(t2) * span[2]
-            coeffs[5, i] = h2 * factor[7]
-            coeffs[6, i] = h2 * factor[9]
-            coeffs[8, i] = h2 * factor[11]
-            continue
-        acc[i] = (abs(t1) * span[1] + abs(t2) * span[2]) + abs(t3) * span[3]
-        coeffs[5, i] = h2 * factor[7] + g3 * factor[12]
-        coeffs[6, i] = h2 * factor[9] + g3 * factor[14]
-        coeffs[8, i] = h2 * factor[11] + g3 * factor[16]
-        coeffs[9, i] = h3 * factor[13]
-        coeffs[10, i] = h3 * factor[15]
-        coeffs[11, i] = h3 * factor[17]
-        coeffs[12, i] = g3 * factor[18]
-        coeffs[13, i] = h3 * factor[19]
+    m = d_tx.shape[0]
+    k1 = order + 1
+    r_tx = np.empty((k1, _CTILE))
+    r_rx = np.empty((k1, _CTILE))
+    tau = np.empty((k1, _CTILE))
+    gh = np.empty((2 * k1, _CTILE))
+    half = np.empty(_CTILE)
+    q2 = np.empty(_CTILE)
+    work = np.empty(_CTILE)
+    n_rows = coeffs.shape[0]
+    for r in range(n_rows):
+        hi[r] = -np.inf
+        lo[r] = np.inf
+    for start in range(0, m, _CTILE):
+        n = min(_CTILE, m - start)
+        for leg in range(2):
+            d = d_tx if leg == 0 else d_rx
+            vel = v_tx if leg == 0 else v_rx
+            ser = r_tx if leg == 0 else r_rx
+            for i in range(n):
+                s = start + i
+                d0, d1, d2 = d[s, 0], d[s, 1], d[s, 2]
+                w0, w1, w2 = vel[s, 0], vel[s, 1], vel[s, 2]
+                r0 = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+                h = 0.5 / r0
+                half[i] = h
+                q2[i] = w0 * w0 + w1 * w1 + w2 * w2
+                ser[0, i] = r0
+                ser[1, i] = (2.0 * (d0 * w0 + d1 * w1 + d2 * w2)) * h
+            for k in range(2, k1):
+                if k == 2:
+                    for i in range(n):
+                        work[i] = q2[i]
+                else:
+                    for i in range(n):
+                        work[i] = 0.0
+                for j in range(1, k):
+                    for i in range(n):
+                        work[i] -= ser[j, i] * ser[k - j, i]
+                for i in range(n):
+                    ser[k, i] = work[i] * half[i]
+        for k in range(k1):
+            for i in range(n):
+                tau[k, i] = (r_tx[k, i] + r_rx[k, i]) * inv_c
+        for k in range(k1):
+            for i in range(n):
+                work[i] = 0.0
+            for j in range(k + 1):
+                for i in range(n):
+                    work[i] += tau[j, i] * tau[k - j, i]
+            for i in range(n):
+                gh[2 * k, i] = two_pi_fc * tau[k, i] - pi_s * work[i]
+                gh[2 * k + 1, i] = two_pi_s * tau[k, i]
+        for i in range(n):
+            work[i] = abs(tau[1, i]) * span[1]
+        for k in range(2, k1):
+            for i in range(n):
+                work[i] += abs(tau[k, i]) * span[k]
+        for i in range(n):
+            acc[start + i] = work[i]
+        for c in range(c_row.shape[0]):
+            row, src, f = c_row[c], c_src[c], factor[c]
+            out = coeffs[row, start:start + n]
+            g = gh[src]
+            if c_first[c]:
+                for i in range(n):
+                    out[i] = g[i] * f
+            else:
+                for i in range(n):
+                    out[i] += g[i] * f
+        for r in range(n_rows):
+            row_vals = coeffs[r, start:start + n]
+            top, bottom = hi[r], lo[r]
+            for i in range(n):
+                top = max(top, row_vals[i])
+                bottom = min(bottom, row_vals[i])
+            hi[r], lo[r] = top, bottom
 
 
 # Operations of block_series' program (one row: op, destination, source, residual).

@@ -36,7 +36,7 @@ from twinsense.radar.kernels import (
     OP_SERIES_SET,
     OP_SET,
     abs_sum_max,
-    block_coefficients_low,
+    block_coefficients,
     block_rows_1d,
     block_series,
     leg_offsets,
@@ -744,21 +744,29 @@ class _Leg:
 
 
 @functools.lru_cache(maxsize=64)
-def _coefficient_sources(order: int, a_step: float, b: float) -> tuple[tuple, np.ndarray]:
+def _coefficient_sources(order: int, a_step: float, b: float) -> tuple[tuple, tuple]:
     """The contributions of :func:`_monomial_coeffs` in its order, for the compiled pass:
-    the monomials (tuple of (i, j), in order of first contribution) and each
-    contribution's factor (C(k, i) A^i B^(k-i) for g_k, times B for h_k). Cached: a
-    frame's blocks share their order, chirp spacing and sample period (the callers only
-    read the results)."""
+    the monomials (tuple of (i, j), in order of first contribution) and the arrays of
+    :func:`twinsense.radar.kernels.block_coefficients`: each contribution's monomial row,
+    its source (2 k: g_k, 2 k + 1: h_k), whether it is its monomial's first, and its factor
+    (C(k, i) A^i B^(k-i) for g_k, times B for h_k). Cached: a frame's blocks share their
+    order, chirp spacing and sample period (the callers only read the results)."""
     index: dict[tuple[int, int], int] = {}
-    factor = []
+    row, src, first, factor = [], [], [], []
     for k in range(order + 1):
         for i in range(k + 1):
             f = math.comb(k, i) * a_step**i * b ** (k - i)
-            for key, fac in (((i, k - i), f), ((i, k - i + 1), f * b)):
+            for key, fac, s in (((i, k - i), f, 2 * k), ((i, k - i + 1), f * b, 2 * k + 1)):
+                first.append(key not in index)
                 index.setdefault(key, len(index))
+                row.append(index[key])
+                src.append(s)
                 factor.append(fac)
-    return tuple(index), np.array(factor, float)
+    arrays = (np.array(row, np.int64), np.array(src, np.int64), np.array(first, np.bool_),
+              np.array(factor, float))
+    for a in arrays:
+        a.setflags(write=False)
+    return tuple(index), arrays
 
 
 def _coeffs_compiled(leg_tx: _Leg, leg_rx: _Leg, order: int, geo: Geometry, a_step: float,
@@ -771,19 +779,18 @@ def _coeffs_array(leg_tx: _Leg, leg_rx: _Leg, order: int, geo: Geometry, a_step:
                   span: np.ndarray) -> tuple[dict, float, dict, tuple]:
     """:func:`_monomial_coeffs` of the two legs' delay series, the bound dmax and each
     monomial's (max, min) over the scatterers, from one compiled pass
-    (:func:`twinsense.radar.kernels.block_coefficients_low`, delay orders 1 to 3): the
-    same bits. Also the (K, m) array the monomials' rows are views of, and each one's row."""
-    keys, factor = _coefficient_sources(order, a_step, 1.0 / geo.fs)
+    (:func:`twinsense.radar.kernels.block_coefficients`, any delay order): the same bits
+    (the extremes the same values as NumPy's max and min). Also the (K, m) array the
+    monomials' rows are views of, and each one's row."""
+    keys, (row, src, first, factor) = _coefficient_sources(order, a_step, 1.0 / geo.fs)
     m = len(leg_tx.r0)
     coeffs = np.empty((len(keys), m))
     acc = np.empty(m)
-    args = (leg_tx.d, leg_tx.vel, leg_rx.d, leg_rx.vel, order, 1.0 / SPEED_OF_LIGHT,
-            _TWO_PI * geo.fc, math.pi * geo.slope, _TWO_PI * geo.slope, span)
-    block_coefficients_low(*args, factor, coeffs, acc)
-    # Each monomial's extremes (one pass each): the centres and bounds need them before
-    # any rest is formed.
-    extremes = {key: (float(a), float(b))
-                for key, a, b in zip(keys, coeffs.max(axis=1), coeffs.min(axis=1))}
+    hi, lo = np.empty(len(keys)), np.empty(len(keys))
+    block_coefficients(leg_tx.d, leg_tx.vel, leg_rx.d, leg_rx.vel, order, 1.0 / SPEED_OF_LIGHT,
+                       _TWO_PI * geo.fc, math.pi * geo.slope, _TWO_PI * geo.slope, span, row, src,
+                       first, factor, coeffs, acc, hi, lo)
+    extremes = {key: (float(a), float(b)) for key, a, b in zip(keys, hi, lo)}
     return dict(zip(keys, coeffs)), float(np.max(acc)), extremes, (coeffs, dict(zip(keys, range(len(keys)))))
 
 
@@ -834,8 +841,6 @@ def _plan_block(p, v, pr, vr, tx, rx, chirps, t_mid, a_step, geo: Geometry,
         return None
     # Degrees of tau^2 above the order are dropped: at most pi S (sum_{k>=1} |tau_k| T^k)^2.
     span = t_span ** np.arange(order + 1)
-    # The compiled pass covers delay orders 1-3 (nearly every block); NumPy the others.
-    compiled = compiled and order <= 3
     if compiled:
         coeffs, dmax, extremes, (coeff_array, row_of) = _coeffs_array(leg_tx, leg_rx, order, geo,
                                                                        a_step, span)
