@@ -614,3 +614,45 @@ def rest_rows(src, rows, scale, mid, delta, stack):  # pragma: no cover
         if acc > best:
             best = acc
     return best
+
+
+@jit
+def slow_rest_floor(p, v, pr, vr, sample, t_mid, tx, rx, inv_c, two_pi_fc, pi_s,
+                    a_step):  # pragma: no cover
+    """A lower bound [rad] on the 1-D variant's slow-time rest of a block before its plan
+    (nufft._split_floor): half the largest circular distance |reduce(c_a - c_b)| between
+    the slow-time frequencies c10 (rad per chirp step) of the movers ``sample`` (k,) int64.
+
+    c10 = A g_1 (A = ``a_step``) with g_1 = 2 pi fc tau_1 - pi S (tau_0 tau_1 + tau_1 tau_0),
+    the delay's terms at the block's centre time ``t_mid`` from both legs' offsets to
+    ``tx`` and ``rx`` (3,) (nufft._plan_block's operations). Whatever the centre w_c the plan
+    takes, one of two movers lies at least half their circular distance from it (the
+    triangle inequality on the circle), so any subset of movers bounds the plan's
+    max_i |reduce(c10_i - w_c)| from below.
+    """
+    k = sample.shape[0]
+    c10 = np.empty(k)
+    r0 = np.empty(2)
+    r1 = np.empty(2)
+    for q in range(k):
+        i = sample[q]
+        for leg in range(2):
+            pos = p if leg == 0 else pr
+            vel = v if leg == 0 else vr
+            el = tx if leg == 0 else rx
+            d0 = pos[i, 0] + vel[i, 0] * t_mid - el[0]
+            d1 = pos[i, 1] + vel[i, 1] * t_mid - el[1]
+            d2 = pos[i, 2] + vel[i, 2] * t_mid - el[2]
+            r = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            r0[leg] = r
+            r1[leg] = (2.0 * (d0 * vel[i, 0] + d1 * vel[i, 1] + d2 * vel[i, 2])) * (0.5 / r)
+        t0 = (r0[0] + r0[1]) * inv_c
+        t1 = (r1[0] + r1[1]) * inv_c
+        c10[q] = (two_pi_fc * t1 - pi_s * (t0 * t1 + t1 * t0)) * a_step
+    best = 0.0
+    for a in range(k):
+        for b in range(a + 1, k):
+            dist = abs(_reduce(c10[a] - c10[b]))
+            if dist > best:
+                best = dist
+    return 0.5 * best

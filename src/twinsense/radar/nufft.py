@@ -43,6 +43,7 @@ from twinsense.radar.kernels import (
     moving_phases,
     rest_rows,
     slow_rest,
+    slow_rest_floor,
     static_phases,
 )
 from twinsense.radar.spreader import kernel_for, spread_series_1d
@@ -1260,6 +1261,79 @@ def _block_cost(m: int, n_vectors: int, n_chirps: int, n_samp: int, slow: bool) 
     return n_vectors * (m * _NS_2D_VECTOR + _NS_2D_GRID * 5 * n_chirps * n_samp)
 
 
+# The floor of a split's cost before its plans (True; False: every split planned, as
+# before it, for same-run comparisons; the same blocks either way).
+SPLIT_FLOOR = True
+_FLOOR_SAMPLE = 64  # movers whose slow-time frequencies bound a block's slow-time rest
+
+
+def _floor_sample(m: int) -> np.ndarray:
+    """(k,) int64: up to 64 movers spread evenly over the chunk, its first and last among
+    them (a sorted chunk's extreme range rates)."""
+    return np.unique(np.linspace(0, m - 1, min(m, _FLOOR_SAMPLE)).astype(np.int64))
+
+
+def _powers_kept(b: float, tol: float) -> int:
+    """A lower bound on the vectors of a 1-D variant whose slow-time rest is at least ``b``
+    (<= 1): (0, 0) and every power (k, 0) with b^k / k! > tol (with a margin of 1e-9 for
+    rounding). Such a power's majorant is at least b^k / k! (a sum of non-negative terms),
+    so the series' selection never skips it, and the exp series' order (from the largest
+    summed rest, at least b) reaches it: b^k / k! falls with k for b <= 1."""
+    n, term = 1, 1.0
+    for k in range(1, _MAX_ORDER * 4):
+        term *= b / k
+        if term <= tol * (1.0 + 1e-9):
+            break
+        n += 1
+    return n
+
+
+def _block_floor(m: int, b_slow: float, jb: int, n_samp: int, eps: float,
+                 slow: bool | None) -> float:
+    """A lower bound [ns] on ``_plan_block(...).cost`` of a block of ``jb`` chirps whose 1-D
+    variant's slow-time rest is at least ``b_slow`` [rad] (inf: no variant applies).
+
+    The 2-D variant has at least one vector; the 1-D variant at least
+    :func:`_powers_kept` (b_slow) and exists only for b_slow <= 1 (its rests' sum)."""
+    mu_half = jb // 2
+    best = math.inf
+    if slow is not True or mu_half == 0:
+        best = _block_cost(m, 1, jb, n_samp, slow=False)
+    if slow is not False and mu_half > 0 and b_slow <= _SLOW_REST_MAX:
+        best = min(best, _block_cost(m, _powers_kept(b_slow, _SERIES_TOL * eps), jb, n_samp,
+                                     slow=True))
+    return best
+
+
+def _split_floor(p, v, pr, vr, groups: list, splits: int, geo: Geometry,
+                 chirp_centre: np.ndarray, eps: float, slow: bool | None,
+                 sample: np.ndarray) -> float:
+    """A lower bound [ns] on the cost :func:`moving_chunk_2d` counts for a split (its blocks'
+    plans and runs), from a compiled pass over ``sample``'s movers per block
+    (:func:`twinsense.radar.kernels.slow_rest_floor`) instead of the plans: a split
+    it puts above the per-chirp path's cost is one the cost rule would turn down.
+
+    The slow-time rest's bound is lowered by 1e-9 of itself and 1e-12 rad for the
+    rounding of its own sums against the plan's."""
+    m, n_samp = len(p), geo.n_samp
+    inv_c, two_pi_fc, pi_s = 1.0 / SPEED_OF_LIGHT, _TWO_PI * geo.fc, math.pi * geo.slope
+    total = 0.0
+    for g in groups:
+        for part in np.array_split(g, min(splits, len(g))):
+            jb = len(part)
+            t_mid = float(chirp_centre[part[jb // 2]])
+            a_step = float(chirp_centre[part[1]] - chirp_centre[part[0]]) if jb > 1 else 0.0
+            tx = geo.tx_per_chirp[part[0]]
+            for a in range(len(geo.rx)):
+                b = 0.0
+                if jb > 1:
+                    half = slow_rest_floor(p, v, pr, vr, sample, t_mid, tx, geo.rx_array[a], inv_c,
+                                           two_pi_fc, pi_s, a_step)
+                    b = max(0.0, half * (jb // 2) * (1.0 - 1e-9) - 1e-12)
+                total += m * _NS_2D_PLAN + _block_floor(m, b, jb, n_samp, eps, slow)
+    return total
+
+
 def moving_chunk_2d(p, v, pr, vr, w, geo: Geometry, chirp_centre: np.ndarray,
                     eps: float, force: bool = False, slow: bool | None = None) -> np.ndarray | None:
     """(n_rx, M, N) cube of moving scatterers by 2-D NUFFTs, or None if the per-chirp path
@@ -1283,11 +1357,19 @@ def moving_chunk_2d(p, v, pr, vr, w, geo: Geometry, chirp_centre: np.ndarray,
     period = _tx_period(geo.tx_of)
     groups = [np.arange(q, n_chirps, period) for q in range(min(period, n_chirps))]
     longest = max(len(g) for g in groups)
+    sample = _floor_sample(m) if SPLIT_FLOOR and not force else None
     splits = 1
     while True:
         blocks = []
         cost = 0.0
-        for g in groups:
+        # A split whose cost surely exceeds the per-chirp path's is skipped before any plan.
+        if sample is not None and _split_floor(p, v, pr, vr, groups, splits, geo, chirp_centre,
+                                                eps, slow, sample) > one_d:
+            cost = math.inf
+            groups_to_plan = []
+        else:
+            groups_to_plan = groups
+        for g in groups_to_plan:
             for part in np.array_split(g, min(splits, len(g))):
                 t_mid = float(chirp_centre[part[len(part) // 2]])
                 a_step = float(chirp_centre[part[1]] - chirp_centre[part[0]]) if len(part) > 1 else 0.0
