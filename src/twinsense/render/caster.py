@@ -54,9 +54,16 @@ from twinsense.scene.scene import SENSOR_KINDS, Scene
 
 
 class SceneCaster:
-    """Ray caster for one scene and one sensor kind (objects hidden from the kind are skipped)."""
+    """Ray caster for one scene and one sensor kind (objects hidden from the kind are skipped).
 
-    def __init__(self, scene: Scene, kind: str = "tof", backend: str = "embree"):
+    ``picker``: how a moving sensor's rays find their triangles on backend "embree"
+    (:mod:`twinsense.render.instanced`): "embree" (Embree's traversal), "bundle"
+    (rays from one origin within a cone: :mod:`twinsense.render.bundle`, exact in
+    float64; other rays Embree) or "auto" (the bundle picker where faster; the
+    default). Settable later (``caster.picker = "embree"``) to compare both.
+    """
+
+    def __init__(self, scene: Scene, kind: str = "tof", backend: str = "embree", picker: str = "auto"):
         if kind not in SENSOR_KINDS:
             raise ConfigError("kind", kind, "one of: " + ", ".join(SENSOR_KINDS))
         # Checked here, not only where a structure is built: a scene with nothing
@@ -69,6 +76,7 @@ class SceneCaster:
         self._scene: Scene | None = scene
         self.kind = kind
         self.backend = backend
+        self.picker = picker
         self._version = scene.version
         objs = scene.objects
         vis = scene.visible(kind)
@@ -119,6 +127,17 @@ class SceneCaster:
         self._memos: list[list] = []
         self._seen: list[tuple[np.ndarray, np.ndarray]] = []  # read-only bundles cast once
         self._block_cones: list[tuple[np.ndarray, tuple]] = []  # of the last read-only bundles
+
+    @property
+    def picker(self) -> str:
+        """"embree", "bundle" or "auto": see the class docstring."""
+        return self._picker
+
+    @picker.setter
+    def picker(self, value: str) -> None:
+        if not isinstance(value, str) or value not in PICKERS:
+            raise ConfigError("picker", value, "one of: " + ", ".join(PICKERS))
+        self._picker = value
 
     @property
     def scene(self) -> Scene:
@@ -187,7 +206,7 @@ class SceneCaster:
             # instanced scene. A fixed sensor keeps its static hits and traces only movers.
             states = self._states(t)
             self._instanced.cast(o, d, [states[i] for i in self._moving], out, per_chunk,
-                                 workers if n >= _PARALLEL_MIN_RAYS else 1, then)
+                                 workers if n >= _PARALLEL_MIN_RAYS else 1, then, self._picker)
             return Hits(**{f: out.get(f) for f in HIT_FIELDS})
         # Tracing dominates a cold cast: chunks of rays on all workers, small
         # enough to keep their per-ray arrays in cache. With the static hits
@@ -474,6 +493,8 @@ class SceneCaster:
                 np.full(n, -1, dtype=np.int32), np.zeros((n, 3)), np.zeros(n))
 
 
+#: The ways a moving sensor's rays find their triangles (SceneCaster's ``picker``).
+PICKERS = ("auto", "bundle", "embree")
 _MEMOS = 4  # ray bundles whose static hits are kept
 _CHUNK = 16384  # rays per task: a chunk's per-ray arrays stay in a core's L2 cache
 _PARALLEL_MIN_RAYS = 2 * _CHUNK

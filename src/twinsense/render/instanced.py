@@ -15,6 +15,11 @@ computed in float64 with the operations of the per-object path
 (:func:`twinsense.render.embree4_kernels.instanced_hits`). A ray gets the
 same bits as there unless float32 picks another triangle: within float32
 rounding of a triangle's edge, or of a tie between two surfaces.
+
+Rays from one origin within a cone (a camera's or a radar's) are picked
+instead by :class:`twinsense.render.bundle.BundlePicker` (``picker`` "bundle",
+or "auto" where it is faster): binned like a rasteriser's, exact in float64;
+every field is then computed from its pick the same way.
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ from concurrent.futures import wait
 
 import numpy as np
 
+from twinsense.render.bundle import BundlePicker
 from twinsense.render.embree4 import InstanceScene
 from twinsense.render.embree4_kernels import instanced_hits, trace
 from twinsense.render.parallel import pool
@@ -78,6 +84,9 @@ class InstancedScene:
         self._m_object = np.asarray(mover_objects, np.int32)
         self._mat_lut = np.asarray(mat_lut, np.int32)
         self._has_static = static is not None
+        self._static_meshes = None if static is None else static.meshes
+        self._mover_meshes = [mv.meshes[0] for mv in movers]
+        self._picker: BundlePicker | None = None  # built at the first bundle cast
         # Top levels posed for the last casts: one per cast under way (sensors captured at
         # once cast at different times); a free one already posed alike is taken first.
         self._free: list[InstanceScene] = []
@@ -102,13 +111,30 @@ class InstancedScene:
         with self._lock:
             self._free.append(top)
 
-    def cast(self, o, d, states: list, out: dict, chunk: int, workers: int, then=None) -> None:
+    def bundle_picker(self) -> BundlePicker:
+        """The scene's :class:`~twinsense.render.bundle.BundlePicker` (built on first use)."""
+        with self._lock:
+            if self._picker is None:
+                static = None
+                if self._static_meshes is not None:
+                    base = np.cumsum([0] + [len(v) for v, _ in self._static_meshes[:-1]])
+                    static = (np.concatenate([v for v, _ in self._static_meshes]),
+                              np.concatenate([f + b for (_, f), b in zip(self._static_meshes, base)]))
+                self._picker = BundlePicker(static, self._mover_meshes)
+            return self._picker
+
+    def cast(self, o, d, states: list, out: dict, chunk: int, workers: int, then=None,
+             picker: str = "embree") -> None:
         """Every field in ``out`` (views of (n,) or (n, 3) arrays, see Hits; ``distance`` and
         ``object_id`` always there) for rays o, d (n, 3) float64 (o may be a stride-0
         broadcast of one origin), the moving objects posed as ``states`` (their
         MotionStates, in the order of ``movers``). Chunks of ``chunk`` rays, on
         ``workers`` threads when more than one chunk; ``then(lo, hi, out)`` (if not
-        None) right after each chunk's hits, on the thread that cast it."""
+        None) right after each chunk's hits, on the thread that cast it. ``picker``:
+        "embree" (Embree's traversal picks every ray's triangle), "bundle" (rays from
+        one origin within the cone picked by :meth:`bundle_picker`, all at once
+        before the chunks; other rays by Embree) or "auto" (the bundle picker where
+        its rule finds it faster)."""
         m = len(states)
         rots = np.array([s.pose.rotation for s in states], dtype=float).reshape(m, 3, 3)
         poss = np.array([s.pose.position for s in states], dtype=float).reshape(m, 3)
@@ -121,8 +147,11 @@ class InstancedScene:
             tr[0, :, :3] = np.eye(3)
         tr[first:, :, :3] = rots
         tr[first:, :, 3] = poss
-        top = self._acquire(tr)
         n = len(d)
+        picks = None
+        if picker != "embree" and n and (o.strides[0] == 0 or bool((o == o[0]).all())):
+            picks = self.bundle_picker().pick(o[0], d, rots, poss, workers, auto=picker == "auto")
+        top = self._acquire(tr) if picks is None else None
         mat = out.get("material_id")
         cos = out.get("cos_incidence")
         normal = out.get("normal")
@@ -133,8 +162,11 @@ class InstancedScene:
             lo, hi = b
             oc, dc = o[lo:hi], d[lo:hi]
             k = hi - lo
-            inst, prim = np.empty(k, np.int32), np.empty(k, np.int32)
-            trace(self._fn1, self._fn8, self.packet == 8, top.handle, oc, dc, prim, inst)
+            if picks is None:
+                inst, prim = np.empty(k, np.int32), np.empty(k, np.int32)
+                trace(self._fn1, self._fn8, self.packet == 8, top.handle, oc, dc, prim, inst)
+            else:
+                inst, prim = picks[0][lo:hi], picks[1][lo:hi]
             instanced_hits(inst, prim, oc, dc, self._inst_mover, self._planes, self._face_geom,
                            self._face_prim, self._static_lut, self._m_planes, self._m_offset,
                            self._m_object, rots, poss, lin_v, ang_v, spin, self._mat_lut,
@@ -159,4 +191,5 @@ class InstancedScene:
                 for b in bounds:
                     run(b)
         finally:
-            self._release(top)
+            if top is not None:
+                self._release(top)

@@ -1,0 +1,239 @@
+"""The closest triangle of every ray of a single-origin bundle, picked without a BVH.
+
+A camera's or a radar's rays share one origin o and fill a cone around their
+mean direction e3. Like a rasteriser, the picker bins the rays by their
+normalised image coordinates (u, v) = (d . e1 / d . e3, d . e2 / d . e3) into a
+uniform grid (a few dozen rays per cell), bins every triangle (the static
+objects' in the world, each moving object's posed at the cast's time, all made
+origin-relative in float64) into the cells its projection can touch, and tests
+every triangle of a cell against every ray of the cell with origin-relative
+edge functions (:mod:`twinsense.render.bundle_kernels`): watertight, double
+sided, in float64. Per cell the triangles come nearest first, and a cell stops
+once every ray has a hit nearer than the next triangle can be.
+
+The pick is the triangle of least t > 0, ties to the lowest (instance,
+primitive); the caller (:class:`twinsense.render.instanced.InstancedScene`)
+computes every hit field from it as for Embree's pick. Embree picks in
+float32; the two differ only where float32 rounding decides: within ~1e-7
+relative of a triangle's edge, or between surfaces tied within float32.
+
+:meth:`BundlePicker.pick` returns None where it does not apply and the caller
+falls back to Embree: rays from more than one origin (not checked here: the
+caller passes one origin), a direction more than :data:`CONE_DEG` from the
+bundle's mean direction, an origin that is not finite, and, with
+``picker="auto"``, a bundle whose cells hold too many triangles per ray
+(:data:`AUTO_PAIRS_PER_RAY`: Embree is then faster).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import threading
+from concurrent.futures import wait
+
+import numpy as np
+
+from twinsense.render import bundle_kernels as bk
+from twinsense.render.parallel import pool
+
+#: The widest angle [deg] between a ray and the bundle's mean direction; beyond it Embree casts.
+CONE_DEG = 80.0
+#: Rays per grid cell aimed at (measured: benchmarks/bench_bundle.py).
+RAYS_PER_CELL = 32
+#: "auto" keeps Embree when the cells hold more ray-triangle tests than this per ray
+#: (a test costs ~1 ns against Embree's ~100 ns per ray; measured in benchmarks/bench_bundle.py).
+AUTO_PAIRS_PER_RAY = 60.0
+#: "auto" keeps Embree for fewer rays than this (the per-cast set-up dominates).
+AUTO_MIN_RAYS = 4096
+#: "auto" keeps Embree when the scene has more triangles than this many per ray (binning them dominates).
+AUTO_TRIANGLES_PER_RAY = 2.0
+
+
+class BundlePicker:
+    """The triangles of an instanced scene, for picks of single-origin ray bundles.
+
+    static: (vertices (a, 3) float64 world, faces (b, 3) int) of the static objects'
+    meshes concatenated in the static Intersector's order (primitive = row), or None;
+    movers: per moving object (vertices (a, 3) in its frame, faces (b, 3)).
+    Instance ids as in :class:`~twinsense.render.instanced.InstancedScene`: the
+    static scene 0 (if any), then the movers in order.
+    """
+
+    def __init__(self, static, movers):
+        verts, faces, owner, inst, prim = [], [], [], [], []
+        base = 0
+        first = 0
+        if static is not None:
+            v, f = static
+            verts.append(np.asarray(v, float))
+            faces.append(np.asarray(f, np.int64))
+            owner.append(np.full(len(v), -1, np.int64))
+            inst.append(np.zeros(len(f), np.int32))
+            prim.append(np.arange(len(f), dtype=np.int32))
+            base += len(v)
+            first = 1
+        for j, (v, f) in enumerate(movers):
+            verts.append(np.asarray(v, float))
+            faces.append(np.asarray(f, np.int64) + base)
+            owner.append(np.full(len(v), j, np.int64))
+            inst.append(np.full(len(f), first + j, np.int32))
+            prim.append(np.arange(len(f), dtype=np.int32))
+            base += len(v)
+        self._verts = np.ascontiguousarray(np.concatenate(verts) if verts else np.zeros((0, 3)))
+        self._faces = np.ascontiguousarray(np.concatenate(faces) if faces else np.zeros((0, 3), np.int64))
+        self._owner = np.concatenate(owner) if owner else np.zeros(0, np.int64)
+        self._tri_inst = np.concatenate(inst) if inst else np.zeros(0, np.int32)
+        self._tri_prim = np.concatenate(prim) if prim else np.zeros(0, np.int32)
+        self.n_triangles = len(self._faces)
+        # Work arrays kept between casts (fresh ones cost a page fault per 4 kB: ~15 ms a
+        # cast for the radar's 342,000 rays); one set per cast under way.
+        self._spare: list[_Workspace] = []
+        self._lock = threading.Lock()
+
+    def _workspace(self) -> _Workspace:
+        with self._lock:
+            return self._spare.pop() if self._spare else _Workspace()
+
+    def _give_back(self, ws: _Workspace) -> None:
+        with self._lock:
+            self._spare.append(ws)
+
+    def pick(self, origin, d, rots, poss, workers: int = 1, auto: bool = False,
+             rays_per_cell: int = RAYS_PER_CELL, early: bool = True):
+        ws = self._workspace()
+        try:
+            return self._pick(ws, origin, d, rots, poss, workers, auto, rays_per_cell, early)
+        finally:
+            self._give_back(ws)
+
+    def _pick(self, ws, origin, d, rots, poss, workers, auto, rays_per_cell, early):
+        """(inst, prim) (n,) int32 of the closest triangle of every ray (-1: a miss), or None.
+
+        origin (3,) float64: the rays' one origin; d (n, 3) float64 directions (any
+        length; a direction with a coordinate that is not a finite float32, or zero,
+        is a miss, as in :func:`~twinsense.render.embree4_kernels.trace`); rots (m, 3,
+        3), poss (m, 3): the movers' poses (local -> world). ``workers``: threads (the
+        result does not depend on it). None: the bundle is not for this picker (see
+        the module's docstring); ``auto``: also None where Embree is faster.
+        """
+        o = np.asarray(origin, dtype=float).reshape(3)
+        n = len(d)
+        if not np.isfinite(o.astype(np.float32)).all():
+            return None
+        if auto and (n < AUTO_MIN_RAYS or self.n_triangles > AUTO_TRIANGLES_PER_RAY * n):
+            return None
+        inst, prim = np.full(n, -1, np.int32), np.full(n, -1, np.int32)
+        if n == 0:
+            return inst, prim
+        # The mean direction of up to ~4096 rays spread over the bundle: any axis serves
+        # (ray_uv checks every ray against the cone around it).
+        total, m = bk.ray_frame_sums(d[::max(1, n // 4096)])
+        if m == 0:
+            total, m = bk.ray_frame_sums(d)
+        if m == 0 or self.n_triangles == 0:
+            return inst, prim
+        norm = math.sqrt(float(total @ total))
+        if not norm > 0.0:
+            return None
+        e3 = total / norm
+        # e1, e2: any orthonormal pair across e3 (the grid's axes; the pick does not depend on them).
+        helper = np.array([1.0, 0.0, 0.0]) if abs(e3[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+        e1 = np.cross(helper, e3)
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(e3, e1)
+        u, v, valid = ws.get("u", n), ws.get("v", n), ws.get("valid", n, np.bool_)
+        inside, umin, umax, vmin, vmax = bk.ray_uv(d, e1, e2, e3, math.cos(math.radians(CONE_DEG)), u, v, valid)
+        if not inside:
+            return None
+        cells = max(1, m // max(1, int(rays_per_cell)))
+        wu, wv = umax - umin, vmax - vmin
+        if wu > 0 and wv > 0:
+            gu = min(cells, max(1, round(math.sqrt(cells * wu / wv))))
+            gv = max(1, min(cells, round(cells / gu)))
+        else:
+            gu, gv = (cells, 1) if wu > 0 else ((1, cells) if wv > 0 else (1, 1))
+        grid = np.array([umin, gu / wu if wu > 0 else 0.0, vmin, gv / wv if wv > 0 else 0.0])
+        pad_u, pad_v = 1e-9 * (1.0 + abs(umin) + abs(umax)), 1e-9 * (1.0 + abs(vmin) + abs(vmax))
+        extent = np.array([umin - pad_u, umax + pad_u, vmin - pad_v, vmax + pad_v])
+        ray_start = ws.get("ray_start", gu * gv + 1, np.int64)
+        order, dx, dy, dz, dze = (ws.get("order", n, np.int64), ws.get("dx", n), ws.get("dy", n),
+                                  ws.get("dz", n), ws.get("dze", n))
+        m = bk.sort_rays(d, u, v, valid, e3, grid, gu, gv, ws.get("cell", n, np.int64), ray_start,
+                         order, dx, dy, dz, dze)
+        order = order[:m]
+
+        # Vertices to the world, origin-relative; triangles binned.
+        basis = np.ascontiguousarray(np.stack([e1, e2, e3]))
+        rots = np.ascontiguousarray(rots, dtype=float).reshape(-1, 3, 3)
+        poss = np.ascontiguousarray(poss, dtype=float).reshape(-1, 3)
+        nv, nt = len(self._verts), self.n_triangles
+        w, proj = ws.get("w", (nv, 3)), ws.get("proj", (nv, 3))
+        _ranges(workers, nv, lambda a, b: bk.relative_vertices(a, b, self._verts, self._owner, rots, poss, o,
+                                                                basis, w, proj))
+        box, zmin = ws.get("box", (nt, 4), np.int64), ws.get("zmin", nt)
+        _ranges(workers, nt, lambda a, b: bk.bin_triangles(a, b, self._faces, w, proj, grid, extent, gu, gv,
+                                                           box, zmin))
+        kept = np.flatnonzero(box[:, 0] >= 0)
+        # Nearest first (a stable sort: equal depths keep the triangles' order).
+        kept = kept[np.argsort(zmin[kept], kind="stable")]
+        tri_start, tris = bk.cell_lists(kept, box, gu, gv)
+        rays_c = np.diff(ray_start)
+        cost = rays_c * (np.diff(tri_start) + 1)
+        if auto and float(cost.sum()) > (AUTO_PAIRS_PER_RAY + 1) * m:
+            return None
+        data = np.empty((len(kept), bk.TRI_WORDS))
+        _ranges(workers, len(kept), lambda a, b: bk.triangle_data(a, b, kept, self._faces, w, data))
+        zk = np.ascontiguousarray(zmin[kept])
+        best_t, best_k = ws.get("best_t", m), ws.get("best_k", m, np.int64)
+        # Cells split into ranges of about equal work (rays x triangles).
+        cum = np.cumsum(cost)
+        parts = min(4 * workers, len(cost)) if workers > 1 else 1
+        cuts = [0, *np.searchsorted(cum, cum[-1] * np.arange(1, parts) / parts).tolist(), len(cost)]
+        spans = [(a, b) for a, b in itertools.pairwise(cuts) if b > a]
+
+        def run(span):
+            bk.pick_cells(span[0], span[1], ray_start, dx, dy, dz, dze, tri_start, tris, data, kept, zk,
+                          early, best_t, best_k)
+
+        _each(workers, spans, run)
+        bk.scatter_picks(order, best_k, self._tri_inst, self._tri_prim, inst, prim)
+        return inst, prim
+
+
+class _Workspace:
+    """Named work arrays, grown when a cast needs more and kept for the next."""
+
+    def __init__(self):
+        self._arrays: dict[str, np.ndarray] = {}
+
+    def get(self, name: str, shape, dtype=np.float64) -> np.ndarray:
+        """An uninitialised C-contiguous array of ``shape`` (int or tuple) and ``dtype``."""
+        shape = (shape,) if isinstance(shape, int) else tuple(shape)
+        size = math.prod(shape)
+        a = self._arrays.get(name)
+        if a is None or a.size < size or a.dtype != dtype:
+            a = self._arrays[name] = np.empty(max(size, 1), dtype)
+        return a[:size].reshape(shape)
+
+
+_RANGE_MIN = 4096  # items per task below which a range is not split
+
+
+def _ranges(workers: int, n: int, fn) -> None:
+    """fn(a, b) over [0, n) in ``workers`` ranges (one if small)."""
+    parts = max(1, min(workers, n // _RANGE_MIN))
+    cuts = [n * k // parts for k in range(parts + 1)]
+    _each(workers, list(itertools.pairwise(cuts)), lambda s: fn(*s))
+
+
+def _each(workers: int, items, fn) -> None:
+    """fn(item) for every item, on ``workers`` threads of the shared pool when more than one."""
+    if workers <= 1 or len(items) <= 1:
+        for it in items:
+            fn(it)
+        return
+    tasks = [pool(workers).submit(fn, it) for it in items]
+    wait(tasks)
+    for task in tasks:
+        task.result()

@@ -1,0 +1,373 @@
+"""Compiled loops of the single-origin bundle picker (:mod:`twinsense.render.bundle`).
+
+Rays from one origin o are binned by their normalised coordinates
+(u, v) = (d . e1 / d . e3, d . e2 / d . e3) into a uniform grid; each triangle
+(vertices made origin-relative, w = v - o) is binned into the cells its
+projection can touch; then, per cell, every triangle is tested against every
+ray of the cell with origin-relative edge functions
+
+    e_ij = d . (w_i x w_j),   inside: e01, e12, e20 all >= 0 or all <= 0,
+    t = (w0 . (w1 x w2)) / (e01 + e12 + e20)
+
+(the denominator is d . N with N = (w1 - w0) x (w2 - w0)). The cross product
+of an edge is computed from the same vertex rows for every triangle that holds
+it, and a x b = -(b x a) exactly in floating point, so a shared edge's function
+is exactly the negative in its neighbour: a ray through an edge or vertex is
+inside one of the triangles around it (watertight). Everything is float64.
+
+All loops are compiled without the GIL (:func:`twinsense.compiled.jit`); the
+caller runs ranges of triangles or cells on its worker threads, and every
+output slot is written by one range only, so the result does not depend on
+the number of threads.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from twinsense.compiled import jit
+
+#: The data kept per kept triangle, in this order: three edge cross products
+#: (w0 x w1, w1 x w2, w2 x w0: 9 numbers) and w0 . (w1 x w2).
+TRI_WORDS = 10
+
+
+@jit
+def ray_frame_sums(d):  # pragma: no cover
+    """(sum of the unit directions (3,), number of valid rays) over the rays d (n, 3).
+
+    A ray is valid when its three coordinates are finite float32 numbers (as
+    :func:`~twinsense.render.embree4_kernels.trace` requires) and not all zero.
+    """
+    s0 = s1 = s2 = 0.0
+    m = 0
+    for i in range(d.shape[0]):
+        x, y, z = d[i, 0], d[i, 1], d[i, 2]
+        fx, fy, fz = np.float32(x), np.float32(y), np.float32(z)
+        if (fx - fx) + (fy - fy) + (fz - fz) != 0:
+            continue
+        r = np.sqrt(x * x + y * y + z * z)
+        if r == 0.0:
+            continue
+        s0 += x / r
+        s1 += y / r
+        s2 += z / r
+        m += 1
+    return np.array([s0, s1, s2]), m
+
+
+@jit
+def ray_uv(d, e1, e2, e3, cos_min, u, v, valid):  # pragma: no cover
+    """Normalised coordinates of every ray: u, v (n,) (NaN for an invalid ray), valid (n,) bool.
+
+    Returns (all valid rays within the cone d . e3 >= cos_min |d|, umin, umax,
+    vmin, vmax) over the valid rays (inf/-inf when there are none).
+    """
+    umin = vmin = np.inf
+    umax = vmax = -np.inf
+    inside = True
+    for i in range(d.shape[0]):
+        x, y, z = d[i, 0], d[i, 1], d[i, 2]
+        fx, fy, fz = np.float32(x), np.float32(y), np.float32(z)
+        r2 = x * x + y * y + z * z
+        if (fx - fx) + (fy - fy) + (fz - fz) != 0 or r2 == 0.0:
+            valid[i] = False
+            u[i] = v[i] = np.nan
+            continue
+        valid[i] = True
+        a = x * e1[0] + y * e1[1] + z * e1[2]
+        b = x * e2[0] + y * e2[1] + z * e2[2]
+        c = x * e3[0] + y * e3[1] + z * e3[2]
+        if not c >= cos_min * np.sqrt(r2):
+            inside = False
+            u[i] = v[i] = np.nan
+            continue
+        uu, vv = a / c, b / c
+        u[i], v[i] = uu, vv
+        umin, umax = min(umin, uu), max(umax, uu)
+        vmin, vmax = min(vmin, vv), max(vmax, vv)
+    return inside, umin, umax, vmin, vmax
+
+
+@jit
+def _cell_of(x, lo, inv, g):  # pragma: no cover
+    """The grid index of coordinate x: floor((x - lo) * inv) clamped to [0, g - 1] (monotone in x)."""
+    c = (x - lo) * inv
+    if not c >= 0.0:  # also NaN
+        return 0
+    if c >= g:
+        return g - 1
+    return min(int(c), g - 1)
+
+
+@jit
+def sort_rays(d, u, v, valid, e3, grid, gu, gv, cell, start, order, dx, dy, dz, dze):  # pragma: no cover
+    """Counting sort of the valid rays by cell (cell = cu + gu cv).
+
+    grid (4,): umin, 1/du, vmin, 1/dv. Writes cell (n,) int64 (scratch), start
+    (gu gv + 1,) int64 (cell c's rays are sorted slots start[c]:start[c + 1]),
+    order (>= m,) int64 (the rays' indices by cell, ascending within a cell), and
+    the sorted rays' d components dx, dy, dz (>= m,) and d . e3 (>= m,): structure
+    of arrays, so that the loop over a cell's rays vectorises. Returns m, the
+    number of valid rays. The arrays are the caller's (kept between casts: fresh
+    ones cost a page fault per 4 kB).
+    """
+    n = d.shape[0]
+    nc = gu * gv
+    start[:] = 0
+    for i in range(n):
+        if valid[i]:
+            c = _cell_of(u[i], grid[0], grid[1], gu) + gu * _cell_of(v[i], grid[2], grid[3], gv)
+            cell[i] = c
+            start[c + 1] += 1
+    for c in range(nc):
+        start[c + 1] += start[c]
+    m = start[nc]
+    fill = start[:-1].copy()
+    for i in range(n):
+        if valid[i]:
+            order[fill[cell[i]]] = i
+            fill[cell[i]] += 1
+    # A gather in sorted order (one scatter of indices above, not of four arrays).
+    for k in range(m):
+        i = order[k]
+        x, y, z = d[i, 0], d[i, 1], d[i, 2]
+        dx[k], dy[k], dz[k] = x, y, z
+        dze[k] = x * e3[0] + y * e3[1] + z * e3[2]
+    return m
+
+
+@jit
+def relative_vertices(lo, hi, verts, vert_owner, rots, poss, o, basis, w, proj):  # pragma: no cover
+    """Vertices lo..hi-1 made origin-relative in world axes, and their coordinates along e1, e2, e3.
+
+    verts (nv, 3): static vertices in the world, a mover's in its frame;
+    vert_owner (nv,) int: -1 static, else the mover j posed by rots[j] (3, 3),
+    poss[j] (3,) (local -> world). o (3,) the origin; basis (3, 3) rows e1, e2, e3.
+    Writes w (nv, 3) = v_world - o and proj (nv, 3) = (w . e1, w . e2, w . e3).
+    """
+    for i in range(lo, hi):
+        j = vert_owner[i]
+        x, y, z = verts[i, 0], verts[i, 1], verts[i, 2]
+        if j >= 0:
+            r = rots[j]
+            wx = r[0, 0] * x + r[0, 1] * y + r[0, 2] * z + poss[j, 0]
+            wy = r[1, 0] * x + r[1, 1] * y + r[1, 2] * z + poss[j, 1]
+            wz = r[2, 0] * x + r[2, 1] * y + r[2, 2] * z + poss[j, 2]
+            x, y, z = wx, wy, wz
+        x -= o[0]
+        y -= o[1]
+        z -= o[2]
+        w[i, 0], w[i, 1], w[i, 2] = x, y, z
+        for k in range(3):
+            proj[i, k] = x * basis[k, 0] + y * basis[k, 1] + z * basis[k, 2]
+
+
+@jit
+def _clip(px, py, pz, k, a, b, c):  # pragma: no cover
+    """Sutherland-Hodgman: the first k vertices of polygon (px, py, pz) clipped to
+    a x + b y + c z >= 0, in place (arrays of 8); returns the new vertex count."""
+    qx, qy, qz = np.empty(8), np.empty(8), np.empty(8)
+    m = 0
+    for i in range(k):
+        j = (i + 1) % k
+        si = a * px[i] + b * py[i] + c * pz[i]
+        sj = a * px[j] + b * py[j] + c * pz[j]
+        if si >= 0.0:
+            qx[m], qy[m], qz[m] = px[i], py[i], pz[i]
+            m += 1
+        if (si >= 0.0) != (sj >= 0.0):
+            s = si / (si - sj)
+            qx[m] = px[i] + (px[j] - px[i]) * s
+            qy[m] = py[i] + (py[j] - py[i]) * s
+            qz[m] = pz[i] + (pz[j] - pz[i]) * s
+            m += 1
+    for i in range(m):
+        px[i], py[i], pz[i] = qx[i], qy[i], qz[i]
+    return m
+
+
+@jit
+def bin_triangles(lo, hi, faces, w, proj, grid, extent, gu, gv, box, zmin):  # pragma: no cover
+    """The grid cells triangles lo..hi-1 can touch: box (t, 4) int64 rows (cu0, cu1, cv0, cv1),
+    cu0 = -1 for a triangle dropped; zmin (t,) its least coordinate along e3.
+
+    faces (t, 3) vertex rows of w (origin-relative, world axes) and proj (along e1,
+    e2, e3). grid (4,): umin, 1/du, vmin, 1/dv; extent (4,): umin, umax, vmin, vmax
+    of the rays, padded outwards. Dropped: a zero-area triangle (N exactly zero:
+    no ray can hit it), one with no vertex in front of the plane through o normal
+    to e3, one whose projection misses the rays' extent. A triangle reaching that
+    plane is clipped to the rays' frustum (four planes through o) first; if a
+    clipped vertex still has no positive depth, it gets the whole grid.
+    """
+    px, py, pz = np.empty(8), np.empty(8), np.empty(8)
+    for f in range(lo, hi):
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        ex0, ey0, ez0 = w[b, 0] - w[a, 0], w[b, 1] - w[a, 1], w[b, 2] - w[a, 2]
+        ex1, ey1, ez1 = w[c, 0] - w[a, 0], w[c, 1] - w[a, 1], w[c, 2] - w[a, 2]
+        nx = ey0 * ez1 - ez0 * ey1
+        ny = ez0 * ex1 - ex0 * ez1
+        nz = ex0 * ey1 - ey0 * ex1
+        za, zb, zc = proj[a, 2], proj[b, 2], proj[c, 2]
+        zmin[f] = min(za, zb, zc)
+        box[f, 0] = -1
+        if (nx == 0.0 and ny == 0.0 and nz == 0.0) or not max(za, zb, zc) > 0.0:
+            continue
+        px[0], py[0], pz[0] = proj[a, 0], proj[a, 1], za
+        px[1], py[1], pz[1] = proj[b, 0], proj[b, 1], zb
+        px[2], py[2], pz[2] = proj[c, 0], proj[c, 1], zc
+        k = 3
+        if not min(za, zb, zc) > 0.0:
+            # The frustum's four side planes (they keep only depth >= 0).
+            k = _clip(px, py, pz, k, 1.0, 0.0, -extent[0])
+            k = _clip(px, py, pz, k, -1.0, 0.0, extent[1])
+            k = _clip(px, py, pz, k, 0.0, 1.0, -extent[2])
+            k = _clip(px, py, pz, k, 0.0, -1.0, extent[3])
+            if k == 0:
+                continue
+        u0 = v0 = np.inf
+        u1 = v1 = -np.inf
+        whole = False
+        for i in range(k):
+            if not pz[i] > 0.0:
+                whole = True
+                break
+            uu, vv = px[i] / pz[i], py[i] / pz[i]
+            u0, u1 = min(u0, uu), max(u1, uu)
+            v0, v1 = min(v0, vv), max(v1, vv)
+        if whole:
+            box[f, 0], box[f, 1], box[f, 2], box[f, 3] = 0, gu - 1, 0, gv - 1
+            continue
+        # Padded by a relative 1e-9: the projection's rounding is ~1e-16 relative.
+        pu = 1e-9 * (1.0 + abs(u0) + abs(u1))
+        pv = 1e-9 * (1.0 + abs(v0) + abs(v1))
+        u0, u1, v0, v1 = u0 - pu, u1 + pu, v0 - pv, v1 + pv
+        if u1 < extent[0] or u0 > extent[1] or v1 < extent[2] or v0 > extent[3]:
+            continue
+        box[f, 0] = _cell_of(u0, grid[0], grid[1], gu)
+        box[f, 1] = _cell_of(u1, grid[0], grid[1], gu)
+        box[f, 2] = _cell_of(v0, grid[2], grid[3], gv)
+        box[f, 3] = _cell_of(v1, grid[2], grid[3], gv)
+
+
+@jit
+def cell_lists(kept, box, gu, gv):  # pragma: no cover
+    """Counting sort of the kept triangles (indices, in the order given) into cells.
+
+    Returns tri_start (gu gv + 1,) int64 and tris (p,) int64: cell c's triangles
+    are positions tris[tri_start[c]:tri_start[c + 1]] into ``kept``, in kept's order.
+    """
+    nc = gu * gv
+    start = np.zeros(nc + 1, np.int64)
+    for q in range(kept.shape[0]):
+        f = kept[q]
+        for cv in range(box[f, 2], box[f, 3] + 1):
+            for cu in range(box[f, 0], box[f, 1] + 1):
+                start[cu + gu * cv + 1] += 1
+    for c in range(nc):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    tris = np.empty(start[nc], np.int64)
+    for q in range(kept.shape[0]):
+        f = kept[q]
+        for cv in range(box[f, 2], box[f, 3] + 1):
+            for cu in range(box[f, 0], box[f, 1] + 1):
+                c = cu + gu * cv
+                tris[fill[c]] = q
+                fill[c] += 1
+    return start, tris
+
+
+@jit
+def triangle_data(lo, hi, kept, faces, w, data):  # pragma: no cover
+    """data[q] (TRI_WORDS,) of kept triangles q = lo..hi-1: the edge cross products from
+    the origin-relative vertex rows (the same rows and operations for every triangle
+    that holds an edge) and w0 . (w1 x w2)."""
+    for q in range(lo, hi):
+        f = kept[q]
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        for e in range(3):
+            i = a if e == 0 else (b if e == 1 else c)
+            j = b if e == 0 else (c if e == 1 else a)
+            xi, yi, zi = w[i, 0], w[i, 1], w[i, 2]
+            xj, yj, zj = w[j, 0], w[j, 1], w[j, 2]
+            data[q, 3 * e] = yi * zj - zi * yj
+            data[q, 3 * e + 1] = zi * xj - xi * zj
+            data[q, 3 * e + 2] = xi * yj - yi * xj
+        data[q, 9] = w[a, 0] * data[q, 3] + w[a, 1] * data[q, 4] + w[a, 2] * data[q, 5]
+
+
+@jit
+def _test(dx, dy, dz, best_t, best_k, tri, k):  # pragma: no cover
+    """One triangle (tri: its TRI_WORDS numbers, k its key) against the rays dx, dy, dz (r,):
+    best_t, best_k (r,) updated where it is hit nearer (or as near with a lower key).
+
+    Branch-free over whole arrays from index 0 (views): the compiler vectorises it.
+    """
+    a0, a1, a2 = tri[0], tri[1], tri[2]
+    b0, b1, b2 = tri[3], tri[4], tri[5]
+    g0, g1, g2 = tri[6], tri[7], tri[8]
+    det = tri[9]
+    for r in range(dx.shape[0]):
+        x, y, z = dx[r], dy[r], dz[r]
+        e0 = x * a0 + y * a1 + z * a2
+        e1 = x * b0 + y * b1 + z * b2
+        e2 = x * g0 + y * g1 + z * g2
+        t = det / (e0 + e1 + e2)
+        lo = min(e0, min(e1, e2))
+        hi = max(e0, max(e1, e2))
+        bt, bk = best_t[r], best_k[r]
+        # Inside (all three >= 0 or all <= 0: either side), in front, finite (a ray in
+        # the triangle's plane has t = +-inf or NaN), nearer or a tie with a lower key.
+        ok = ((lo >= 0.0) | (hi <= 0.0)) & (t > 0.0) & (t < np.inf) & ((t < bt) | ((t == bt) & (k < bk)))
+        best_t[r] = t if ok else bt
+        best_k[r] = k if ok else bk
+
+
+@jit
+def pick_cells(c_lo, c_hi, ray_start, dx, dy, dz, dze, tri_start, tris, data, key, zmin,
+               early, best_t, best_k):  # pragma: no cover
+    """Closest triangle of every ray in cells c_lo..c_hi-1.
+
+    ray_start, dx, dy, dz, dze: :func:`sort_rays`; tri_start, tris: :func:`cell_lists`;
+    data (k, TRI_WORDS): :func:`triangle_data`; key (k,) int64 the triangles' indices
+    in the combined triangle list (in (instance, primitive) order: the lowest wins a
+    tie); zmin (k,) their least depth along e3, ascending in kept order (so in
+    every cell's list). Writes best_t (m,) (ray parameter, inf: no hit) and best_k
+    (m,) (the key of the hit triangle, -1) at the sorted rays' slots.
+
+    ``early``: a cell stops once every ray's hit lies nearer than the next
+    triangle's nearest depth can (t d . e3 < zmin (1 - 1e-9): a margin
+    far above the rounding of t, so that no triangle that could win or tie is skipped).
+    """
+    for c in range(c_lo, c_hi):
+        r0, r1 = ray_start[c], ray_start[c + 1]
+        if r0 == r1:
+            continue
+        for r in range(r0, r1):
+            best_t[r] = np.inf
+            best_k[r] = -1
+        reach = np.inf  # the farthest depth of a current hit in this cell
+        for p in range(tri_start[c], tri_start[c + 1]):
+            q = tris[p]
+            if early and reach < zmin[q] * (1.0 - 1e-9):
+                break
+            _test(dx[r0:r1], dy[r0:r1], dz[r0:r1], best_t[r0:r1], best_k[r0:r1], data[q], key[q])
+            if early:
+                reach = 0.0
+                for r in range(r0, r1):
+                    reach = max(reach, best_t[r] * dze[r])
+
+
+@jit
+def scatter_picks(order, best_k, tri_inst, tri_prim, inst, prim):  # pragma: no cover
+    """inst, prim (n,) int32 of every ray: -1, or the instance and primitive of the
+    triangle best_k[r] (combined index) picked for ray order[r] (sorted slots)."""
+    for i in range(inst.shape[0]):
+        inst[i] = -1
+        prim[i] = -1
+    for r in range(order.shape[0]):
+        q = best_k[r]
+        if q >= 0:
+            inst[order[r]] = tri_inst[q]
+            prim[order[r]] = tri_prim[q]
