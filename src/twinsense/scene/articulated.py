@@ -212,14 +212,11 @@ class TreeState:
     linear_velocities: np.ndarray
     angular_velocities: np.ndarray
     _index: dict = field(repr=False, default_factory=dict)
-    # Link -> world poses built so far. A state is cached per time and every sensor asks for every moving
-    # link at each capture: the pose is built once per link and time (threads that race build the same one).
-    _poses: dict = field(repr=False, default_factory=dict)
-    # Every link's rotation re-orthonormalised, made at the first pose asked for (one entry).
-    _normalised: list = field(repr=False, default_factory=list)
-    # Link states built so far (pose and read-only velocities, as a static object's): every sensor of a
-    # process that captures at this time asks for every moving link; each is built once.
-    _states: dict = field(repr=False, default_factory=dict)
+    # Every link's pose and state (pose, read-only velocities, as a static object's), built all at once at the
+    # first ask: a state is cached per time and every sensor asks for every moving link at each capture (the
+    # caster for all of them). One entry, (poses, states); threads that race build the same one, the first
+    # appended is kept.
+    _built: list = field(repr=False, default_factory=list)
 
     def index(self, link: str | int) -> int:
         if isinstance(link, (int, np.integer)) and not isinstance(link, bool):
@@ -233,35 +230,35 @@ class TreeState:
             raise UnknownNameError("link", link, list(self.link_names))
         return i
 
+    def _links(self) -> tuple[list, list]:
+        """(poses, states) of every link, built at the first call.
+
+        The kernel's rotations are products of proper rotations: the checks of Pose(...) are skipped,
+        its re-orthonormalisation kept (the same bits), for every link at once: NumPy's stacked SVD and
+        matmul run LAPACK and BLAS per matrix as for one, so the same bits as Pose._trusted per link. The
+        positions and velocities are copied once, read-only, each link's a row of them (a robot cell's
+        frame asks for 27 links: per-link copies, checks and look-ups were ~30 us a link).
+        """
+        if not self._built:
+            u, _, vt = np.linalg.svd(self.rotations)
+            rots = u @ vt
+            pos, lin, ang = (np.array(a, dtype=float) for a in (self.positions, self.linear_velocities,
+                                                                  self.angular_velocities))
+            for a in (rots, pos, lin, ang):
+                a.setflags(write=False)
+            poses = [Pose._trusted(pos[i], rots[i], normalised=True, copy=False) for i in range(len(pos))]
+            states = [MotionState(p, lin[i], ang[i]) for i, p in enumerate(poses)]
+            self._built.append((poses, states))
+        return self._built[0]
+
     def pose(self, link: str | int) -> Pose:
         """Link -> world."""
-        i = self.index(link)
-        pose = self._poses.get(i)
-        if pose is None:
-            # The kernel's rotations are products of proper rotations: the checks of Pose(...) are skipped,
-            # its re-orthonormalisation kept (the same bits, about 10x less time), for every link at once:
-            # NumPy's stacked SVD and matmul run LAPACK and BLAS per matrix as for one, so the same bits
-            # as Pose._trusted per link, in ~1/5 of the time of one call per link (a robot cell's frame
-            # asks for 26 links).
-            if not self._normalised:
-                u, _, vt = np.linalg.svd(self.rotations)
-                rots = u @ vt
-                rots.setflags(write=False)
-                self._normalised.append(rots)
-            pose = self._poses[i] = Pose._trusted(self.positions[i], self._normalised[0][i], normalised=True)
-        return pose
+        return self._links()[0][self.index(link)]
 
     def state(self, link: str | int) -> MotionState:
         """Link ``link``'s pose and velocities (read-only (3,) arrays [m/s], [rad/s]); one object per link
         and time, shared by every caller."""
-        i = self.index(link)
-        st = self._states.get(i)
-        if st is None:
-            lin, ang = self.linear_velocities[i].copy(), self.angular_velocities[i].copy()
-            lin.setflags(write=False)
-            ang.setflags(write=False)
-            st = self._states[i] = MotionState(self.pose(i), lin, ang)
-        return st
+        return self._links()[1][self.index(link)]
 
     def point_velocity(self, link: str | int, points_world) -> np.ndarray:
         """Velocity (n, 3) [m/s] of points (n, 3) fixed to ``link``, given in world coordinates: v + w x r."""
@@ -931,6 +928,7 @@ class ArticulatedBody:
             raise ConfigError(f"{name}.base", base, "a Pose or a Motion (root link -> world)")
         self.base = base
         self._cache: OrderedDict = OrderedDict()
+        self._last: tuple | None = None  # (t, motion version, state) of the newest state asked for
         self._lock = threading.Lock()
 
     @property
@@ -955,12 +953,18 @@ class ArticulatedBody:
 
     def state(self, t: float) -> TreeState:
         """Every link's state at t [s]; one forward kinematics per time for all links (cached)."""
+        last = self._last
+        # Every link of the body asks at the same time in turn (the caster: 19 segments of a person): the
+        # newest state is returned before the time's checks (a float equal to a checked time is one).
+        if last is not None and isinstance(t, float) and t == last[0] and self.joint_motion.version == last[1]:
+            return last[2]
         t = check_time(t)
         key = (t, self.joint_motion.version)
         with self._lock:
             hit = self._cache.get(key)
             if hit is not None:
                 self._cache.move_to_end(key)
+                self._last = (t, key[1], hit)
                 return hit
         q, qd = self.joint_state(t)
         st = self.tree.forward(q, qd, self.base.state(t))
@@ -968,6 +972,7 @@ class ArticulatedBody:
             self._cache[key] = st
             while len(self._cache) > FK_CACHE_SIZE:
                 self._cache.popitem(last=False)
+            self._last = (t, key[1], st)
         return st
 
     def object_name(self, link: str) -> str:

@@ -75,25 +75,28 @@ class Pose:
         object.__setattr__(self, "rotation", rot)
 
     @classmethod
-    def _trusted(cls, position: np.ndarray, rotation: np.ndarray, *, normalised: bool = False) -> Pose:
+    def _trusted(cls, position: np.ndarray, rotation: np.ndarray, *, normalised: bool = False,
+                 copy: bool = True) -> Pose:
         """A pose from parts already known valid: a finite (3,) position [m] and a rotation (3, 3) built
         from proper rotations (a product of poses' rotations, a motion's rotation vector, slerp).
 
         Skips the checks of the public constructor (about 10x its cost) but keeps its
         re-orthonormalisation, so the pose is bit for bit the one ``Pose(position, rotation)`` gives.
         ``normalised=True``: ``rotation`` is already the ``rotation`` of such a pose (read-only), kept
-        as is (a motion whose rotation does not change reuses it). Internal: user input goes through
-        ``Pose(...)``.
+        as is (a motion whose rotation does not change reuses it). ``copy=False``: ``position`` is
+        already a read-only float (3,) array, kept as is (a row of a read-only array of many poses).
+        Internal: user input goes through ``Pose(...)``.
         """
         pose = object.__new__(cls)
-        pos = np.array(position, dtype=float)
+        pos = np.array(position, dtype=float) if copy else position
         if normalised:
             rot = rotation
         else:
             u, _, vt = np.linalg.svd(np.asarray(rotation, dtype=float))
             rot = u @ vt
             rot.setflags(write=False)
-        pos.setflags(write=False)
+        if copy:
+            pos.setflags(write=False)
         object.__setattr__(pose, "position", pos)
         object.__setattr__(pose, "rotation", rot)
         return pose
