@@ -399,15 +399,22 @@ def _moving_rows(x, ph32, a2, a3, w, geo: Geometry, eps: float) -> np.ndarray:
     # l2 error 0.7-1.3 of its tolerance, so at most ~eps / 2 + eps / 2 (the series) in all
     # (finufft at eps itself erred by up to 1.94 eps here, 2.9 eps with the series).
     if order == 0:
-        for m in range(n_chirps):
-            rows[m] = transform_1d(x[m], strength[m:m + 1], n_samp, eps * _TOL_SPREAD, eps)[0]
+        if SPREAD_1D:
+            # Every chirp's transform in one call (the same bits as one call per chirp).
+            rows[:] = kernel_for(n_samp, eps * _TOL_SPREAD).transform_rows(x, strength[None])[:, 0]
+        else:
+            for m in range(n_chirps):
+                rows[m] = transform_1d(x[m], strength[m:m + 1], n_samp, eps * _TOL_SPREAD, eps)[0]
     else:
         degrees, coeffs = _exp_quad_cubic(a2, a3, order, tol)  # (D, M, m)
         coeffs[0] = strength
         coeffs[1:] *= strength
         upow = u[None, :] ** degrees[:, None]  # (D, N)
+        outs = (kernel_for(n_samp, eps * _TOL_SPREAD).transform_rows(x, coeffs) if SPREAD_1D
+                else None)
         for m in range(n_chirps):
-            out = transform_1d(x[m], coeffs[:, m, :], n_samp, eps * _TOL_SPREAD, eps)
+            out = (outs[m] if outs is not None
+                   else transform_1d(x[m], coeffs[:, m, :], n_samp, eps * _TOL_SPREAD, eps))
             rows[m] = np.einsum("dn,dn->n", out, upow)
     if np.any(c2) or np.any(c3):
         rows *= np.exp(1j * (c2 * u**2 + c3 * u**3))

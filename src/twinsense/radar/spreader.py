@@ -119,24 +119,37 @@ class Kernel:
                   self.nf, grid.view(np.float64))
         return self.finish(grid)
 
+    def transform_rows(self, x: np.ndarray, strengths: np.ndarray) -> np.ndarray:
+        """(M, D, N) complex: :meth:`transform` of each row's points, out[r] =
+        transform(x[r], strengths[:, r]), by one compiled spreading pass over all rows and
+        one batched FFT (the per-chirp path's rows: one call where there were M).
+
+        ``x`` (M, m) float in [-pi, pi]; ``strengths`` (D, M, m) complex. Each row is spread
+        with the operations of :meth:`transform` in its order, so its grid is the same bits."""
+        n_rows = x.shape[0]
+        grid = np.zeros((n_rows, self.nf + 2 * self.width, strengths.shape[0]), dtype=complex)
+        spread_rows_1d(np.ascontiguousarray(x, dtype=float), strengths, self.coef, self.nf,
+                       grid.view(np.float64))
+        return self.finish(grid)
+
     def grid(self, n_vectors: int) -> np.ndarray:
         """A zeroed padded grid (nf + 2 w, D) complex; the kernels spread into its float view."""
         return np.zeros((self.nf + 2 * self.width, n_vectors), dtype=complex)
 
     def finish(self, grid: np.ndarray) -> np.ndarray:
         """(D, N) modes of a spread grid (nf + 2 w, D): wrapped, Fourier transformed and
-        deconvolved."""
+        deconvolved; (M, D, N) of M grids (M, nf + 2 w, D)."""
         w = self.width
-        fine = grid[w:w + self.nf]
-        fine[:w] += grid[w + self.nf:]   # wrap the padding onto the periodic grid
-        fine[-w:] += grid[:w]
+        fine = grid[..., w:w + self.nf, :]
+        fine[..., :w, :] += grid[..., w + self.nf:, :]   # wrap the padding onto the periodic grid
+        fine[..., -w:, :] += grid[..., :w, :]
         # sum_l g[l] e^{+2 pi i k l / nf}: the unscaled inverse transform, each vector a
         # contiguous row; then the modes -(N//2)..N-1-N//2 (negative k at nf + k) deconvolved.
-        spectrum = np.fft.ifft(fine.T, axis=1, norm="forward")  # (D, nf)
+        spectrum = np.fft.ifft(np.swapaxes(fine, -1, -2), axis=-1, norm="forward")  # (..., D, nf)
         half = self.n_modes // 2
-        out = np.empty((fine.shape[1], self.n_modes), dtype=complex)
-        np.multiply(spectrum[:, self.nf - half:], self.factor[:half], out=out[:, :half])
-        np.multiply(spectrum[:, :self.n_modes - half], self.factor[half:], out=out[:, half:])
+        out = np.empty((*spectrum.shape[:-1], self.n_modes), dtype=complex)
+        np.multiply(spectrum[..., self.nf - half:], self.factor[:half], out=out[..., :half])
+        np.multiply(spectrum[..., :self.n_modes - half], self.factor[half:], out=out[..., half:])
         return out
 
 
@@ -248,6 +261,30 @@ def spread_1d(x, strengths, coef, nf, grid):  # pragma: no cover
                 a[i, 2 * d] = v.real
                 a[i, 2 * d + 1] = v.imag
         _spread_tile(a, n, ker, first, grid)
+
+
+@jit
+def spread_rows_1d(x, strengths, coef, nf, grid):  # pragma: no cover
+    """:func:`spread_1d` of each row r: ``x[r]`` (M, m), ``strengths[:, r]`` (D, M, m) complex
+    onto ``grid[r]`` (M, nf + 2 w, 2 D) float, with the same operations in the same order."""
+    w = coef.shape[1]
+    n_vec, n_rows, m = strengths.shape
+    ker = np.empty((w, _TILE))
+    u = np.empty(_TILE)
+    first = np.empty(_TILE, np.int64)
+    a = np.empty((_TILE, 2 * n_vec))
+    for r in range(n_rows):
+        xr = x[r]
+        g = grid[r]
+        for lo in range(0, m, _TILE):
+            n = min(_TILE, m - lo)
+            _tile_weights(xr, lo, n, coef, nf, ker, u, first)
+            for i in range(n):
+                for d in range(n_vec):
+                    v = strengths[d, r, lo + i]
+                    a[i, 2 * d] = v.real
+                    a[i, 2 * d + 1] = v.imag
+            _spread_tile(a, n, ker, first, g)
 
 
 @jit
