@@ -126,26 +126,19 @@ class BundlePicker:
         inst, prim = np.full(n, -1, np.int32), np.full(n, -1, np.int32)
         if n == 0:
             return inst, prim
-        # The mean direction of up to ~4096 rays spread over the bundle: any axis serves
-        # (ray_uv checks every ray against the cone around it).
-        total, m = bk.ray_frame_sums(d[::max(1, n // 4096)])
-        if m == 0:
-            total, m = bk.ray_frame_sums(d)
-        if m == 0 or self.n_triangles == 0:
+        basis = bundle_frame(d)
+        if basis is None:  # no valid ray (all misses), or rays that cancel out (no cone: Embree)
+            return None if bk.ray_frame_sums(d)[1] else (inst, prim)
+        if self.n_triangles == 0:
             return inst, prim
-        norm = math.sqrt(float(total @ total))
-        if not norm > 0.0:
-            return None
-        e3 = total / norm
-        # e1, e2: any orthonormal pair across e3 (the grid's axes; the pick does not depend on them).
-        helper = np.array([1.0, 0.0, 0.0]) if abs(e3[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-        e1 = np.cross(helper, e3)
-        e1 /= np.linalg.norm(e1)
-        e2 = np.cross(e3, e1)
+        e1, e2, e3 = basis
         u, v, valid = ws.get("u", n), ws.get("v", n), ws.get("valid", n, np.bool_)
-        inside, umin, umax, vmin, vmax = bk.ray_uv(d, e1, e2, e3, math.cos(math.radians(CONE_DEG)), u, v, valid)
+        inside, m, umin, umax, vmin, vmax = bk.ray_uv(d, e1, e2, e3, math.cos(math.radians(CONE_DEG)), u, v,
+                                                      valid)
         if not inside:
             return None
+        if m == 0:
+            return inst, prim
         cells = max(1, m // max(1, int(rays_per_cell)))
         wu, wv = umax - umin, vmax - vmin
         if wu > 0 and wv > 0:
@@ -157,22 +150,19 @@ class BundlePicker:
         pad_u, pad_v = 1e-9 * (1.0 + abs(umin) + abs(umax)), 1e-9 * (1.0 + abs(vmin) + abs(vmax))
         extent = np.array([umin - pad_u, umax + pad_u, vmin - pad_v, vmax + pad_v])
         ray_start = ws.get("ray_start", gu * gv + 1, np.int64)
-        order, dx, dy, dz, dze = (ws.get("order", n, np.int64), ws.get("dx", n), ws.get("dy", n),
-                                  ws.get("dz", n), ws.get("dze", n))
-        m = bk.sort_rays(d, u, v, valid, e3, grid, gu, gv, ws.get("cell", n, np.int64), ray_start,
-                         order, dx, dy, dz, dze)
+        order, us, vs = ws.get("order", n, np.int64), ws.get("us", n), ws.get("vs", n)
+        m = bk.sort_rays(u, v, valid, grid, gu, gv, ws.get("cell", n, np.int64), ray_start, order, us, vs)
         order = order[:m]
 
         # Vertices to the world, origin-relative; triangles binned.
-        basis = np.ascontiguousarray(np.stack([e1, e2, e3]))
         rots = np.ascontiguousarray(rots, dtype=float).reshape(-1, 3, 3)
         poss = np.ascontiguousarray(poss, dtype=float).reshape(-1, 3)
         nv, nt = len(self._verts), self.n_triangles
-        w, proj = ws.get("w", (nv, 3)), ws.get("proj", (nv, 3))
+        proj = ws.get("proj", (nv, 3))
         _ranges(workers, nv, lambda a, b: bk.relative_vertices(a, b, self._verts, self._owner, rots, poss, o,
-                                                                basis, w, proj))
+                                                                basis, proj))
         box, zmin = ws.get("box", (nt, 4), np.int64), ws.get("zmin", nt)
-        _ranges(workers, nt, lambda a, b: bk.bin_triangles(a, b, self._faces, w, proj, grid, extent, gu, gv,
+        _ranges(workers, nt, lambda a, b: bk.bin_triangles(a, b, self._faces, proj, grid, extent, gu, gv,
                                                            box, zmin))
         kept = np.flatnonzero(box[:, 0] >= 0)
         # Nearest first (a stable sort: equal depths keep the triangles' order).
@@ -183,7 +173,7 @@ class BundlePicker:
         if auto and float(cost.sum()) > (AUTO_PAIRS_PER_RAY + 1) * m:
             return None
         data = np.empty((len(kept), bk.TRI_WORDS))
-        _ranges(workers, len(kept), lambda a, b: bk.triangle_data(a, b, kept, self._faces, w, data))
+        _ranges(workers, len(kept), lambda a, b: bk.triangle_data(a, b, kept, self._faces, proj, data))
         zk = np.ascontiguousarray(zmin[kept])
         best_t, best_k = ws.get("best_t", m), ws.get("best_k", m, np.int64)
         # Cells split into ranges of about equal work (rays x triangles).
@@ -193,12 +183,32 @@ class BundlePicker:
         spans = [(a, b) for a, b in itertools.pairwise(cuts) if b > a]
 
         def run(span):
-            bk.pick_cells(span[0], span[1], ray_start, dx, dy, dz, dze, tri_start, tris, data, kept, zk,
-                          early, best_t, best_k)
+            bk.pick_cells(span[0], span[1], ray_start, us, vs, tri_start, tris, data, kept, zk, early,
+                          best_t, best_k)
 
         _each(workers, spans, run)
         bk.scatter_picks(order, best_k, self._tri_inst, self._tri_prim, inst, prim)
         return inst, prim
+
+
+def bundle_frame(d) -> np.ndarray | None:
+    """The bundle's axes (3, 3): rows e1, e2, e3 (orthonormal, right-handed), e3 the mean
+    unit direction of up to ~4096 valid rays spread over d (n, 3) (any axis inside the cone
+    serves: every ray is checked against the cone around it); None without a valid ray
+    or when they cancel out."""
+    n = len(d)
+    total, m = bk.ray_frame_sums(d[::max(1, n // 4096)])
+    if m == 0:
+        total, m = bk.ray_frame_sums(d)
+    norm = math.sqrt(float(total @ total))
+    if m == 0 or not norm > 0.0:
+        return None
+    e3 = total / norm
+    # e1, e2: any orthonormal pair across e3 (the grid's axes).
+    helper = np.array([1.0, 0.0, 0.0]) if abs(e3[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = np.cross(helper, e3)
+    e1 /= np.linalg.norm(e1)
+    return np.ascontiguousarray(np.stack([e1, np.cross(e3, e1), e3]))
 
 
 class _Workspace:

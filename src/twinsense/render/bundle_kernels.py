@@ -2,18 +2,25 @@
 
 Rays from one origin o are binned by their normalised coordinates
 (u, v) = (d . e1 / d . e3, d . e2 / d . e3) into a uniform grid; each triangle
-(vertices made origin-relative, w = v - o) is binned into the cells its
-projection can touch; then, per cell, every triangle is tested against every
-ray of the cell with origin-relative edge functions
+(vertices made origin-relative and expressed along e1, e2, e3: W = (x, y, z))
+is binned into the cells its projection can touch; then, per cell, every
+triangle is tested against every ray of the cell. The ray is r = (u, v, 1)
+(d / d . e3): each vertex is sheared along it onto its own depth,
+Q_i = (x_i - z_i u, y_i - z_i v) (the ray becomes the point 0 of the plane,
+as in Woop, Benthin and Wald, "Watertight ray/triangle intersection", JCGT
+2013), and the edge functions are the 2-D cross products
 
-    e_ij = d . (w_i x w_j),   inside: e01, e12, e20 all >= 0 or all <= 0,
-    t = (w0 . (w1 x w2)) / (e01 + e12 + e20)
+    e_ij = Q_i x Q_j = r . (W_i x W_j),   inside: e01, e12, e20 all >= 0 or all <= 0,
+    t = (W0 . (W1 x W2)) / (e01 + e12 + e20)   (depth along e3; the denominator is r . N)
 
-(the denominator is d . N with N = (w1 - w0) x (w2 - w0)). The cross product
-of an edge is computed from the same vertex rows for every triangle that holds
-it, and a x b = -(b x a) exactly in floating point, so a shared edge's function
-is exactly the negative in its neighbour: a ray through an edge or vertex is
-inside one of the triangles around it (watertight). Everything is float64.
+Watertight in floating point: a vertex's Q is computed from the same
+numbers, in the same operations, by every triangle that holds it, and
+a x b = -(b x a) exactly, so a shared edge's function is exactly the negative
+in its neighbour (no ray through an edge falls between the two triangles) and
+every triangle around a vertex sees the ray at the same computed point (no ray
+through a vertex falls through the fan: the 3-D form d . (w_i x w_j) rounds
+each edge's cross product on its own and does lose rays aimed at a vertex).
+Everything is float64.
 
 All loops are compiled without the GIL (:func:`twinsense.compiled.jit`); the
 caller runs ranges of triangles or cells on its worker threads, and every
@@ -27,8 +34,8 @@ import numpy as np
 
 from twinsense.compiled import jit
 
-#: The data kept per kept triangle, in this order: three edge cross products
-#: (w0 x w1, w1 x w2, w2 x w0: 9 numbers) and w0 . (w1 x w2).
+#: The data kept per kept triangle, in this order: its vertices along e1, e2, e3
+#: (x0, y0, z0, x1, ..., z2: 9 numbers) and W0 . (W1 x W2).
 TRI_WORDS = 10
 
 
@@ -60,9 +67,10 @@ def ray_frame_sums(d):  # pragma: no cover
 def ray_uv(d, e1, e2, e3, cos_min, u, v, valid):  # pragma: no cover
     """Normalised coordinates of every ray: u, v (n,) (NaN for an invalid ray), valid (n,) bool.
 
-    Returns (all valid rays within the cone d . e3 >= cos_min |d|, umin, umax,
-    vmin, vmax) over the valid rays (inf/-inf when there are none).
+    Returns (all valid rays within the cone d . e3 >= cos_min |d|, the number of
+    valid rays, umin, umax, vmin, vmax) over the valid rays (inf/-inf when none).
     """
+    m = 0
     umin = vmin = np.inf
     umax = vmax = -np.inf
     inside = True
@@ -75,6 +83,7 @@ def ray_uv(d, e1, e2, e3, cos_min, u, v, valid):  # pragma: no cover
             u[i] = v[i] = np.nan
             continue
         valid[i] = True
+        m += 1
         a = x * e1[0] + y * e1[1] + z * e1[2]
         b = x * e2[0] + y * e2[1] + z * e2[2]
         c = x * e3[0] + y * e3[1] + z * e3[2]
@@ -86,7 +95,7 @@ def ray_uv(d, e1, e2, e3, cos_min, u, v, valid):  # pragma: no cover
         u[i], v[i] = uu, vv
         umin, umax = min(umin, uu), max(umax, uu)
         vmin, vmax = min(vmin, vv), max(vmax, vv)
-    return inside, umin, umax, vmin, vmax
+    return inside, m, umin, umax, vmin, vmax
 
 
 @jit
@@ -101,18 +110,18 @@ def _cell_of(x, lo, inv, g):  # pragma: no cover
 
 
 @jit
-def sort_rays(d, u, v, valid, e3, grid, gu, gv, cell, start, order, dx, dy, dz, dze):  # pragma: no cover
+def sort_rays(u, v, valid, grid, gu, gv, cell, start, order, us, vs):  # pragma: no cover
     """Counting sort of the valid rays by cell (cell = cu + gu cv).
 
-    grid (4,): umin, 1/du, vmin, 1/dv. Writes cell (n,) int64 (scratch), start
-    (gu gv + 1,) int64 (cell c's rays are sorted slots start[c]:start[c + 1]),
-    order (>= m,) int64 (the rays' indices by cell, ascending within a cell), and
-    the sorted rays' d components dx, dy, dz (>= m,) and d . e3 (>= m,): structure
-    of arrays, so that the loop over a cell's rays vectorises. Returns m, the
-    number of valid rays. The arrays are the caller's (kept between casts: fresh
-    ones cost a page fault per 4 kB).
+    u, v, valid (n,): :func:`ray_uv`; grid (4,): umin, 1/du, vmin, 1/dv. Writes
+    cell (n,) int64 (scratch), start (gu gv + 1,) int64 (cell c's rays are sorted
+    slots start[c]:start[c + 1]), order (>= m,) int64 (the rays' indices by cell,
+    ascending within a cell), and the sorted rays' us, vs (>= m,): structure of
+    arrays, so that the loop over a cell's rays vectorises. Returns m, the number
+    of valid rays. The arrays are the caller's (kept between casts: fresh ones
+    cost a page fault per 4 kB).
     """
-    n = d.shape[0]
+    n = u.shape[0]
     nc = gu * gv
     start[:] = 0
     for i in range(n):
@@ -128,23 +137,22 @@ def sort_rays(d, u, v, valid, e3, grid, gu, gv, cell, start, order, dx, dy, dz, 
         if valid[i]:
             order[fill[cell[i]]] = i
             fill[cell[i]] += 1
-    # A gather in sorted order (one scatter of indices above, not of four arrays).
+    # A gather in sorted order (one scatter of indices above, not of several arrays).
     for k in range(m):
         i = order[k]
-        x, y, z = d[i, 0], d[i, 1], d[i, 2]
-        dx[k], dy[k], dz[k] = x, y, z
-        dze[k] = x * e3[0] + y * e3[1] + z * e3[2]
+        us[k] = u[i]
+        vs[k] = v[i]
     return m
 
 
 @jit
-def relative_vertices(lo, hi, verts, vert_owner, rots, poss, o, basis, w, proj):  # pragma: no cover
-    """Vertices lo..hi-1 made origin-relative in world axes, and their coordinates along e1, e2, e3.
+def relative_vertices(lo, hi, verts, vert_owner, rots, poss, o, basis, proj):  # pragma: no cover
+    """Vertices lo..hi-1 moved to the world, made origin-relative and expressed along e1, e2, e3.
 
     verts (nv, 3): static vertices in the world, a mover's in its frame;
     vert_owner (nv,) int: -1 static, else the mover j posed by rots[j] (3, 3),
     poss[j] (3,) (local -> world). o (3,) the origin; basis (3, 3) rows e1, e2, e3.
-    Writes w (nv, 3) = v_world - o and proj (nv, 3) = (w . e1, w . e2, w . e3).
+    Writes proj (nv, 3) = ((v - o) . e1, (v - o) . e2, (v - o) . e3), v in the world.
     """
     for i in range(lo, hi):
         j = vert_owner[i]
@@ -158,7 +166,6 @@ def relative_vertices(lo, hi, verts, vert_owner, rots, poss, o, basis, w, proj):
         x -= o[0]
         y -= o[1]
         z -= o[2]
-        w[i, 0], w[i, 1], w[i, 2] = x, y, z
         for k in range(3):
             proj[i, k] = x * basis[k, 0] + y * basis[k, 1] + z * basis[k, 2]
 
@@ -188,14 +195,15 @@ def _clip(px, py, pz, k, a, b, c):  # pragma: no cover
 
 
 @jit
-def bin_triangles(lo, hi, faces, w, proj, grid, extent, gu, gv, box, zmin):  # pragma: no cover
+def bin_triangles(lo, hi, faces, proj, grid, extent, gu, gv, box, zmin):  # pragma: no cover
     """The grid cells triangles lo..hi-1 can touch: box (t, 4) int64 rows (cu0, cu1, cv0, cv1),
     cu0 = -1 for a triangle dropped; zmin (t,) its least coordinate along e3.
 
-    faces (t, 3) vertex rows of w (origin-relative, world axes) and proj (along e1,
-    e2, e3). grid (4,): umin, 1/du, vmin, 1/dv; extent (4,): umin, umax, vmin, vmax
-    of the rays, padded outwards. Dropped: a zero-area triangle (N exactly zero:
-    no ray can hit it), one with no vertex in front of the plane through o normal
+    faces (t, 3) vertex rows of proj (origin-relative, along e1, e2, e3). grid (4,):
+    umin, 1/du, vmin, 1/dv; extent (4,): umin, umax, vmin, vmax of the rays, padded
+    outwards. Dropped: a triangle of zero area within rounding (|N| <= 1e-10 |E0| |E1|:
+    its edge functions and t would be rounding noise; Embree hits none either),
+    one with no vertex in front of the plane through o normal
     to e3, one whose projection misses the rays' extent. A triangle reaching that
     plane is clipped to the rays' frustum (four planes through o) first; if a
     clipped vertex still has no positive depth, it gets the whole grid.
@@ -203,15 +211,17 @@ def bin_triangles(lo, hi, faces, w, proj, grid, extent, gu, gv, box, zmin):  # p
     px, py, pz = np.empty(8), np.empty(8), np.empty(8)
     for f in range(lo, hi):
         a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        ex0, ey0, ez0 = w[b, 0] - w[a, 0], w[b, 1] - w[a, 1], w[b, 2] - w[a, 2]
-        ex1, ey1, ez1 = w[c, 0] - w[a, 0], w[c, 1] - w[a, 1], w[c, 2] - w[a, 2]
+        ex0, ey0, ez0 = proj[b, 0] - proj[a, 0], proj[b, 1] - proj[a, 1], proj[b, 2] - proj[a, 2]
+        ex1, ey1, ez1 = proj[c, 0] - proj[a, 0], proj[c, 1] - proj[a, 1], proj[c, 2] - proj[a, 2]
         nx = ey0 * ez1 - ez0 * ey1
         ny = ez0 * ex1 - ex0 * ez1
         nz = ex0 * ey1 - ey0 * ex1
+        nn = nx * nx + ny * ny + nz * nz
+        ee = (ex0 * ex0 + ey0 * ey0 + ez0 * ez0) * (ex1 * ex1 + ey1 * ey1 + ez1 * ez1)
         za, zb, zc = proj[a, 2], proj[b, 2], proj[c, 2]
         zmin[f] = min(za, zb, zc)
         box[f, 0] = -1
-        if (nx == 0.0 and ny == 0.0 and nz == 0.0) or not max(za, zb, zc) > 0.0:
+        if not nn > 1e-20 * ee or not max(za, zb, zc) > 0.0:
             continue
         px[0], py[0], pz[0] = proj[a, 0], proj[a, 1], za
         px[1], py[1], pz[1] = proj[b, 0], proj[b, 1], zb
@@ -279,40 +289,42 @@ def cell_lists(kept, box, gu, gv):  # pragma: no cover
 
 
 @jit
-def triangle_data(lo, hi, kept, faces, w, data):  # pragma: no cover
-    """data[q] (TRI_WORDS,) of kept triangles q = lo..hi-1: the edge cross products from
-    the origin-relative vertex rows (the same rows and operations for every triangle
-    that holds an edge) and w0 . (w1 x w2)."""
+def triangle_data(lo, hi, kept, faces, proj, data):  # pragma: no cover
+    """data[q] (TRI_WORDS,) of kept triangles q = lo..hi-1: the vertices' rows of proj
+    (along e1, e2, e3; shared rows for shared vertices) and W0 . (W1 x W2)."""
     for q in range(lo, hi):
         f = kept[q]
-        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        for e in range(3):
-            i = a if e == 0 else (b if e == 1 else c)
-            j = b if e == 0 else (c if e == 1 else a)
-            xi, yi, zi = w[i, 0], w[i, 1], w[i, 2]
-            xj, yj, zj = w[j, 0], w[j, 1], w[j, 2]
-            data[q, 3 * e] = yi * zj - zi * yj
-            data[q, 3 * e + 1] = zi * xj - xi * zj
-            data[q, 3 * e + 2] = xi * yj - yi * xj
-        data[q, 9] = w[a, 0] * data[q, 3] + w[a, 1] * data[q, 4] + w[a, 2] * data[q, 5]
+        for k in range(3):
+            i = faces[f, k]
+            data[q, 3 * k] = proj[i, 0]
+            data[q, 3 * k + 1] = proj[i, 1]
+            data[q, 3 * k + 2] = proj[i, 2]
+        x0, y0, z0 = data[q, 0], data[q, 1], data[q, 2]
+        x1, y1, z1 = data[q, 3], data[q, 4], data[q, 5]
+        x2, y2, z2 = data[q, 6], data[q, 7], data[q, 8]
+        data[q, 9] = x0 * (y1 * z2 - z1 * y2) + y0 * (z1 * x2 - x1 * z2) + z0 * (x1 * y2 - y1 * x2)
 
 
 @jit
-def _test(dx, dy, dz, best_t, best_k, tri, k):  # pragma: no cover
-    """One triangle (tri: its TRI_WORDS numbers, k its key) against the rays dx, dy, dz (r,):
+def _test(us, vs, best_t, best_k, tri, k):  # pragma: no cover
+    """One triangle (tri: its TRI_WORDS numbers, k its key) against the rays (us, vs) (r,):
     best_t, best_k (r,) updated where it is hit nearer (or as near with a lower key).
 
     Branch-free over whole arrays from index 0 (views): the compiler vectorises it.
     """
-    a0, a1, a2 = tri[0], tri[1], tri[2]
-    b0, b1, b2 = tri[3], tri[4], tri[5]
-    g0, g1, g2 = tri[6], tri[7], tri[8]
+    x0, y0, z0 = tri[0], tri[1], tri[2]
+    x1, y1, z1 = tri[3], tri[4], tri[5]
+    x2, y2, z2 = tri[6], tri[7], tri[8]
     det = tri[9]
-    for r in range(dx.shape[0]):
-        x, y, z = dx[r], dy[r], dz[r]
-        e0 = x * a0 + y * a1 + z * a2
-        e1 = x * b0 + y * b1 + z * b2
-        e2 = x * g0 + y * g1 + z * g2
+    for r in range(us.shape[0]):
+        u, v = us[r], vs[r]
+        # The vertices sheared along the ray (the same operations for every triangle).
+        ax, ay = x0 - z0 * u, y0 - z0 * v
+        bx, by = x1 - z1 * u, y1 - z1 * v
+        cx, cy = x2 - z2 * u, y2 - z2 * v
+        e0 = ax * by - ay * bx
+        e1 = bx * cy - by * cx
+        e2 = cx * ay - cy * ax
         t = det / (e0 + e1 + e2)
         lo = min(e0, min(e1, e2))
         hi = max(e0, max(e1, e2))
@@ -325,20 +337,20 @@ def _test(dx, dy, dz, best_t, best_k, tri, k):  # pragma: no cover
 
 
 @jit
-def pick_cells(c_lo, c_hi, ray_start, dx, dy, dz, dze, tri_start, tris, data, key, zmin,
-               early, best_t, best_k):  # pragma: no cover
+def pick_cells(c_lo, c_hi, ray_start, us, vs, tri_start, tris, data, key, zmin, early,
+               best_t, best_k):  # pragma: no cover
     """Closest triangle of every ray in cells c_lo..c_hi-1.
 
-    ray_start, dx, dy, dz, dze: :func:`sort_rays`; tri_start, tris: :func:`cell_lists`;
+    ray_start, us, vs: :func:`sort_rays`; tri_start, tris: :func:`cell_lists`;
     data (k, TRI_WORDS): :func:`triangle_data`; key (k,) int64 the triangles' indices
     in the combined triangle list (in (instance, primitive) order: the lowest wins a
     tie); zmin (k,) their least depth along e3, ascending in kept order (so in
-    every cell's list). Writes best_t (m,) (ray parameter, inf: no hit) and best_k
-    (m,) (the key of the hit triangle, -1) at the sorted rays' slots.
+    every cell's list). Writes best_t (m,) (the hit's depth along e3, inf: no hit)
+    and best_k (m,) (the key of the hit triangle, -1) at the sorted rays' slots.
 
     ``early``: a cell stops once every ray's hit lies nearer than the next
-    triangle's nearest depth can (t d . e3 < zmin (1 - 1e-9): a margin
-    far above the rounding of t, so that no triangle that could win or tie is skipped).
+    triangle's nearest depth (t < zmin (1 - 1e-9): a margin far above the
+    rounding of t, so that no triangle that could win or tie is skipped).
     """
     for c in range(c_lo, c_hi):
         r0, r1 = ray_start[c], ray_start[c + 1]
@@ -352,11 +364,11 @@ def pick_cells(c_lo, c_hi, ray_start, dx, dy, dz, dze, tri_start, tris, data, ke
             q = tris[p]
             if early and reach < zmin[q] * (1.0 - 1e-9):
                 break
-            _test(dx[r0:r1], dy[r0:r1], dz[r0:r1], best_t[r0:r1], best_k[r0:r1], data[q], key[q])
+            _test(us[r0:r1], vs[r0:r1], best_t[r0:r1], best_k[r0:r1], data[q], key[q])
             if early:
                 reach = 0.0
                 for r in range(r0, r1):
-                    reach = max(reach, best_t[r] * dze[r])
+                    reach = max(reach, best_t[r])
 
 
 @jit
