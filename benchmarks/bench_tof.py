@@ -18,8 +18,8 @@ frame by frame, then the chain's stages on one frame's hits.
 ``--wrist-stages`` times where the wall time of one wrist frame goes on the
 worker threads: every stage's calls (camera pose and world rays, the links'
 poses, the top level's posing, Embree's traversal and the float64 hit pass
-per chunk, the phasor pass's two loops per band, the noise draw, the chain's
-two passes per band) are wrapped to record their thread, start, end and
+per chunk or the bundle picker's pick of all rays, the phasor pass's two loops per band,
+the noise draw, the chain's two passes per band) are wrapped to record their thread, start, end and
 thread CPU; per frame the span of each stage (first start to last end, from
 the capture's start), its summed wall and CPU, each thread's busy time, and
 the cores' idle time (2 x wall - process CPU), medians over the frames.
@@ -353,6 +353,7 @@ def wrist_stages(frames: int) -> None:
     import twinsense.tof.chain_kernels as chain_kernels
     import twinsense.tof.kernels as tof_kernels
     from twinsense.demos.robot_cell import build_arm_cell
+    from twinsense.render.bundle import BundlePicker
     from twinsense.render.caster import SceneCaster
     from twinsense.render.parallel import default_workers
     from twinsense.scene.scene import Mount
@@ -371,6 +372,7 @@ def wrist_stages(frames: int) -> None:
             (SceneCaster, "_states", "moving links' poses (state_at)"),
             (embree4.InstanceScene, "pose", "top level posed and committed"),
             (instanced, "trace", "Embree traversal (per chunk)"),
+            (BundlePicker, "pick", "bundle picker (all rays at once)"),
             (instanced, "instanced_hits", "float64 hit pass (per chunk)"),
             (camera, "draw_noise_slabs", "noise draw (background thread)"),
             (tof_kernels, "_sample_rows", "phasors: samples (per band)"),
