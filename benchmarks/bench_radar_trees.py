@@ -1,8 +1,12 @@
-"""The moving wrist radar's synthesis, one commit's code against the working tree's, in turn.
+"""The moving radars' synthesis, one commit's code against the working tree's, in turn.
 
-The UR5 cell's flange radar (``paper_bgt60tr13c``: 342,000 scatterers, every one moving
-relative to the radar, 512 samples x 16 chirps x 2 Rx) is rendered at a few times with
-the working tree's code and its scatterers saved. Then, round after round, a fresh process
+The robot cell's (``demos.robot_cell.build_arm_cell``, as ``bench_robot_cell.py``) flange
+radar (``paper_bgt60tr13c``: 342,000 scatterers, every one moving relative to the radar,
+512 samples x 16 chirps x 2 Rx) is rendered at T0 = 0.9 s (the arm between pick and
+lift, the person walking in) and 3.4 s (over the reach) with the working tree's code and
+its scatterers saved; so are the wall radar's movers (64 chirps x 64 samples: the
+walking person and the arm, synthesised per frame beside the kept static cube) at
+times from 0.9 to 4.0 s, timed as one sum over those frames. Then, round after round, a fresh process
 of each tree (``--before``: a commit, its ``src`` unpacked to a temporary folder; "after":
 this tree) takes the same saved frames and measures, on one thread (thread CPU, median
 of its repeats): the noise-tolerance estimate, the synthesis by stage (the stage timers of
@@ -32,7 +36,11 @@ import numpy as np
 from _timing import print_load_at_end, print_machine
 
 ROOT = Path(__file__).resolve().parents[1]
-TIMES = (0.34, 0.5, 0.933)  # frame times [s] (the last: the close table and arm)
+TIMES = (0.9, 3.4)  # the flange radar's frame times [s]
+# The wall radar's frame times [s]: the person walking in (0.9-1.4 s, a few hundred
+# movers, 2-D blocks) and then only the arm and the reaching hand (a few movers: the
+# per-chirp path, after the 2-D plans were tried).
+WALL_TIMES = (0.9, 1.2, 1.6, 2.0, 2.4, 2.8, 3.2, 3.4, 3.6, 4.0)
 
 
 def save_frames(folder: Path) -> None:
@@ -40,13 +48,12 @@ def save_frames(folder: Path) -> None:
     render), its config, and each frame's reference cube at eps = 1e-8."""
     from _cell import flange_radar
 
+    from twinsense.demos.robot_cell import ROBOT, build_arm_cell
+    from twinsense.radar.scatterers import ScatterRenderer
     from twinsense.radar.synthesis import synthesize
-    from twinsense.scenario import load_scenario
-    from twinsense.scene.human import Walk, add_person
 
-    scene = load_scenario(ROOT / "examples" / "ur5_cell.yaml").scene
-    add_person(scene, "person", 1.75, position=(1.6, -1.5), walk=Walk(speed=1.0, heading_deg=90.0))
-    radar = flange_radar("ur5")
+    scene, sensors = build_arm_cell()
+    radar = flange_radar(ROBOT)
     radar.capture(scene, 0.3, np.random.default_rng(0))  # the renderer and its kernels
     for t in TIMES:
         scat = radar._renderer.render(scene, radar.mount.state_at(scene, t), t)
@@ -55,6 +62,14 @@ def save_frames(folder: Path) -> None:
         ref = synthesize(scat.points, scat.velocities, w, radar.config, eps=1e-8, workers=radar.workers)
         np.savez(folder / f"frame_{t}.npz", p=scat.points, v=scat.velocities, w=w, eps=eps, ref=ref)
     (folder / "config.pkl").write_bytes(pickle.dumps(radar.config))
+    wall = next(s for s in sensors if s.name == "radar")
+    renderer = ScatterRenderer(wall.config, wall.backend, 2, reuse_static_hits=False)
+    for t in WALL_TIMES:
+        scat = renderer.render(scene, wall.mount.state_at(scene, t), t)
+        w = wall._weights(scat)
+        rows = np.flatnonzero(np.any(scat.velocities != 0.0, axis=1))
+        np.savez(folder / f"wall_{t}.npz", p=scat.points[rows], v=scat.velocities[rows], w=w[rows])
+    (folder / "wall_config.pkl").write_bytes(pickle.dumps(wall.config))
 
 
 def child(folder: Path, repeats: int) -> None:
@@ -102,6 +117,18 @@ def child(folder: Path, repeats: int) -> None:
             "sha": hashlib.sha256(cube.tobytes()).hexdigest()[:16],
             "same_with_2_workers": cube.tobytes() == two.tobytes(),
         }
+    wall_cfg = pickle.loads((folder / "wall_config.pkl").read_bytes())
+    frames = [np.load(folder / f"wall_{t}.npz") for t in WALL_TIMES]
+    for f in frames:  # warm-up
+        synthesize(f["p"], f["v"], f["w"], wall_cfg, workers=1)
+    runs = []
+    for _ in range(repeats):
+        c0 = time.thread_time()
+        cubes = [synthesize(f["p"], f["v"], f["w"], wall_cfg, workers=1) for f in frames]
+        runs.append(time.thread_time() - c0)
+    out["wall"] = {"ms_per_frame": float(np.median(runs)) * 1e3 / len(frames),
+                   "movers": [len(f["p"]) for f in frames],
+                   "sha": hashlib.sha256(b"".join(c.tobytes() for c in cubes)).hexdigest()[:16]}
     print(json.dumps(out))
 
 
@@ -153,6 +180,14 @@ def main() -> None:
             print(f"  {lb}: relative l2 error against eps=1e-8 {r['err']:.2e} ({r['err'] / r['eps']:.2f} eps, "
                   f"bound 2 eps); cube sha256 {r['sha']}; 1 and 2 workers the same bytes: "
                   f"{r['same_with_2_workers']}")
+    walls = {lb: [r["wall"] for r in results[lb]] for lb in labels}
+    print(f"\n== wall radar movers at t = {', '.join(map(str, WALL_TIMES))} s "
+          f"({walls[labels[1]][0]['movers']} movers), default eps: synthesis thread CPU per frame "
+          f"on one thread, median of {args.rounds} rounds x {args.repeats} (min-max)")
+    for lb in labels:
+        vals = [r["ms_per_frame"] for r in walls[lb]]
+        print(f"  {lb:<30s} {np.median(vals):7.2f} ms ({min(vals):.2f}-{max(vals):.2f}); cubes sha256 "
+              f"{walls[lb][0]['sha']}")
     print_load_at_end()
 
 
