@@ -32,13 +32,16 @@ compiles or loads its cache), every child at the same frame times and seeds:
 median and best wall per frame, median process CPU per frame, the same-run
 anchor (a bare embreex cast of the same rays, in each child) and the load.
 
+``--wrist-ways`` takes whole wrist captures with the chain after the whole cast or per chunk of the
+cast, and NumPy's normals or the compiled ziggurat (same SFC64 stream), frame by frame in turn.
+
 ``--wrist-noise`` takes whole wrist captures with the noise drawn per block of
 8 rows (a generator each, as before) or as one stream, frame by frame in turn;
 ``--wrist-phasors`` with the phasors made after the whole cast (as before) or
 per chunk of the cast (``SceneCaster.cast(then=)``), frame by frame in turn.
 
 Run:  .venv/bin/python benchmarks/bench_tof.py [--wrist-chain | --wrist-stages | --wrist-noise |
-      --wrist-phasors | --before SRC]
+      --wrist-phasors | --wrist-ways | --before SRC]
       [--frames N]
 """
 
@@ -464,6 +467,57 @@ def wrist_noise_ways(frames: int) -> None:
               f"process CPU {np.median(cpu[way]) * 1e3:6.2f} ms")
 
 
+def _numpy_normals_slabs(cfg, seeds, out=None):
+    """The noise draw before the compiled ziggurat: NumPy's standard_normal on the same SFC64 stream, one
+    fill. Other bytes than draw_noise_slabs; for timing."""
+    from twinsense.tof.pipeline import noise_size
+
+    out = np.empty(noise_size(cfg), np.float32) if out is None else out
+    used = 9 * cfg.height * cfg.width
+    np.random.Generator(np.random.SFC64(int(seeds[0]))).standard_normal(dtype=np.float32, out=out[:used])
+    return out
+
+
+def wrist_ways(frames: int) -> None:
+    """Whole wrist captures in four ways, frame by frame in turn (the order rotating), one process: the
+    chain after the whole cast or per chunk of the cast, NumPy's normals or the compiled ziggurat. Per
+    way the median wall and process CPU, and each way's CPU less the current way's, paired by frame."""
+    import twinsense.tof.camera as camera
+    from twinsense.demos.robot_cell import build_arm_cell
+
+    scene, sensors = build_arm_cell()
+    cam = sensors[2]
+    times = [0.9 + k / 30.0 for k in range(frames + 3)]
+    fed, draw = camera._FedChain, camera.draw_noise_slabs
+    ways = {"chain after the cast, NumPy normals (before)": (lambda *a: None, _numpy_normals_slabs),
+            "chain after the cast, compiled normals": (lambda *a: None, draw),
+            "chain per chunk, NumPy normals": (fed, _numpy_normals_slabs),
+            "chain per chunk, compiled normals (now)": (fed, draw)}
+    names = list(ways)
+    wall: dict = {w: [] for w in ways}
+    cpu: dict = {w: [] for w in ways}
+    try:
+        for k in range(frames + 3):
+            order = names[k % 4:] + names[:k % 4]
+            for way in order:
+                camera._FedChain, camera.draw_noise_slabs = ways[way]
+                c0, t0 = time.process_time(), time.perf_counter()
+                # Each way at its own time (10 us apart): a pose seen before would reuse its rays.
+                cam.capture(scene, times[k] + 1e-5 * names.index(way), np.random.default_rng(k))
+                if k >= 3:  # the first three untimed
+                    wall[way].append(time.perf_counter() - t0)
+                    cpu[way].append(time.process_time() - c0)
+    finally:
+        camera._FedChain, camera.draw_noise_slabs = fed, draw
+    now = names[-1]
+    print(f"\n== robot cell, wrist ToF: the chain per chunk and the compiled normals, {frames} frames each in turn")
+    for way in ways:
+        d = np.subtract(cpu[way], cpu[now])
+        print(f"  {way:<46s} wall {np.median(wall[way]) * 1e3:6.2f} ms median (best {min(wall[way]) * 1e3:6.2f}), "
+              f"process CPU {np.median(cpu[way]) * 1e3:6.2f} ms; CPU - now's, paired: {np.median(d) * 1e3:5.2f} ms "
+              f"(quartiles {np.percentile(d, 25) * 1e3:.2f} to {np.percentile(d, 75) * 1e3:.2f})")
+
+
 def wrist_phasor_ways(frames: int) -> None:
     """Whole wrist captures with the phasors made per chunk of the cast (now) or after the whole cast
     (before: the cast, then hits_to_phasors in bands), frame by frame in turn, one process."""
@@ -570,6 +624,8 @@ if __name__ == "__main__":
     ap.add_argument("--wrist-stages", action="store_true", help="only where a wrist frame's wall time goes")
     ap.add_argument("--wrist-noise", action="store_true", help="only the wrist frame with the noise draw's ways")
     ap.add_argument("--wrist-phasors", action="store_true", help="only the wrist frame, phasors per chunk or after")
+    ap.add_argument("--wrist-ways", action="store_true",
+                    help="only the wrist frame: chain per chunk or after the cast, compiled or NumPy normals")
     ap.add_argument("--before", metavar="SRC", help="the wrist camera with the package at SRC and with this one")
     ap.add_argument("--rounds", type=int, default=6, help="child processes per way with --before")
     ap.add_argument("--wrist-child", action="store_true", help=argparse.SUPPRESS)
@@ -581,8 +637,10 @@ if __name__ == "__main__":
         print_machine()
         before_after(args.before, args.frames, args.rounds)
         print_load_at_end()
-    elif args.wrist_chain or args.wrist_stages or args.wrist_noise or args.wrist_phasors:
+    elif args.wrist_chain or args.wrist_stages or args.wrist_noise or args.wrist_phasors or args.wrist_ways:
         print_machine()
+        if args.wrist_ways:
+            wrist_ways(args.frames)
         if args.wrist_phasors:
             wrist_phasor_ways(args.frames)
         if args.wrist_noise:

@@ -116,3 +116,33 @@ def test_a_moving_camera_with_the_chain_per_chunk_is_the_reference_bits(workers,
         a = mover.capture(sc, 0.1 * k, np.random.default_rng(k))
         assert len(fed) >= 3  # the chain was fed per chunk (the path under test)
         assert_same(a, ref.capture(sc, 0.1 * k, np.random.default_rng(k)))
+
+
+def test_the_inline_hypot_is_the_c_librarys_hypotf():
+    # The pass's amplitude uses hypotf as float64 sqrt of the float64 sum of squares, rounded to float32
+    # (what the C library computes); NumPy's float32 np.hypot calls hypotf: the same bits are required,
+    # over every exponent range a float32 can take and the chain's whole-DN differences.
+    from numba import njit
+
+    from twinsense.tof.chain_kernels import _hypot32
+
+    @njit
+    def many(x, y, out):
+        for i in range(x.shape[0]):
+            out[i] = _hypot32(x[i], y[i])
+
+    rng = np.random.default_rng(5)
+    n = 1_000_000
+    parts = [rng.standard_normal(n) * 10.0 ** rng.uniform(-45, 38, n),
+             rng.integers(-65535, 65536, n).astype(float)]
+    edge = np.array([0.0, -0.0, 1e-45, -1e-45, 1.17549435e-38, 3.4028235e38, -3.4028235e38, 1.0, 3.0, 4.0])
+    for v in parts:
+        x = v.astype(np.float32)
+        y = rng.permutation(v).astype(np.float32)
+        x = np.concatenate([x, np.repeat(edge, len(edge)).astype(np.float32)])
+        y = np.concatenate([y, np.tile(edge, len(edge)).astype(np.float32)])
+        got = np.empty_like(x)
+        many(x, y, got)
+        with np.errstate(over="ignore"):  # sums beyond float32's range: inf from both
+            want = np.hypot(x, y)
+        assert got.tobytes() == want.tobytes()
