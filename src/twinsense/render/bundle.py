@@ -22,7 +22,10 @@ falls back to Embree: rays from more than one origin (not checked here: the
 caller passes one origin), a direction more than :data:`CONE_DEG` from the
 bundle's mean direction, an origin that is not finite, and, with
 ``picker="auto"``, a bundle whose cells hold too many triangles per ray
-(:data:`AUTO_PAIRS_PER_RAY`: Embree is then faster).
+(:data:`AUTO_TESTS_PER_RAY`: Embree is then faster; the next
+:data:`AUTO_RETRY` picks then go to Embree before the picker looks again),
+fewer than :data:`AUTO_MIN_RAYS` rays, or more than
+:data:`AUTO_TRIANGLES_PER_RAY` triangles per ray.
 """
 
 from __future__ import annotations
@@ -41,9 +44,13 @@ from twinsense.render.parallel import pool
 CONE_DEG = 80.0
 #: Rays per grid cell aimed at (measured: benchmarks/bench_bundle.py).
 RAYS_PER_CELL = 32
-#: "auto" keeps Embree when the cells hold more ray-triangle tests than this per ray
-#: (a test costs ~1 ns against Embree's ~100 ns per ray; measured in benchmarks/bench_bundle.py).
-AUTO_PAIRS_PER_RAY = 60.0
+#: "auto" keeps Embree when the cells hold more ray-triangle tests than this per ray.
+#: Measured (benchmarks/bench_bundle.py): a pick costs ~40 ns per ray plus ~1.3 ns per
+#: test, Embree's traversal ~90-100 ns per ray; the robot cell's bundles need 7-9 tests
+#: per ray, the office's (84,330 triangles, finely tessellated objects in view) 68.
+AUTO_TESTS_PER_RAY = 30.0
+#: After "auto" found Embree faster, this many picks go to Embree before it looks again.
+AUTO_RETRY = 30
 #: "auto" keeps Embree for fewer rays than this (the per-cast set-up dominates).
 AUTO_MIN_RAYS = 4096
 #: "auto" keeps Embree when the scene has more triangles than this many per ray (binning them dominates).
@@ -89,6 +96,8 @@ class BundlePicker:
         # Work arrays kept between casts (fresh ones cost a page fault per 4 kB: ~15 ms a
         # cast for the radar's 342,000 rays); one set per cast under way.
         self._spare: list[_Workspace] = []
+        self._embree_picks = 0  # picks left to Embree by the "auto" rule
+        self.last_tests_per_ray = 0.0
         self._lock = threading.Lock()
 
     def _workspace(self) -> _Workspace:
@@ -101,13 +110,6 @@ class BundlePicker:
 
     def pick(self, origin, d, rots, poss, workers: int = 1, auto: bool = False,
              rays_per_cell: int = RAYS_PER_CELL, early: bool = True):
-        ws = self._workspace()
-        try:
-            return self._pick(ws, origin, d, rots, poss, workers, auto, rays_per_cell, early)
-        finally:
-            self._give_back(ws)
-
-    def _pick(self, ws, origin, d, rots, poss, workers, auto, rays_per_cell, early):
         """(inst, prim) (n,) int32 of the closest triangle of every ray (-1: a miss), or None.
 
         origin (3,) float64: the rays' one origin; d (n, 3) float64 directions (any
@@ -116,12 +118,24 @@ class BundlePicker:
         3), poss (m, 3): the movers' poses (local -> world). ``workers``: threads (the
         result does not depend on it). None: the bundle is not for this picker (see
         the module's docstring); ``auto``: also None where Embree is faster.
+        ``rays_per_cell`` and ``early`` (the cells' early exit) are for measurements:
+        the pick is the same with any.
         """
+        ws = self._workspace()
+        try:
+            return self._pick(ws, origin, d, rots, poss, workers, auto, rays_per_cell, early)
+        finally:
+            self._give_back(ws)
+
+    def _pick(self, ws, origin, d, rots, poss, workers, auto, rays_per_cell, early):
         o = np.asarray(origin, dtype=float).reshape(3)
         n = len(d)
         if not np.isfinite(o.astype(np.float32)).all():
             return None
         if auto and (n < AUTO_MIN_RAYS or self.n_triangles > AUTO_TRIANGLES_PER_RAY * n):
+            return None
+        if auto and self._embree_picks > 0:  # a recent pick found Embree faster
+            self._embree_picks -= 1
             return None
         inst, prim = np.full(n, -1, np.int32), np.full(n, -1, np.int32)
         if n == 0:
@@ -170,7 +184,10 @@ class BundlePicker:
         tri_start, tris = bk.cell_lists(kept, box, gu, gv)
         rays_c = np.diff(ray_start)
         cost = rays_c * (np.diff(tri_start) + 1)
-        if auto and float(cost.sum()) > (AUTO_PAIRS_PER_RAY + 1) * m:
+        #: Ray-triangle tests per ray of the last pick (without the early exit), for the "auto" rule.
+        self.last_tests_per_ray = float(cost.sum()) / m - 1.0
+        if auto and self.last_tests_per_ray > AUTO_TESTS_PER_RAY:
+            self._embree_picks = AUTO_RETRY
             return None
         data = np.empty((len(kept), bk.TRI_WORDS))
         _ranges(workers, len(kept), lambda a, b: bk.triangle_data(a, b, kept, self._faces, proj, data))
@@ -195,7 +212,12 @@ def bundle_frame(d) -> np.ndarray | None:
     """The bundle's axes (3, 3): rows e1, e2, e3 (orthonormal, right-handed), e3 the mean
     unit direction of up to ~4096 valid rays spread over d (n, 3) (any axis inside the cone
     serves: every ray is checked against the cone around it); None without a valid ray
-    or when they cancel out."""
+    or when they cancel out.
+
+    e1 follows the step from the first ray to the second (a camera's image row: the grid's
+    cells then line up with the image and its bounding box holds no empty corners), or any
+    direction across e3 when those two rays do not differ.
+    """
     n = len(d)
     total, m = bk.ray_frame_sums(d[::max(1, n // 4096)])
     if m == 0:
@@ -204,10 +226,13 @@ def bundle_frame(d) -> np.ndarray | None:
     if m == 0 or not norm > 0.0:
         return None
     e3 = total / norm
-    # e1, e2: any orthonormal pair across e3 (the grid's axes).
-    helper = np.array([1.0, 0.0, 0.0]) if abs(e3[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    e1 = np.cross(helper, e3)
-    e1 /= np.linalg.norm(e1)
+    e1 = np.zeros(3)
+    if n >= 2 and np.isfinite(d[:2]).all() and (np.linalg.norm(d[:2], axis=1) > 0).all():
+        step = d[1] / np.linalg.norm(d[1]) - d[0] / np.linalg.norm(d[0])
+        e1 = step - (step @ e3) * e3
+    if not np.linalg.norm(e1) > 1e-12:
+        e1 = np.cross(np.array([1.0, 0.0, 0.0]) if abs(e3[0]) < 0.9 else np.array([0.0, 1.0, 0.0]), e3)
+    e1 = e1 / np.linalg.norm(e1)
     return np.ascontiguousarray(np.stack([e1, np.cross(e3, e1), e3]))
 
 

@@ -1,0 +1,217 @@
+"""The single-origin bundle picker (render/bundle.py) against Embree's traversal.
+
+For the robot cell (UR5 on its pick-and-place trajectory, the person walking;
+every frame at a new time, so every moving object moves):
+
+- the wrist ToF camera's rays (``pmd_pico_flexx``, 2 x 2 rays per pixel:
+  153,216 rays from the moving flange) and the flange radar's
+  (``paper_bgt60tr13c``, 1000 x 342 = 342,000 rays): the pick alone, the bundle
+  picker (``BundlePicker.pick``) against Embree's traversal of the same
+  instanced scene (``trace`` per chunk of 16,384 rays, on the same workers),
+  alternating in one run, wall and process CPU, 1 and 2 workers; then the
+  whole cast (every Hits field) with either picker;
+- the whole wrist ToF frame (``tof.capture``) and the whole radar frame
+  (``radar.capture``) with either picker, alternating;
+- the picker's settings: rays per cell (16, 32, 64) and the early exit on/off;
+  the UR5's visual meshes (95,694 triangles) against its collision meshes;
+
+and for the office scene of bench_render.py (1000 x 342 rays, >= 50k
+triangles, a walking person): the pick and the whole cast with either picker.
+
+Same-run anchor: a bare single-thread embreex cast of the same rays against
+the scene posed at that time (one world-space BVH built beforehand), as in
+the other benchmarks.
+
+Run:  .venv/bin/python benchmarks/bench_bundle.py [--rounds N]
+"""
+
+from __future__ import annotations
+
+import argparse
+from concurrent.futures import wait
+
+import numpy as np
+from _cell import flange_radar, radar_rays
+from _timing import alternating, embree_anchor, in_turn, print_load_at_end, print_machine
+
+from twinsense.demos.office import build_office_scene, sensor_pose
+from twinsense.demos.robot_cell import ROBOT, build_arm_cell_scene, build_arm_cell_sensors
+from twinsense.render import PinholeCamera, Rays, caster_for
+from twinsense.render.embree4_kernels import trace
+from twinsense.render.parallel import pool
+
+T0 = 0.9  # [s] as bench_robot_cell.py: the arm between pick and lift, the person walking in
+CHUNK = 16384  # rays per Embree task, as the caster's
+
+
+def posed(caster, t):
+    """(rots (m, 3, 3), poss (m, 3), the instanced scene's transforms) of the movers at t."""
+    st = caster._states(t)
+    rots = np.array([st[i].pose.rotation for i in caster._moving])
+    poss = np.array([st[i].pose.position for i in caster._moving])
+    ins = caster._instanced
+    tr = np.zeros((len(ins._scenes), 3, 4))
+    first = 1 if ins._has_static else 0
+    if first:
+        tr[0, :, :3] = np.eye(3)
+    tr[first:, :, :3] = rots
+    tr[first:, :, 3] = poss
+    return rots, poss, tr
+
+
+def embree_pick(caster, rays, t, workers):
+    """Embree's picks of every ray (as InstancedScene.cast: chunks on the workers)."""
+    ins = caster._instanced
+    _, _, tr = posed(caster, t)
+    top = ins._acquire(tr)
+    o, d = rays.origins, rays.directions
+    n = len(d)
+    inst, prim = np.empty(n, np.int32), np.empty(n, np.int32)
+
+    def run(lo):
+        hi = min(lo + CHUNK, n)
+        trace(ins._fn1, ins._fn8, ins.packet == 8, top.handle, o[lo:hi], d[lo:hi], prim[lo:hi], inst[lo:hi])
+
+    try:
+        if workers > 1:
+            wait([pool(workers).submit(run, lo) for lo in range(0, n, CHUNK)])
+        else:
+            for lo in range(0, n, CHUNK):
+                run(lo)
+    finally:
+        ins._release(top)
+    return inst, prim
+
+
+def bundle_pick(caster, rays, t, workers, **kw):
+    rots, poss, _ = posed(caster, t)
+    return caster._instanced.bundle_picker().pick(rays.origins[0], rays.directions, rots, poss, workers, **kw)
+
+
+def line(label, res, anchor=None):
+    best, med, cpu = res
+    extra = f"; / anchor {med / anchor:5.2f}" if anchor else ""
+    print(f"  {label:<58s} {best * 1e3:7.1f} ms best {med * 1e3:7.1f} ms median, CPU {cpu * 1e3:7.1f} ms{extra}")
+
+
+def compare_picks(scene, kind, rays_at, times, rounds, anchor):
+    """The pick alone and the whole cast, both pickers, 1 and 2 workers, alternating."""
+    caster = caster_for(scene, kind)
+    bundles = [rays_at(t) for t in times]
+    k = len(times) - 1
+    for w in (1, 2):
+        variants = {
+            f"pick, Embree traversal, {w} worker(s)": in_turn(lambda i, w=w: embree_pick(caster, bundles[i], times[i], w), k),
+            f"pick, bundle picker, {w} worker(s)": in_turn(lambda i, w=w: bundle_pick(caster, bundles[i], times[i], w), k),
+        }
+        for label, res in alternating(variants, rounds).items():
+            line(label, res, anchor)
+
+    def whole(picker, w):
+        def run(i):
+            caster.picker = picker
+            caster.cast(bundles[i], times[i], workers=w)
+        return in_turn(run, k)
+
+    for w in (1, 2):
+        res = alternating({f"whole cast (every field), Embree, {w} worker(s)": whole("embree", w),
+                           f"whole cast (every field), bundle, {w} worker(s)": whole("bundle", w)}, rounds)
+        for label, r in res.items():
+            line(label, r, anchor)
+    caster.picker = "auto"
+
+
+def settings(scene, kind, rays_at, times, rounds):
+    caster = caster_for(scene, kind)
+    bundles = [rays_at(t) for t in times]
+    k = len(times) - 1
+    variants = {}
+    for rpc in (16, 32, 64):
+        for early in (True, False):
+            variants[f"bundle pick, {rpc} rays per cell, early exit {'on' if early else 'off'}, 1 worker"] = in_turn(
+                lambda i, rpc=rpc, early=early: bundle_pick(caster, bundles[i], times[i], 1, rays_per_cell=rpc,
+                                                            early=early), k)
+    for label, res in alternating(variants, rounds).items():
+        line(label, res)
+
+
+def frames(scene, kind, sensor, times, rounds, anchor):
+    caster = caster_for(scene, kind)
+    k = len(times) - 1
+
+    def capture(picker):
+        def run(i):
+            caster.picker = picker
+            sensor.capture(scene, times[i], np.random.default_rng(i))
+        return in_turn(run, k)
+
+    res = alternating({f"whole frame ({kind}), Embree picks": capture("embree"),
+                       f"whole frame ({kind}), bundle picks": capture("bundle")}, rounds)
+    for label, r in res.items():
+        best, med, cpu = r
+        line(f"{label} -> {1 / med:5.1f} frames/s", r, anchor)
+    caster.picker = "auto"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--rounds", type=int, default=9)
+    args = ap.parse_args()
+    print_machine()
+    times = [T0 + i / 30.0 for i in range(args.rounds + 1)]
+
+    scene = build_arm_cell_scene()
+    sensors = build_arm_cell_sensors()
+    tof = sensors[2]
+    radar = flange_radar(ROBOT)
+
+    def tof_rays(t):
+        pose = tof.mount.pose_at(scene, t)
+        return tof._renderer.rays(pose.rotation, pose.position)
+
+    def radar_rays_at(t):
+        return radar_rays(radar, radar.mount.pose_at(scene, t))
+
+    n_tri = sum(len(o.geometry.mesh.faces) for o in scene.objects)
+    for label, kind, rays_at, sensor in (
+            ("wrist ToF pmd_pico_flexx, 2 x 2 rays per pixel", "tof", tof_rays, tof),
+            ("radar paper_bgt60tr13c on the flange", "radar", radar_rays_at, radar)):
+        r = rays_at(times[1])
+        anchor = embree_anchor(scene, kind, times[1], r.origins, r.directions, 7)[1]
+        print(f"\n== robot cell ({n_tri} triangles, UR5 collision meshes), {label}: {len(r)} rays")
+        print(f"  anchor: bare embreex cast, 1 thread, same rays       {anchor * 1e3:7.1f} ms median")
+        compare_picks(scene, kind, rays_at, times, args.rounds, anchor)
+        frames(scene, kind, sensor, times, args.rounds, anchor)
+        settings(scene, kind, rays_at, times, max(3, args.rounds // 2))
+
+    print("\n== the robot cell with the UR5's visual meshes, wrist ToF rays")
+    heavy = build_arm_cell_scene(shapes="visual")
+    print(f"  {sum(len(o.geometry.mesh.faces) for o in heavy.objects)} triangles")
+    r = tof_rays(times[1])
+    anchor = embree_anchor(heavy, "tof", times[1], r.origins, r.directions, 7)[1]
+    print(f"  anchor: bare embreex cast, 1 thread, same rays       {anchor * 1e3:7.1f} ms median")
+
+    def heavy_rays(t):
+        pose = tof.mount.pose_at(heavy, t)
+        return tof._renderer.rays(pose.rotation, pose.position)
+
+    compare_picks(heavy, "tof", heavy_rays, times, max(3, args.rounds // 2), anchor)
+
+    print("\n== office scene (bench_render.py: detail 6, a walking person), 1000 x 342 rays")
+    office = build_office_scene(detail=6, person=True)
+    cam = PinholeCamera.from_fov(1000, 342, 90.0, 40.0)
+    base = cam.rays(sensor_pose())
+    otimes = [0.3 + i / 30.0 for i in range(args.rounds + 1)]
+
+    def office_rays(t):
+        return Rays(base.origins, np.array(base.directions))  # fresh, writable: a sensor that may move
+
+    print(f"  {sum(len(o.geometry.mesh.faces) for o in office.objects)} triangles")
+    anchor = embree_anchor(office, "tof", otimes[1], base.origins, base.directions, 7)[1]
+    print(f"  anchor: bare embreex cast, 1 thread, same rays       {anchor * 1e3:7.1f} ms median")
+    compare_picks(office, "tof", office_rays, otimes, max(3, args.rounds // 2), anchor)
+    print_load_at_end()
+
+
+if __name__ == "__main__":
+    main()
