@@ -101,8 +101,10 @@ def compare_picks(scene, kind, rays_at, times, rounds, anchor):
     k = len(times) - 1
     for w in (1, 2):
         variants = {
-            f"pick, Embree traversal, {w} worker(s)": in_turn(lambda i, w=w: embree_pick(caster, bundles[i], times[i], w), k),
-            f"pick, bundle picker, {w} worker(s)": in_turn(lambda i, w=w: bundle_pick(caster, bundles[i], times[i], w), k),
+            f"pick, Embree traversal, {w} worker(s)":
+                in_turn(lambda i, w=w: embree_pick(caster, bundles[i], times[i], w), k),
+            f"pick, bundle picker, {w} worker(s)":
+                in_turn(lambda i, w=w: bundle_pick(caster, bundles[i], times[i], w), k),
         }
         for label, res in alternating(variants, rounds).items():
             line(label, res, anchor)
@@ -148,8 +150,7 @@ def frames(scene, kind, sensor, times, rounds, anchor):
     res = alternating({f"whole frame ({kind}), Embree picks": capture("embree"),
                        f"whole frame ({kind}), bundle picks": capture("bundle")}, rounds)
     for label, r in res.items():
-        best, med, cpu = r
-        line(f"{label} -> {1 / med:5.1f} frames/s", r, anchor)
+        line(f"{label} -> {1 / r[1]:5.1f} frames/s", r, anchor)
     caster.picker = "auto"
 
 
