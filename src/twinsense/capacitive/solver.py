@@ -102,6 +102,12 @@ class SolverConfig:
         ``active_boxes`` or :meth:`CapacitiveSensor.prepare`). Exact; faster
         only when the active region is a small part of the mesh (see
         BENCHMARKS.md), hence off by default.
+    early_stop : bool
+        Let the energy rule stop a column at its third CG step, on the two
+        decrement ratios measured by then and a margin of
+        :data:`~twinsense.capacitive.pcg.EARLY_TAIL_MARGIN` (see
+        :func:`~twinsense.capacitive.pcg.block_pcg`). False: the first
+        step's placeholder ratio holds every column to a fourth step.
     """
 
     preconditioner: str = "amg"
@@ -116,6 +122,7 @@ class SolverConfig:
     capacitance_atol: float | None = None
     coarse_refresh: bool = True
     compiled: bool = True
+    early_stop: bool = True
 
     def __post_init__(self) -> None:
         v.choice("SolverConfig.preconditioner", self.preconditioner, PRECONDITIONERS)
@@ -125,7 +132,7 @@ class SolverConfig:
         v.number("SolverConfig.rebuild_factor", self.rebuild_factor, lo=1.0)
         v.number("SolverConfig.amg_strength_theta", self.amg_strength_theta, lo=0.0, hi=1.0)
         v.integer("SolverConfig.smoothing_steps", self.smoothing_steps, lo=1, hi=10)
-        for name in ("condense", "coarse_refresh", "compiled"):
+        for name in ("condense", "coarse_refresh", "compiled", "early_stop"):
             if not isinstance(getattr(self, name), bool):
                 raise ConfigError(f"SolverConfig.{name}", getattr(self, name), "True or False")
         v.number("SolverConfig.rebuild_rows", self.rebuild_rows, lo=0.0, hi=1.0)
@@ -225,7 +232,7 @@ class PCGSolver:
             def precond(R):
                 return inv_d[:, None] * R
 
-            X, it = block_pcg(A, B, X0, precond, cfg.rtol, cfg.maxiter, energy, tol, free)
+            X, it = block_pcg(A, B, X0, precond, cfg.rtol, cfg.maxiter, energy, tol, free, cfg.early_stop)
             return X, SolveInfo(it, False)
         sparse = getattr(A, "sparse", A)
         refresh = cfg.coarse_refresh and base is not None and free is not None
@@ -235,10 +242,10 @@ class PCGSolver:
                 and A.format == "csr"):
             residual = np.empty_like(B)
             X, it = compiled_block_pcg(A, B, X0, CompiledCycle(ml, free), cfg.rtol, cfg.maxiter, energy, tol,
-                                       self._work, residual)
+                                       self._work, residual, cfg.early_stop)
         else:
             residual = None
-            X, it = block_pcg(A, B, X0, ml, cfg.rtol, cfg.maxiter, energy, tol, free)
+            X, it = block_pcg(A, B, X0, ml, cfg.rtol, cfg.maxiter, energy, tol, free, cfg.early_stop)
         worst = int(it.max()) if len(it) else 0
         if rebuilt:
             self._reference_iters = max(worst, 4)
