@@ -81,7 +81,8 @@ def test_processes_option_runs_capture_processes_with_the_same_recording(tmp_pat
     one, forks_one = invoke("run", sc, "-o", tmp_path / "one", "--no-progress")
     two, forks_two = invoke("run", sc, "-o", tmp_path / "two", "--no-progress", "--processes", "2")
     assert one.exit_code == 0 and two.exit_code == 0, (one.output, two.output)
-    assert forks_one == 0 and forks_two == 2  # one capture process per lane, none without the option
+    # Two lanes in 2 processes: one forked, one in this process; none without the option.
+    assert forks_one == 0 and forks_two == 1
     assert "left: 2, right: 4 frames" in two.output
     # The same bytes, the stored scenario included (the option is a way of running, not part of the file).
     assert datasets(tmp_path / "one" / "recording.h5") == datasets(tmp_path / "two" / "recording.h5")
@@ -92,7 +93,7 @@ def test_the_scenarios_processes_key_and_the_option_replacing_it(tmp_path):
     sc = scenario(tmp_path, "processes: 2\n")
     assert load_scenario(sc).processes == 2 and load_scenario(scenario(tmp_path, name="plain.yaml")).processes == 1
     res, forks = invoke("run", sc, "-o", tmp_path / "a", "--no-progress")
-    assert res.exit_code == 0 and forks == 2, res.output
+    assert res.exit_code == 0 and forks == 1, res.output
     res, forks = invoke("run", sc, "-o", tmp_path / "b", "--no-progress", "--processes", "1")
     assert res.exit_code == 0 and forks == 0, res.output
 

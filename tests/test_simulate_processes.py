@@ -58,14 +58,15 @@ def test_lanes_are_shared_by_expected_cpu():
 def test_each_process_captures_its_own_sensors_with_its_share_of_the_threads():
     res = simulate(plain_scene(), [Probe("a"), Probe("b"), Probe("c", 20.0)], 0.3, processes=2)
     pids = {name: {f.pid for f in frames} for name, frames in res.frames.items()}
-    # Equal kind costs: c (20 Hz, 40) alone; a and b (20 each) together, each in one process only.
-    assert pids["a"] == pids["b"] and len(pids["a"]) == 1 and len(pids["c"]) == 1
-    assert pids["a"] != pids["c"] and os.getpid() not in pids["a"] | pids["c"]
+    # Equal kind costs: c (20 Hz, 40) alone; a and b (20 each) together, each in one process only. No
+    # frame weight is estimated for these sensors: the last group (a, b) stays in this process, c is forked.
+    assert pids["a"] == pids["b"] == {os.getpid()} and len(pids["c"]) == 1 and os.getpid() not in pids["c"]
     want = str(max(1, default_workers() // 2))
-    assert {f.threads for frames in res.frames.values() for f in frames} == {want}
+    assert {f.threads for f in res.frames["c"]} == {want}
     assert res.frame_counts == {"a": 3, "b": 3, "c": 6}
-    # The parent's own setting is left as it was.
+    # This process's own setting is left as it was, and its lane captures with it.
     assert os.environ.get("TWINSENSE_THREADS") != want or default_workers() == int(want)
+    assert {f.threads for f in res.frames["a"]} == {os.environ.get("TWINSENSE_THREADS", "")}
 
 
 class Prepared(Probe):
@@ -88,25 +89,49 @@ class Prepared(Probe):
 def test_each_process_prepares_its_own_sensors_for_the_run_times():
     a, b = Prepared("a"), Prepared("b")
     res = simulate(plain_scene(), [a, b], 0.2, t0=1.0, processes=2)
+    # Prepared once, in the capturing process, for the clock's times 1.0 and 1.1 s: a in the forked one,
+    # b (the last group) in this one.
+    assert {f.pid for f in res.frames["b"]} == {os.getpid()} and os.getpid() not in {f.pid for f in res.frames["a"]}
     for name in ("a", "b"):
-        frames = res.frames[name]
-        # Prepared once, in the capturing process (not here), for the clock's times 1.0 and 1.1 s.
-        pids = {f.pid for f in frames}
-        assert len(pids) == 1 and os.getpid() not in pids
-        assert {f.threads for f in frames} == {str((1.0, 1.1))}
-    assert a.prepared is None and b.prepared is None  # this process's sensors are left as they were
+        assert {f.threads for f in res.frames[name]} == {str((1.0, 1.1))}
+    # The forked process's sensor is left here as it was; this process's own is prepared as one after another.
+    assert a.prepared is None and b.prepared == (os.getpid(), (1.0, 1.1))
     with pytest.raises(ValueError, match="b cannot be prepared"):
         simulate(plain_scene(), [Prepared("a"), Prepared("b", fail=True)], 0.2, processes=2)
 
 
+class DiesAfterSeen(Probe):
+    """A sensor (20 Hz: forked, a at 10 Hz stays here) that kills its process at ``die_at``, once the run's
+    process has handed on its frame before (``seen`` exists): the frames a dying process had captured but
+    not yet written to the pipe die with it."""
+
+    def __init__(self, name, die_at, seen):
+        super().__init__(name, 20.0, die_at)
+        self.seen = seen
+
+    def capture(self, scene, t, rng=None):
+        if t == self.die_at:
+            deadline = time.monotonic() + 10.0  # bounded: a broken run cannot hang the test
+            while not self.seen.exists() and time.monotonic() < deadline:
+                time.sleep(0.005)
+        return super().capture(scene, t, rng)
+
+
 def test_a_killed_capture_process_is_an_error_naming_the_sensor_and_the_time(tmp_path):
     seen = []
-    with pytest.raises(CaptureProcessError, match=r"sensors 'b'\) ended \(killed by signal 9 \(SIGKILL\)\) "
-                                                  r"before sensor 'b''s frame at t = 0.1 s"):
-        simulate(plain_scene(), [Probe("a", 20.0), Probe("b", die_at=0.1)], 0.3, tmp_path / "run.h5",
-                 processes=2, on_frame=lambda s, f: seen.append((s.name, f.t)))
+    flag = tmp_path / "seen"
+
+    def on_frame(s, f):
+        seen.append((s.name, f.t))
+        if (s.name, f.t) == ("b", 0.05):
+            flag.touch()
+
+    with pytest.raises(CaptureProcessError, match=r"capture process 0 \(sensors 'b'\) ended \(killed by signal 9 "
+                                                  r"\(SIGKILL\)\) before sensor 'b''s frame at t = 0.1 s"):
+        simulate(plain_scene(), [Probe("a"), DiesAfterSeen("b", 0.1, flag)], 0.3, tmp_path / "run.h5",
+                 processes=2, on_frame=on_frame)
     # The frames before it are recorded; the run is kept as a partial recording, and no child is left.
-    assert seen == [("a", 0.0), ("b", 0.0), ("a", 0.05), ("a", 0.1)]  # a before b at 0.1 s: sensor order
+    assert seen == [("a", 0.0), ("b", 0.0), ("b", 0.05), ("a", 0.1)]  # a before b at 0.1 s: sensor order
     assert (tmp_path / "run.partial.h5").exists() and not (tmp_path / "run.h5").exists()
     assert multiprocessing.active_children() == []
 
@@ -180,7 +205,7 @@ class Local(Probe):
 def test_a_frame_that_cannot_be_handed_on_is_an_error_naming_the_sensor():
     with pytest.raises(CaptureProcessError, match=r"sensor 'b''s frame at t = 0 s cannot be handed on from a "
                                                   r"capture process \(.*\); use processes=1"):
-        simulate(plain_scene(), [Probe("a"), Local("b")], 0.2, processes=2)
+        simulate(plain_scene(), [Probe("a"), Local("b", 20.0)], 0.2, processes=2)  # b forked (20 Hz)
     assert multiprocessing.active_children() == []
 
 
@@ -206,10 +231,11 @@ def test_a_failing_prepare_leaves_no_file_as_one_after_another(tmp_path):
 
 
 class Hangs(Probe):
-    """A sensor whose capture (at ``hang_at``) or prepare hangs: alive, never answering."""
+    """A sensor whose capture (at ``hang_at``) or prepare hangs: alive, never answering (20 Hz: forked
+    beside a 10 Hz sensor, which stays in the run's process)."""
 
     def __init__(self, name, hang_at=-1.0, hang_prepare=False):
-        super().__init__(name)
+        super().__init__(name, 20.0)
         self.hang_at = hang_at
         if hang_prepare:
             self.prepare = lambda scene, times: time.sleep(3600.0)
@@ -227,10 +253,10 @@ def test_a_hung_capture_process_is_ended_after_the_timeout(tmp_path):
     with pytest.raises(CaptureProcessError, match=r"capture process \d \(sensors 'b'\) handed back no frame of "
                                                   r"sensor 'b' at t = 0.1 s within 2 s \(process_timeout = 2 s "
                                                   r"per frame\); the capture processes were ended"):
-        simulate(plain_scene(), [Probe("a", 20.0), Hangs("b", hang_at=0.1)], 0.3, tmp_path / "run.h5",
+        simulate(plain_scene(), [Probe("a"), Hangs("b", hang_at=0.1)], 0.3, tmp_path / "run.h5",
                  processes=2, process_timeout=2.0, on_frame=lambda s, f: seen.append((s.name, f.t)))
     # The frames before it are kept in the partial recording, as when a process dies; no child is left.
-    assert seen == [("a", 0.0), ("b", 0.0), ("a", 0.05), ("a", 0.1)]
+    assert seen == [("a", 0.0), ("b", 0.0), ("b", 0.05), ("a", 0.1)]
     assert (tmp_path / "run.partial.h5").exists() and not (tmp_path / "run.h5").exists()
     assert multiprocessing.active_children() == []
 
@@ -254,9 +280,9 @@ def test_a_stop_ends_a_wait_on_a_hung_process_before_its_timeout(tmp_path):
         return Stopped("stop asked") if when and time.monotonic() - when[0] > 0.5 else None
 
     with pytest.raises(Stopped, match="stop asked"):
-        simulate(plain_scene(), [Probe("a", 20.0), Hangs("b", hang_at=0.1)], 0.3, tmp_path / "run.h5",
+        simulate(plain_scene(), [Probe("a"), Hangs("b", hang_at=0.1)], 0.3, tmp_path / "run.h5",
                  processes=2, process_timeout=60.0, on_frame=on_frame, stop=stop)
-    assert seen == [("a", 0.0), ("b", 0.0), ("a", 0.05), ("a", 0.1)]
+    assert seen == [("a", 0.0), ("b", 0.0), ("b", 0.05), ("a", 0.1)]
     assert (tmp_path / "run.partial.h5").exists() and not (tmp_path / "run.h5").exists()
     assert multiprocessing.active_children() == []
 
@@ -264,8 +290,8 @@ def test_a_stop_ends_a_wait_on_a_hung_process_before_its_timeout(tmp_path):
 def test_a_hung_prepare_is_ended_after_the_timeout_and_leaves_no_file(tmp_path):
     with pytest.raises(CaptureProcessError, match=r"capture process \d \(sensors 'b'\) did not prepare its sensors "
                                                   r"within 2 s \(process_timeout = 2 s per frame\)"):
-        simulate(plain_scene(), [Probe("a", 20.0), Hangs("b", hang_prepare=True)], 0.3, tmp_path / "run.h5",
-                 processes=2, process_timeout=2.0)  # a's process prepares well within it (see above)
+        simulate(plain_scene(), [Probe("a"), Hangs("b", hang_prepare=True)], 0.3, tmp_path / "run.h5",
+                 processes=2, process_timeout=2.0)  # a (here) prepares well within it (see above)
     assert list(tmp_path.iterdir()) == [] and multiprocessing.active_children() == []
 
 
@@ -318,16 +344,23 @@ def test_each_process_limits_its_blas_threads_to_its_share(monkeypatch):
     from threadpoolctl import threadpool_info, threadpool_limits
 
     # Two processes with TWINSENSE_THREADS=2: one thread each. The parent's BLAS is set to 3 during the run,
-    # what a child would inherit unlimited; after the run it is as it was.
+    # what a child would inherit unlimited; after the run it is as it was. a is forked, b (the last group)
+    # is captured in this process, with this process's setting.
     monkeypatch.setenv("TWINSENSE_THREADS", "2")
     with threadpool_limits(limits=3):
         res = simulate(plain_scene(), [Blas("a"), Blas("b")], 0.2, processes=2)
         parent = {i["num_threads"] for i in threadpool_info()}
+        # What a thread of this process reports (OpenMP's setting is per thread: a new thread has the default).
+        here: list = []
+        probe = threading.Thread(target=lambda: here.append(Blas("x").capture(None, 0.0).threads))
+        probe.start()
+        probe.join()
     apis = {i["internal_api"] for i in threadpool_info()}
     assert apis and parent == {3}  # the parent's own limit is untouched by the children
-    for frames in res.frames.values():
-        for f in frames:
-            assert f.threads == str(sorted((api, 1) for api in apis)), f.threads
+    assert {f.pid for f in res.frames["b"]} == {os.getpid()} != {f.pid for f in res.frames["a"]}
+    for f in res.frames["a"]:
+        assert f.threads == str(sorted((api, 1) for api in apis)), f.threads
+    assert {f.threads for f in res.frames["b"]} == set(here)
 
 
 @pytest.mark.parametrize("bad", [0, -1.0, float("nan"), float("inf"), "1", True, [0.5]])
@@ -380,11 +413,13 @@ def test_a_config_error_in_a_capture_process_arrives_as_itself(in_prepare):
     # The error a capture or a prepare raises reaches the caller as with processes=1: its type and fields.
     for processes in (1, 2):
         b = Refuses("b", ConfigError("b.gain", 3.0, "a gain below 2"), at=0.1, in_prepare=in_prepare)
+        b.frame_rate = 20.0  # forked (a, at 10 Hz, stays in this process)
         with pytest.raises(ConfigError, match=r"b.gain = 3.0 is invalid: expected a gain below 2") as info:
             simulate(plain_scene(), [Probe("a"), b], 0.3, processes=processes)
         assert (info.value.field, info.value.value, info.value.allowed) == ("b.gain", 3.0, "a gain below 2")
     # An exception that pickles but cannot be made again from its message: its type and text.
+    needs_two = Refuses("b", NeedsTwo("x", "y"), at=0.1, in_prepare=in_prepare)
+    needs_two.frame_rate = 20.0
     with pytest.raises(RuntimeError, match=r"NeedsTwo: x and y"):
-        simulate(plain_scene(), [Probe("a"), Refuses("b", NeedsTwo("x", "y"), at=0.1, in_prepare=in_prepare)],
-                 0.3, processes=2)
+        simulate(plain_scene(), [Probe("a"), needs_two], 0.3, processes=2)
     assert multiprocessing.active_children() == []

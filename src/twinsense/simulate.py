@@ -14,7 +14,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import Future
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -300,15 +300,28 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
             s.prepare(scene, t0 + np.arange(n_frames[i]) / s.frame_rate)
 
     n_procs = min(processes or 1, len(sensors))
+    n_workers = min(default_workers() if workers is None else workers, len(sensors))
+    source: Any
     if n_procs > 1:
         # Forked before the recording is opened (no HDF5 file is shared with a child) and before the
         # progress bar's refresh thread starts. Each process prepares its own sensors; the recording is
         # opened once all are prepared, so a prepare that fails leaves no file (as one after another).
-        procs = _Processes(scene, sensors, rngs, make_runs, n_procs, prepare, process_timeout, stop)
+        source = _Processes(scene, sensors, rngs, make_runs, n_procs, prepare, process_timeout, stop)
+    elif n_workers > 1:
+        # The prepares run on the capture threads beside the first captures; the recording is opened once
+        # all are done, so a prepare that fails leaves no file (as one after another).
+        source = _Ahead(scene, sensors, rngs, make_runs(), n_workers, prepare, n_frames)
+        try:
+            source.wait_prepared()
+        except BaseException:
+            source.close()
+            raise
     else:
-        procs = None
         for i in range(len(sensors)):
             prepare(i)
+        source = ((i, times, lambda i=i, times=times: _capture(scene, sensors[i], times, rngs[i]))
+                  for i, times in make_runs())
+    closable = isinstance(source, (_Ahead, _Processes))
     writer = None
     path = None
     if out is not None:
@@ -318,8 +331,8 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
         try:
             writer = RecordingWriter(path, scenario=scenario)
         except BaseException:
-            if procs is not None:
-                procs.close()
+            if closable:
+                source.close()
             raise
         try:
             for s in sensors:
@@ -327,20 +340,11 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
                 writer.add_sensor(s.name, s.kind, s.frame_rate, cfg)
         except BaseException:
             writer.discard()  # no frame yet: leave nothing behind
-            if procs is not None:
-                procs.close()
+            if closable:
+                source.close()
             raise
     counts = {s.name: 0 for s in sensors}
     frames: dict[str, list] = {s.name: [] for s in sensors} if keep else {}
-    n_workers = min(default_workers() if workers is None else workers, len(sensors))
-    source: Any
-    if procs is not None:
-        source = procs
-    elif n_workers > 1:
-        source = _Ahead(scene, sensors, rngs, make_runs(), n_workers)
-    else:
-        source = ((i, times, lambda i=i, times=times: _capture(scene, sensors[i], times, rngs[i]))
-                  for i, times in make_runs())
     bar = _progress(sum(n_frames)) if progress else None
     try:
         for i, times, get in source:
@@ -377,7 +381,7 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
                 if pending:
                     _write(writer, s.name, pending)
     except BaseException as exc:
-        if isinstance(source, (_Ahead, _Processes)):
+        if closable:
             source.close()  # the captures still running end before the recording is closed
         if bar is not None:
             bar.stop()
@@ -437,10 +441,17 @@ class _Ahead:
     """The clock's runs captured ahead of the writer on a few threads, handed out in clock order.
 
     Each sensor is a lane: its runs are captured one after another in clock order (its random stream
-    and its own caches are only ever used by one thread at a time), lanes run side by side on the
-    pool. A lane captures one run per pool task and queues itself again behind the other lanes, so the
-    pool works on the runs in about clock order. At most ``depth`` runs are ahead of the one being
-    handed out: a bound on the frames held in memory and on how far the scene's times run ahead.
+    and its own caches are only ever used by one thread at a time), lanes run side by side on
+    ``workers`` threads. A thread that is free takes the lane with the most work left: its frames
+    still to capture x its cost per frame (measured: the wall time of its recent captures; before its
+    first, the kind's expected cost, ``_KIND_COST``). The costliest lane (the skin with a hand on it)
+    so keeps a thread for as long as it has a run queued, instead of queueing behind the other lanes
+    after each frame; the others share the remaining threads. At most ``depth`` runs are ahead of the
+    one being handed out: a bound on the frames held in memory and on how far the lanes drift apart.
+
+    ``prepare(i)`` of each sensor that has one is the first task of its lane: the prepares run at once,
+    beside the other lanes' first captures (:meth:`wait_prepared` waits for them and raises the first
+    failing sensor's error, in sensor order).
 
     The articulated bodies' forward kinematics of each run's time is computed here, on the calling
     thread, before the run is queued: every sensor of that time then reads it from the body's cache
@@ -450,17 +461,40 @@ class _Ahead:
     capture's error). :meth:`close` drops the runs not started and waits for those running.
     """
 
-    def __init__(self, scene: Scene, sensors: list, rngs: list, runs: Iterator, workers: int):
+    def __init__(self, scene: Scene, sensors: list, rngs: list, runs: Iterator, workers: int,
+                 prepare: Callable[[int], None] | None = None, frames: Sequence[int] | None = None):
         self._scene, self._sensors, self._rngs, self._runs = scene, sensors, rngs, runs
+        self._prepare = prepare
         self._bodies = _articulated_bodies(scene)
         # Enough runs ahead for every sensor to have one queued behind the one being captured.
         self._depth = 2 * len(sensors)
-        self._pool = ThreadPoolExecutor(workers, thread_name_prefix="twinsense-capture")
-        self._lock = threading.Lock()
+        self._wake = threading.Condition()
         self._lanes: list[deque] = [deque() for _ in sensors]
         self._busy = [False] * len(sensors)
         self._order: deque = deque()  # (sensor index, times, future) in clock order
         self._closed = False
+        # [s] per frame: the kind's expected cost until the lane's first capture, then measured.
+        self._cost = [_KIND_COST.get(getattr(s, "kind", ""), _OTHER_KIND_COST) * 1e-3 for s in sensors]
+        self._measured = [False] * len(sensors)
+        self._left = list(frames) if frames is not None else [1] * len(sensors)
+        self._prepares: list[tuple[int, Future]] = []
+        if prepare is not None:
+            for i, s in enumerate(sensors):
+                if callable(getattr(s, "prepare", None)):
+                    fut: Future = Future()
+                    self._lanes[i].append((None, fut))
+                    self._prepares.append((i, fut))
+        self._fill()  # the first runs are captured beside the prepares
+        self._threads = [threading.Thread(target=self._work, daemon=True, name=f"twinsense-capture-{k}")
+                         for k in range(workers)]
+        for t in self._threads:
+            t.start()
+
+    def wait_prepared(self) -> None:
+        """Wait for every prepare; raise the first failing sensor's error (in sensor order)."""
+        failed = {i: exc for i, fut in self._prepares if (exc := fut.exception()) is not None}
+        if failed:
+            raise failed[min(failed)]
 
     def __iter__(self):
         self._fill()
@@ -483,41 +517,65 @@ class _Ahead:
                         pass
             fut: Future = Future()
             self._order.append((i, times, fut))
-            with self._lock:
+            with self._wake:
                 self._lanes[i].append((times, fut))
-                if not self._busy[i]:
-                    self._busy[i] = True
-                    self._pool.submit(self._step, i)
+                self._wake.notify()
 
-    def _step(self, i: int) -> None:
-        """Capture the next queued run of sensor ``i``; queue the lane again if it has more."""
-        with self._lock:
-            if not self._lanes[i]:  # emptied by close()
+    def _pick(self) -> int | None:
+        """The lane a free thread takes (the lock held): a queued prepare first, else the most work left."""
+        best, key = None, None
+        for i, lane in enumerate(self._lanes):
+            if lane and not self._busy[i]:
+                k = (lane[0][0] is None, self._cost[i] * self._left[i], -i)
+                if key is None or k > key:
+                    best, key = i, k
+        return best
+
+    def _work(self) -> None:
+        while True:
+            with self._wake:
+                while not self._closed and (i := self._pick()) is None:
+                    self._wake.wait()
+                if self._closed:
+                    return
+                self._busy[i] = True
+                times, fut = self._lanes[i].popleft()
+            seconds = 0.0
+            if fut.set_running_or_notify_cancel():
+                start = time.perf_counter()
+                try:
+                    if times is None:
+                        self._prepare(i)  # type: ignore[misc]
+                        block = None
+                    else:
+                        block = _capture(self._scene, self._sensors[i], times, self._rngs[i])
+                except BaseException as exc:  # handed to the writer's thread, raised there at this run
+                    fut.set_exception(exc)
+                else:
+                    fut.set_result(block)
+                seconds = time.perf_counter() - start
+            with self._wake:
                 self._busy[i] = False
-                return
-            times, fut = self._lanes[i].popleft()
-        if not self._closed and fut.set_running_or_notify_cancel():
-            try:
-                block = _capture(self._scene, self._sensors[i], times, self._rngs[i])
-            except BaseException as exc:  # handed to the writer's thread, raised there at this run
-                fut.set_exception(exc)
-            else:
-                fut.set_result(block)
-        with self._lock:
-            if self._lanes[i] and not self._closed:
-                self._pool.submit(self._step, i)
-            else:
-                self._busy[i] = False
+                if times is not None:
+                    n = len(times)
+                    self._left[i] = max(self._left[i] - n, 0)
+                    # The recent frames weigh most: a lane's cost changes during a run (a hand on the skin).
+                    per = seconds / n
+                    self._cost[i] = 0.5 * (self._cost[i] + per) if self._measured[i] else per
+                    self._measured[i] = True
+                self._wake.notify_all()
 
     def close(self) -> None:
         """Drop the runs not started; wait for the captures running (a capture cannot be interrupted)."""
-        with self._lock:
+        with self._wake:
             self._closed = True
             for lane in self._lanes:
                 for _, fut in lane:
                     fut.cancel()
                 lane.clear()
-        self._pool.shutdown(wait=True, cancel_futures=True)
+            self._wake.notify_all()
+        for t in self._threads:
+            t.join()
 
 
 # Expected CPU of one frame per kind [ms], for sharing the lanes among capture processes: the robot
@@ -551,6 +609,20 @@ def lane_groups(sensors: Sequence, processes: int) -> list[list[int]]:
         groups[k].append(i)
         load[k] += cost[i]
     return [sorted(g) for g in groups]
+
+
+def home_group(sensors: Sequence, groups: list[list[int]]) -> int:
+    """The group of :func:`lane_groups` that ``simulate(processes=N)`` captures in the calling process.
+
+    The one whose frames weigh most (frame_rate x :func:`frame_memory_estimate`): its frames then cross
+    no pipe and its caches (casters, static hits) are not copied into a child. Ties (sensors of kinds
+    not estimated) go to the last group, the one of least expected CPU, since this process also writes
+    the recording and calls ``on_frame``. On the robot cell the ToF cameras and the radar stay here and
+    the skin is forked: 1.61 against 1.87 s of CPU per scene second over the reach, 1.12 against 1.27-1.30
+    from 0.9 s (6 and 4 runs each, in turn; the skin kept here instead: 1.99 against 1.91-1.93).
+    """
+    weight = [sum(float(sensors[i].frame_rate) * frame_memory_estimate(sensors[i])[0] for i in g) for g in groups]
+    return max(range(len(groups)), key=lambda k: (weight[k], k))
 
 
 class CaptureProcessError(TwinsenseError, RuntimeError):
@@ -679,6 +751,11 @@ def _lane_child(conn, scene: Scene, sensors: list, rngs: list, runs: Iterator, m
                 _send_error(conn, exc, "prepare-error", i)
                 return
         _send(conn, ("prepared", None))
+        # The frames leave through a sender thread: the next capture starts while the parent still reads
+        # the last frame from the pipe (the robot cell's ToF child spent 0.30-0.48 s per scene second
+        # between captures, 0.02-0.23 s with it). A process that dies takes with it the frames it had
+        # captured but not yet written.
+        conn = _Sender(conn, 16 * len(sensors))
         for i, times in runs:
             if i not in mine:
                 continue
@@ -703,20 +780,59 @@ def _lane_child(conn, scene: Scene, sensors: list, rngs: list, runs: Iterator, m
         conn.close()
 
 
+class _Sender:
+    """The sending end of a capture process's pipe, written by a thread of its own.
+
+    ``send_bytes`` queues (at most ``chunks`` pieces waiting: a bound on the frames held) and returns; the
+    thread writes the pieces in order. Once a write has failed (the parent stopped reading) every later
+    ``send_bytes`` raises BrokenPipeError. ``close`` waits until every queued piece is written (or
+    dropped after a failure) and closes the pipe.
+    """
+
+    def __init__(self, conn, chunks: int):
+        self._conn = conn
+        self._queue: queue.Queue = queue.Queue(chunks)
+        self._broken = False
+        self._thread = threading.Thread(target=self._run, daemon=True, name="twinsense-capture-sender")
+        self._thread.start()
+
+    def _run(self) -> None:
+        while (piece := self._queue.get()) is not None:
+            if self._broken:
+                continue  # drained, so that a put never blocks behind a failed write
+            try:
+                self._conn.send_bytes(piece)
+            except OSError:
+                self._broken = True
+
+    def send_bytes(self, piece) -> None:
+        if self._broken:
+            raise BrokenPipeError("the run's process stopped reading")
+        self._queue.put(piece)
+
+    def close(self) -> None:
+        self._queue.put(None)
+        self._thread.join()
+        self._conn.close()
+
+
 _STOP_POLL = 0.2  # [s] how often a wait for a capture process polls the run's stop
 
 
 class _Processes:
-    """The clock's runs captured by a few forked processes, each owning a fixed group of lanes.
+    """The clock's runs captured by a few processes, each owning a fixed group of lanes: one group in
+    this process, on a capture thread of its own, the others in forked processes.
 
     The processes are forked with the scene, the sensors (their caches, compiled kernels) and the
     run's random streams as they are now; each prepares its own sensors (a skin's mesh for the run's
     times), walks the same clock and captures its own sensors' runs in clock order, sending each back
     over a pipe. A reader thread per process receives them into a bounded queue (``depth`` runs: the
-    frames held in memory and how far a process runs ahead); iterating hands them out in clock order
-    like :class:`_Ahead`. The constructor returns once every process has prepared its sensors (or
-    raises the first failing sensor's error, in sensor order, with the processes ended). Every wait
-    for a process is bounded (:func:`process_wait`).
+    frames held in memory and how far a process runs ahead). The group kept here (:func:`home_group`:
+    the one whose frames weigh most) is captured the same way by a thread that queues its frames
+    directly: its frames cross no pipe, its caches are the warm ones and no process is forked for it.
+    Iterating hands the runs out in clock order like :class:`_Ahead`. The constructor returns once
+    every group has prepared its sensors (or raises the first failing sensor's error, in sensor order,
+    with the processes ended). Every wait for a group is bounded (:func:`process_wait`).
     """
 
     def __init__(self, scene: Scene, sensors: list, rngs: list, make_runs: Callable[[], Iterator],
@@ -724,20 +840,29 @@ class _Processes:
                  stop: Callable[[], BaseException | None] | None = None):
         ctx = multiprocessing.get_context("fork")
         self._stop = stop
-        self._sensors = sensors
+        self._scene, self._sensors, self._rngs = scene, sensors, rngs
         self._groups = lane_groups(sensors, processes)
+        self.home = home_group(sensors, self._groups)
         self._owner = {i: k for k, g in enumerate(self._groups) for i in g}
         self._runs = make_runs()
         self._closed = threading.Event()
         self._timeout = timeout
         self._slowest = 0.0  # [s] the slowest frame handed back so far
         self._seen: set[int] = set()  # sensors whose first frame was handed back
+        self._hung = False  # this process's own lane passed its deadline: its thread cannot be ended
         threads = max(1, default_workers() // len(self._groups))
         _thread_pools()  # found here once, not in every child (see _POOLS)
         depth = 2 * len(sensors)
-        self._procs, self._queues, self._readers, self._conns = [], [], [], []
+        self._procs: list = []
+        self._queues: list[queue.Queue] = []
+        self._readers: list[threading.Thread] = []
+        self._conns: list = []
         try:
             for k, group in enumerate(self._groups):
+                if k == self.home:
+                    self._procs.append(None)
+                    self._conns.append(None)
+                    continue
                 parent, child = ctx.Pipe(duplex=False)
                 p = ctx.Process(target=_lane_child, name=f"twinsense-capture-{k}", daemon=True,
                                 args=(child, scene, sensors, rngs, make_runs(), frozenset(group), threads,
@@ -746,11 +871,16 @@ class _Processes:
                 p.start()
                 self._procs.append(p)
                 child.close()  # the child alone holds the sending end: its exit is an end of file here
-            # The readers start after the last fork: no child is forked while one of them runs.
+            # The readers and this process's own lane start after the last fork: no child is forked while
+            # one of them runs.
             for k, conn in enumerate(self._conns):
                 q: queue.Queue = queue.Queue(depth)
-                r = threading.Thread(target=self._read, args=(conn, q), daemon=True,
-                                     name=f"twinsense-capture-reader-{k}")
+                if conn is None:
+                    r = threading.Thread(target=self._home_lane, args=(q, self._groups[k], prepare, make_runs()),
+                                         daemon=True, name="twinsense-capture-home")
+                else:
+                    r = threading.Thread(target=self._read, args=(conn, q), daemon=True,
+                                         name=f"twinsense-capture-reader-{k}")
                 r.start()
                 self._queues.append(q)
                 self._readers.append(r)
@@ -758,6 +888,38 @@ class _Processes:
         except BaseException:
             self.close()
             raise
+
+    def _put(self, q: queue.Queue, msg) -> None:
+        """``msg`` into ``q``, waiting while it is full, unless the run is closed meanwhile."""
+        while not self._closed.is_set():
+            try:
+                q.put(msg, timeout=0.1)
+                return
+            except queue.Full:
+                continue
+
+    def _home_lane(self, q: queue.Queue, mine: list[int], prepare: Callable[[int], None], runs: Iterator) -> None:
+        """This process's own group, on its capture thread: the messages of :func:`_lane_child`, queued."""
+        for i in mine:
+            try:
+                prepare(i)
+            except BaseException as exc:  # raised on the calling thread before the recording is opened
+                self._put(q, ("prepare-error", (i, exc)))
+                return
+        self._put(q, ("prepared", None))
+        for i, times in runs:
+            if self._closed.is_set():
+                return
+            if i not in self._owner or self._owner[i] != self.home:
+                continue
+            try:
+                start = time.perf_counter()
+                block = _capture(self._scene, self._sensors[i], times, self._rngs[i])
+                seconds = time.perf_counter() - start
+            except BaseException as exc:  # raised on the calling thread at this run, in clock order
+                self._put(q, ("error", (None, exc)))
+                return
+            self._put(q, ("frames", (seconds, block)))
 
     def _read(self, conn, q: queue.Queue) -> None:
         while not self._closed.is_set():
@@ -786,6 +948,12 @@ class _Processes:
     def _names(self, k: int) -> str:
         return ", ".join(repr(self._sensors[j].name) for j in self._groups[k])
 
+    def _who(self, k: int) -> str:
+        """Group ``k`` named for messages."""
+        if k == self.home:
+            return f"this process's capture lane (sensors {self._names(k)})"
+        return f"capture process {k} (sensors {self._names(k)})"
+
     def _ended(self, k: int) -> str:
         """How process ``k`` ended (it closed its pipe), once it has."""
         p = self._procs[k]
@@ -804,8 +972,9 @@ class _Processes:
             try:
                 what, payload = self._take(k, max(start + wait - time.monotonic(), 0.0))
             except queue.Empty:
+                self._hung = self._hung or k == self.home
                 raise CaptureProcessError(
-                    f"capture process {k} (sensors {self._names(k)}) did not prepare its sensors within "
+                    f"{self._who(k)} did not prepare its sensors within "
                     f"{wait:.3g} s ({self._rule()}); the capture processes were ended") from None
             if what == "prepare-error":
                 failed[payload[0]] = payload[1]
@@ -841,9 +1010,11 @@ class _Processes:
             what, payload = self._take(k, wait)
         except queue.Empty:
             # Alive but silent past the deadline (a capture stuck in a lock, a library that never
-            # returns): the caller's error path ends the processes.
+            # returns): the caller's error path ends the processes (a thread of this process cannot be
+            # ended: it is left to finish or hang on its own).
+            self._hung = self._hung or k == self.home
             raise CaptureProcessError(
-                f"capture process {k} (sensors {self._names(k)}) handed back no frame of sensor "
+                f"{self._who(k)} handed back no frame of sensor "
                 f"{self._sensors[i].name!r} at t = {times[0]:.6g} s within {wait:.3g} s ({self._rule()}); "
                 "the capture processes were ended") from None
         if what == "frames":
@@ -864,18 +1035,23 @@ class _Processes:
         error or a timeout) they are killed and the runs they captured ahead are dropped.
         """
         self._closed.set()
-        for p in self._procs:
+        procs = [p for p in self._procs if p is not None]
+        for p in procs:
             if finished:
                 p.join(timeout=10.0)
             if p.is_alive():
                 p.kill()
-        for p in self._procs:
+        for p in procs:
             p.join()
-        for r in self._readers:
-            r.join()
+        for k, r in enumerate(self._readers):
+            # This process's own lane ends after its capture running (as a capture thread's): waited
+            # for, unless it is the one that hung.
+            if not (k == self.home and self._hung):
+                r.join()
         for c in self._conns:
-            c.close()
-        for p in self._procs:
+            if c is not None:
+                c.close()
+        for p in procs:
             p.close()
 
 
