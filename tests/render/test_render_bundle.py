@@ -40,13 +40,14 @@ def brute_force(static, movers, rots, poss, o, d, rays_per_block=64):
     """(inst, prim) of every ray: every triangle tested, least t > 0, ties to the lowest index.
 
     The picker's edge functions (vertices sheared along the ray r = (u, v, 1) in the
-    bundle's axes), without its grid, clipping or early exit.
+    bundle's axes, inside within the picker's rounding tolerance), without its grid,
+    clipping or early exit.
     """
     basis = bundle_frame(d)
     blocks = [] if static is None else [(_projected(static[0], None, None, o, basis), static[1], 0)]
     first = len(blocks)
     blocks += [(_projected(v, rots[j], poss[j], o, basis), f, first + j) for j, (v, f) in enumerate(movers)]
-    tri, det, inst, prim = [], [], [], []
+    tri, det, sizes, inst, prim = [], [], [], [], []
     for w, f, k in blocks:
         f = np.asarray(f, np.int64).reshape(-1, 3)
         w0, w1, w2 = w[f[:, 0]], w[f[:, 1]], w[f[:, 2]]
@@ -58,6 +59,8 @@ def brute_force(static, movers, rots, poss, o, d, rays_per_block=64):
         ee = ((e0[:, 0] * e0[:, 0] + e0[:, 1] * e0[:, 1] + e0[:, 2] * e0[:, 2])
               * (e1[:, 0] * e1[:, 0] + e1[:, 1] * e1[:, 1] + e1[:, 2] * e1[:, 2]))
         dt = x0 * (y1 * z2 - z1 * y2) + y0 * (z1 * x2 - x1 * z2) + z0 * (x1 * y2 - y1 * x2)
+        size = np.maximum(np.maximum(np.abs(w0).sum(axis=1), np.abs(w1).sum(axis=1)), np.abs(w2).sum(axis=1))
+        sizes.append(size)
         tri.append(np.column_stack([w0, w1, w2]))
         det.append(np.where(nn > 1e-20 * ee, dt, np.nan))  # zero area within rounding: never hit
         inst.append(np.full(len(f), k)), prim.append(np.arange(len(f)))
@@ -71,6 +74,9 @@ def brute_force(static, movers, rots, poss, o, d, rays_per_block=64):
         b = x * basis[1, 0] + y * basis[1, 1] + z * basis[1, 2]
         c = x * basis[2, 0] + y * basis[2, 1] + z * basis[2, 2]
         us, vs = a / c, b / c
+    reach = max(np.abs(us[ok_ray]).max(initial=0.0), np.abs(vs[ok_ray]).max(initial=0.0))
+    size = np.concatenate(sizes) * (1.0 + reach)
+    tol = 8.0 * 2.0**-53 * size * size  # an edge function this near zero is on the edge
     for s in range(0, len(d), rays_per_block):
         u, v = us[s:s + rays_per_block, None], vs[s:s + rays_per_block, None]
         ax, ay = tri[:, 0] - tri[:, 2] * u, tri[:, 1] - tri[:, 2] * v
@@ -79,7 +85,7 @@ def brute_force(static, movers, rots, poss, o, d, rays_per_block=64):
         e0, e1, e2 = ax * by - ay * bx, bx * cy - by * cx, cx * ay - cy * ax
         with np.errstate(divide="ignore", invalid="ignore"):
             t = det / (e0 + e1 + e2)
-        inside = (np.minimum(e0, np.minimum(e1, e2)) >= 0) | (np.maximum(e0, np.maximum(e1, e2)) <= 0)
+        inside = (np.minimum(e0, np.minimum(e1, e2)) >= -tol) | (np.maximum(e0, np.maximum(e1, e2)) <= tol)
         t = np.where(inside & (t > 0) & (t < np.inf), t, np.inf)
         best = np.argmin(t, axis=1)  # the first (lowest index) of equal least t
         hit = np.isfinite(t[np.arange(len(t)), best]) & ok_ray[s:s + rays_per_block]

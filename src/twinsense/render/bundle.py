@@ -190,7 +190,8 @@ class BundlePicker:
             self._embree_picks = AUTO_RETRY
             return None
         data = np.empty((len(kept), bk.TRI_WORDS))
-        _ranges(workers, len(kept), lambda a, b: bk.triangle_data(a, b, kept, self._faces, proj, data))
+        reach = max(abs(umin), abs(umax), abs(vmin), abs(vmax))
+        _ranges(workers, len(kept), lambda a, b: bk.triangle_data(a, b, kept, self._faces, proj, reach, data))
         zk = np.ascontiguousarray(zmin[kept])
         best_t, best_k = ws.get("best_t", m), ws.get("best_k", m, np.int64)
         # Cells split into ranges of about equal work (rays x triangles).

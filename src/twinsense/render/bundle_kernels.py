@@ -35,8 +35,10 @@ import numpy as np
 from twinsense.compiled import jit
 
 #: The data kept per kept triangle, in this order: its vertices along e1, e2, e3
-#: (x0, y0, z0, x1, ..., z2: 9 numbers) and W0 . (W1 x W2).
-TRI_WORDS = 10
+#: (x0, y0, z0, x1, ..., z2: 9 numbers), W0 . (W1 x W2) and its edge tolerance.
+TRI_WORDS = 11
+#: Float64's unit roundoff.
+_EPS = 2.0**-53
 
 
 @jit
@@ -289,20 +291,33 @@ def cell_lists(kept, box, gu, gv):  # pragma: no cover
 
 
 @jit
-def triangle_data(lo, hi, kept, faces, proj, data):  # pragma: no cover
+def triangle_data(lo, hi, kept, faces, proj, reach, data):  # pragma: no cover
     """data[q] (TRI_WORDS,) of kept triangles q = lo..hi-1: the vertices' rows of proj
-    (along e1, e2, e3; shared rows for shared vertices) and W0 . (W1 x W2)."""
+    (along e1, e2, e3; shared rows for shared vertices), W0 . (W1 x W2), and the edge
+    tolerance 8 eps S^2.
+
+    S = max_k (|x_k| + |y_k| + |z_k|) (1 + reach) bounds every sheared coordinate
+    |x - z u| for rays with |u|, |v| <= ``reach``; a sheared coordinate is off by at
+    most 2 eps S and a 2-D cross product of two by at most ~6 eps S^2: an edge
+    function within 8 eps S^2 of zero is a ray on the edge within float64 rounding,
+    and counts as inside (so a ray exactly through a silhouette edge hits, as in
+    exact arithmetic; a shared edge was already exact).
+    """
     for q in range(lo, hi):
         f = kept[q]
+        size = 0.0
         for k in range(3):
             i = faces[f, k]
             data[q, 3 * k] = proj[i, 0]
             data[q, 3 * k + 1] = proj[i, 1]
             data[q, 3 * k + 2] = proj[i, 2]
+            size = max(size, abs(proj[i, 0]) + abs(proj[i, 1]) + abs(proj[i, 2]))
         x0, y0, z0 = data[q, 0], data[q, 1], data[q, 2]
         x1, y1, z1 = data[q, 3], data[q, 4], data[q, 5]
         x2, y2, z2 = data[q, 6], data[q, 7], data[q, 8]
         data[q, 9] = x0 * (y1 * z2 - z1 * y2) + y0 * (z1 * x2 - x1 * z2) + z0 * (x1 * y2 - y1 * x2)
+        size *= 1.0 + reach
+        data[q, 10] = 8.0 * _EPS * size * size
 
 
 @jit
@@ -316,6 +331,7 @@ def _test(us, vs, best_t, best_k, tri, k):  # pragma: no cover
     x1, y1, z1 = tri[3], tri[4], tri[5]
     x2, y2, z2 = tri[6], tri[7], tri[8]
     det = tri[9]
+    tol = tri[10]
     for r in range(us.shape[0]):
         u, v = us[r], vs[r]
         # The vertices sheared along the ray (the same operations for every triangle).
@@ -329,9 +345,10 @@ def _test(us, vs, best_t, best_k, tri, k):  # pragma: no cover
         lo = min(e0, min(e1, e2))
         hi = max(e0, max(e1, e2))
         bt, bk = best_t[r], best_k[r]
-        # Inside (all three >= 0 or all <= 0: either side), in front, finite (a ray in
-        # the triangle's plane has t = +-inf or NaN), nearer or a tie with a lower key.
-        ok = ((lo >= 0.0) | (hi <= 0.0)) & (t > 0.0) & (t < np.inf) & ((t < bt) | ((t == bt) & (k < bk)))
+        # Inside (all three >= 0 or all <= 0 within rounding: either side), in front,
+        # finite (a ray in the triangle's plane has t = +-inf or NaN), nearer or a tie
+        # with a lower key.
+        ok = ((lo >= -tol) | (hi <= tol)) & (t > 0.0) & (t < np.inf) & ((t < bt) | ((t == bt) & (k < bk)))
         best_t[r] = t if ok else bt
         best_k[r] = k if ok else bk
 
