@@ -38,6 +38,7 @@ from twinsense.radar.nufft import (
     _leg_series,
     _monomial_coeffs,
     _plan_block,
+    _split_ceiling,
     _split_floor,
     _tx_period,
     moving_chunk,
@@ -126,8 +127,11 @@ def _check_floor(p, v, geo, centres, eps, slow=None):
                     assert one >= floor  # the part's floor includes this receiver's
                     total_cost += cost
                     compared += 1
+        floor = _split_floor(p, v, p, v, groups, splits, geo, centres, eps, slow, sample)
+        # The ceiling that decides whether the floor's passes run bounds the floor from above.
+        assert floor <= _split_ceiling(m, groups, splits, len(geo.rx), n_samp, slow)
         if planned_all:
-            assert _split_floor(p, v, p, v, groups, splits, geo, centres, eps, slow, sample) <= total_cost
+            assert floor <= total_cost
         splits *= 2
     return compared
 

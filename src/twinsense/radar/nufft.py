@@ -1312,6 +1312,21 @@ def _block_floor(m: int, b_slow: float, jb: int, n_samp: int, eps: float,
     return best
 
 
+def _split_ceiling(m: int, groups: list, splits: int, n_rx: int, n_samp: int,
+                   slow: bool | None) -> float:
+    """The largest value :func:`_split_floor` can return for the split, whatever the movers
+    [ns]: per block the plan's share and one 2-D vector (the floor of a block is at most
+    that when the 2-D variant may be taken; inf when only the 1-D variant may, ``slow``
+    True)."""
+    if slow is True:
+        return math.inf
+    total = 0.0
+    for g in groups:
+        for part in np.array_split(g, min(splits, len(g))):
+            total += n_rx * (m * _NS_2D_PLAN + _block_cost(m, 1, len(part), n_samp, slow=False))
+    return total
+
+
 def _split_floor(p, v, pr, vr, groups: list, splits: int, geo: Geometry,
                  chirp_centre: np.ndarray, eps: float, slow: bool | None,
                  sample: np.ndarray) -> float:
@@ -1370,8 +1385,11 @@ def moving_chunk_2d(p, v, pr, vr, w, geo: Geometry, chirp_centre: np.ndarray,
         blocks = []
         cost = 0.0
         # A split whose cost surely exceeds the per-chirp path's is skipped before any plan.
-        if sample is not None and _split_floor(p, v, pr, vr, groups, splits, geo, chirp_centre,
-                                                eps, slow, sample) > one_d:
+        # (Its passes only where the floor can reach that cost: not for the wrist radar's
+        # thousands of movers, whose first split always can afford its blocks' grids.)
+        if (sample is not None and _split_ceiling(m, groups, splits, n_rx, n_samp, slow) > one_d
+                and _split_floor(p, v, pr, vr, groups, splits, geo, chirp_centre, eps, slow,
+                                 sample) > one_d):
             cost = math.inf
             groups_to_plan = []
         else:
