@@ -147,8 +147,11 @@ class BundlePicker:
             return inst, prim
         e1, e2, e3 = basis
         u, v, valid = ws.get("u", n), ws.get("v", n), ws.get("valid", n, np.bool_)
-        inside, m, umin, umax, vmin, vmax = bk.ray_uv(d, e1, e2, e3, math.cos(math.radians(CONE_DEG)), u, v,
-                                                      valid)
+        cos_min = math.cos(math.radians(CONE_DEG))
+        parts = _ranges(workers, n, lambda a, b: bk.ray_uv(a, b, d, e1, e2, e3, cos_min, u, v, valid))
+        inside, m = all(p[0] for p in parts), sum(p[1] for p in parts)
+        umin, umax = min(p[2] for p in parts), max(p[3] for p in parts)
+        vmin, vmax = min(p[4] for p in parts), max(p[5] for p in parts)
         if not inside:
             return None
         if m == 0:
@@ -163,10 +166,21 @@ class BundlePicker:
         grid = np.array([umin, gu / wu if wu > 0 else 0.0, vmin, gv / wv if wv > 0 else 0.0])
         pad_u, pad_v = 1e-9 * (1.0 + abs(umin) + abs(umax)), 1e-9 * (1.0 + abs(vmin) + abs(vmax))
         extent = np.array([umin - pad_u, umax + pad_u, vmin - pad_v, vmax + pad_v])
-        ray_start = ws.get("ray_start", gu * gv + 1, np.int64)
-        order, us, vs = ws.get("order", n, np.int64), ws.get("us", n), ws.get("vs", n)
-        m = bk.sort_rays(u, v, valid, grid, gu, gv, ws.get("cell", n, np.int64), ray_start, order, us, vs)
-        order = order[:m]
+        # The rays counting-sorted by cell, in ranges (each range's rays at its own offsets).
+        nc = gu * gv
+        cuts = _cuts(workers, n)
+        spans = list(itertools.pairwise(cuts))
+        counts = ws.get("counts", (len(spans), nc), np.int64)
+        cell = ws.get("cell", n, np.int64)
+        _each(workers, list(enumerate(spans)), lambda ps: bk.cell_counts(
+            ps[1][0], ps[1][1], u, v, valid, grid, gu, gv, cell, counts[ps[0]]))
+        ray_start = np.zeros(nc + 1, np.int64)
+        np.cumsum(counts.sum(axis=0), out=ray_start[1:])
+        fills = ray_start[:-1] + np.cumsum(counts, axis=0) - counts
+        order, us, vs = ws.get("order", m, np.int64), ws.get("us", m), ws.get("vs", m)
+        _each(workers, list(enumerate(spans)), lambda ps: bk.scatter_order(
+            ps[1][0], ps[1][1], valid, cell, fills[ps[0]], order))
+        _ranges(workers, m, lambda a, b: bk.gather_uv(a, b, order, u, v, us, vs))
 
         # Vertices to the world, origin-relative; triangles binned.
         rots = np.ascontiguousarray(rots, dtype=float).reshape(-1, 3, 3)
@@ -205,7 +219,8 @@ class BundlePicker:
                           best_t, best_k)
 
         _each(workers, spans, run)
-        bk.scatter_picks(order, best_k, self._tri_inst, self._tri_prim, inst, prim)
+        _ranges(workers, m, lambda a, b: bk.scatter_picks(a, b, order, best_k, self._tri_inst, self._tri_prim,
+                                                            inst, prim))
         return inst, prim
 
 
@@ -256,20 +271,21 @@ class _Workspace:
 _RANGE_MIN = 4096  # items per task below which a range is not split
 
 
-def _ranges(workers: int, n: int, fn) -> None:
-    """fn(a, b) over [0, n) in ``workers`` ranges (one if small)."""
+def _cuts(workers: int, n: int) -> list[int]:
+    """Bounds of ``workers`` about equal ranges over [0, n) (one range if small)."""
     parts = max(1, min(workers, n // _RANGE_MIN))
-    cuts = [n * k // parts for k in range(parts + 1)]
-    _each(workers, list(itertools.pairwise(cuts)), lambda s: fn(*s))
+    return [n * k // parts for k in range(parts + 1)]
 
 
-def _each(workers: int, items, fn) -> None:
-    """fn(item) for every item, on ``workers`` threads of the shared pool when more than one."""
+def _ranges(workers: int, n: int, fn) -> list:
+    """[fn(a, b) for each of ``workers`` ranges [a, b) over [0, n)] (one range if small)."""
+    return _each(workers, list(itertools.pairwise(_cuts(workers, n))), lambda s: fn(*s))
+
+
+def _each(workers: int, items, fn) -> list:
+    """[fn(item) for every item], on ``workers`` threads of the shared pool when more than one."""
     if workers <= 1 or len(items) <= 1:
-        for it in items:
-            fn(it)
-        return
+        return [fn(it) for it in items]
     tasks = [pool(workers).submit(fn, it) for it in items]
     wait(tasks)
-    for task in tasks:
-        task.result()
+    return [task.result() for task in tasks]

@@ -66,8 +66,8 @@ def ray_frame_sums(d):  # pragma: no cover
 
 
 @jit
-def ray_uv(d, e1, e2, e3, cos_min, u, v, valid):  # pragma: no cover
-    """Normalised coordinates of every ray: u, v (n,) (NaN for an invalid ray), valid (n,) bool.
+def ray_uv(lo, hi, d, e1, e2, e3, cos_min, u, v, valid):  # pragma: no cover
+    """Normalised coordinates of rays lo..hi-1: u, v (n,) (NaN for an invalid ray), valid (n,) bool.
 
     Returns (all valid rays within the cone d . e3 >= cos_min |d|, the number of
     valid rays, umin, umax, vmin, vmax) over the valid rays (inf/-inf when none).
@@ -76,7 +76,7 @@ def ray_uv(d, e1, e2, e3, cos_min, u, v, valid):  # pragma: no cover
     umin = vmin = np.inf
     umax = vmax = -np.inf
     inside = True
-    for i in range(d.shape[0]):
+    for i in range(lo, hi):
         x, y, z = d[i, 0], d[i, 1], d[i, 2]
         fx, fy, fz = np.float32(x), np.float32(y), np.float32(z)
         r2 = x * x + y * y + z * z
@@ -112,39 +112,42 @@ def _cell_of(x, lo, inv, g):  # pragma: no cover
 
 
 @jit
-def sort_rays(u, v, valid, grid, gu, gv, cell, start, order, us, vs):  # pragma: no cover
-    """Counting sort of the valid rays by cell (cell = cu + gu cv).
+def cell_counts(lo, hi, u, v, valid, grid, gu, gv, cell, counts):  # pragma: no cover
+    """The cell (cu + gu cv) of every valid ray lo..hi-1 into cell (n,) int64, and the
+    number of those rays per cell into counts (gu gv,) int64 (zeroed here).
 
-    u, v, valid (n,): :func:`ray_uv`; grid (4,): umin, 1/du, vmin, 1/dv. Writes
-    cell (n,) int64 (scratch), start (gu gv + 1,) int64 (cell c's rays are sorted
-    slots start[c]:start[c + 1]), order (>= m,) int64 (the rays' indices by cell,
-    ascending within a cell), and the sorted rays' us, vs (>= m,): structure of
-    arrays, so that the loop over a cell's rays vectorises. Returns m, the number
-    of valid rays. The arrays are the caller's (kept between casts: fresh ones
-    cost a page fault per 4 kB).
+    grid (4,): umin, 1/du, vmin, 1/dv. With :func:`scatter_order` and
+    :func:`gather_uv`: a counting sort of the rays by cell, in ranges of rays that
+    threads can run at once (each range's rays land at its own offsets: the order
+    is the same for any ranges).
     """
-    n = u.shape[0]
-    nc = gu * gv
-    start[:] = 0
-    for i in range(n):
+    counts[:] = 0
+    for i in range(lo, hi):
         if valid[i]:
             c = _cell_of(u[i], grid[0], grid[1], gu) + gu * _cell_of(v[i], grid[2], grid[3], gv)
             cell[i] = c
-            start[c + 1] += 1
-    for c in range(nc):
-        start[c + 1] += start[c]
-    m = start[nc]
-    fill = start[:-1].copy()
-    for i in range(n):
+            counts[c] += 1
+
+
+@jit
+def scatter_order(lo, hi, valid, cell, fill, order):  # pragma: no cover
+    """order[fill[c]++] = i for the valid rays i = lo..hi-1 in cell c: ascending within a cell.
+    fill (gu gv,) int64: this range's first slot in every cell."""
+    for i in range(lo, hi):
         if valid[i]:
-            order[fill[cell[i]]] = i
-            fill[cell[i]] += 1
-    # A gather in sorted order (one scatter of indices above, not of several arrays).
-    for k in range(m):
+            c = cell[i]
+            order[fill[c]] = i
+            fill[c] += 1
+
+
+@jit
+def gather_uv(lo, hi, order, u, v, us, vs):  # pragma: no cover
+    """us, vs [lo:hi] = the sorted rays' u, v (structure of arrays: the loop over a cell's
+    rays vectorises; a gather, not a scatter of several arrays)."""
+    for k in range(lo, hi):
         i = order[k]
         us[k] = u[i]
         vs[k] = v[i]
-    return m
 
 
 @jit
@@ -389,13 +392,10 @@ def pick_cells(c_lo, c_hi, ray_start, us, vs, tri_start, tris, data, key, zmin, 
 
 
 @jit
-def scatter_picks(order, best_k, tri_inst, tri_prim, inst, prim):  # pragma: no cover
-    """inst, prim (n,) int32 of every ray: -1, or the instance and primitive of the
-    triangle best_k[r] (combined index) picked for ray order[r] (sorted slots)."""
-    for i in range(inst.shape[0]):
-        inst[i] = -1
-        prim[i] = -1
-    for r in range(order.shape[0]):
+def scatter_picks(lo, hi, order, best_k, tri_inst, tri_prim, inst, prim):  # pragma: no cover
+    """inst, prim (n,) int32 (-1 already): the instance and primitive of the triangle
+    best_k[r] (combined index) picked for ray order[r], sorted slots r = lo..hi-1."""
+    for r in range(lo, hi):
         q = best_k[r]
         if q >= 0:
             inst[order[r]] = tri_inst[q]
