@@ -135,6 +135,16 @@ class Timed:
         return f
 
 
+def home_note(sensors, processes: int) -> str:
+    """Which group of lanes simulate keeps in the calling process (none in a tree without home_group)."""
+    try:
+        from twinsense.simulate import home_group
+    except ImportError:  # --before with a tree that forked every group
+        return ", all forked"
+    groups = lane_groups(sensors, processes)
+    return f", {groups[home_group(sensors, groups)]} in this process"
+
+
 def whole_cell(seconds: float, t0: float = T0, label: str = "", repeats: int = 1) -> None:
     """The cell's four sensors through ``simulate`` over ``seconds`` of scene time from ``t0`` [s].
 
@@ -165,7 +175,8 @@ def whole_cell(seconds: float, t0: float = T0, label: str = "", repeats: int = 1
             wall, cpu = time.perf_counter() - w0, time.process_time() - c0
             k1 = os.times()
             cpu += (k1.children_user - k0.children_user) + (k1.children_system - k0.children_system)
-            how = (f"{processes} capture processes (lanes {lane_groups(sensors, processes)})" if processes
+            how = (f"{processes} capture processes (lanes {lane_groups(sensors, processes)}"
+                   f"{home_note(sensors, processes)})" if processes
                    else f"{default_workers()} threads (default)" if workers is None else "one after another")
             print(f"  whole cell{label}, {seconds:.1f} s from {t0:g} s, {how}: {wall:.2f} s wall -> "
                   f"{wall / seconds:.2f} s per scene second "

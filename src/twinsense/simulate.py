@@ -234,6 +234,9 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
         Threads that capture different sensors' frames at once (default: the
         shared thread setting, ``TWINSENSE_THREADS`` or the cores up to 4,
         at most one per sensor; 1: one frame after another on this thread).
+        A free thread takes the lane with the most work left (frames left x
+        its measured cost per frame), and the sensors' ``prepare`` run on
+        these threads beside the first captures.
         A sensor's own frames are always captured one after another, in
         clock order, with its own random stream, and frames reach the
         recording, ``keep_frames`` and ``on_frame`` in clock order on the
@@ -244,18 +247,19 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
         has seen (a controller fed from the frames).
     processes : int, optional
         Capture processes (default 1: none, the captures run in this process as ``workers`` says). With
-        N > 1 the sensors' lanes are shared among N processes forked when the run starts (the scene,
-        the sensors and their caches inherited, not pickled), each capturing its sensors' frames in
-        clock order with ``TWINSENSE_THREADS`` = cores / N inner threads; the frames come back over
-        pipes and reach the recording, ``keep_frames`` and ``on_frame`` here in clock order: the same
-        bytes as one after another. The BLAS/OpenMP pools of each process are limited to the same share
-        (threadpoolctl). The processes prepare their sensors before the recording is opened: a prepare
-        that fails raises its error and leaves no file, as one after another. Lanes go to processes
-        by frame_rate x a per-kind cost (see :func:`lane_groups`); ``workers`` is then unused. The
-        sensors' state after the run (a skin's last frame, caches built meanwhile) is not copied back.
-        A process that dies or hangs (see ``process_timeout``) raises :class:`CaptureProcessError`
-        naming its sensors and the frame. Needs the fork start method (Linux, macOS); elsewhere N > 1
-        is a ConfigError.
+        N > 1 the sensors' lanes are shared among N processes: this one, which keeps the group whose
+        frames weigh most (:func:`home_group`) on a capture thread of its own, and N - 1 forked when the
+        run starts (the scene, the sensors and their caches inherited, not pickled), each capturing its
+        sensors' frames in clock order with ``TWINSENSE_THREADS`` = cores / N inner threads; their
+        frames come back over pipes and reach the recording, ``keep_frames`` and ``on_frame`` here in
+        clock order: the same bytes as one after another. The BLAS/OpenMP pools of each forked process
+        are limited to the same share (threadpoolctl). The groups prepare their sensors before the
+        recording is opened: a prepare that fails raises its own error and leaves no file, as one after
+        another. Lanes go to processes by frame_rate x a per-kind cost (see :func:`lane_groups`);
+        ``workers`` is then unused. The forked sensors' state after the run (a skin's last frame,
+        caches built meanwhile) is not copied back. A process that dies or hangs (see
+        ``process_timeout``) raises :class:`CaptureProcessError` naming its sensors and the frame.
+        Needs the fork start method (Linux, macOS); elsewhere N > 1 is a ConfigError.
     process_timeout : float, optional
         [s] With ``processes`` > 1: the longest the run waits for one frame from a capture process (a
         block of n frames: n times it); past it the processes are ended and a
