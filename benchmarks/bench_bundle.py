@@ -109,10 +109,14 @@ def compare_picks(scene, kind, rays_at, times, rounds, anchor):
         for label, res in alternating(variants, rounds).items():
             line(label, res, anchor)
 
+    # Writable copies, one set per picker: a read-only bundle cast a second time would take the
+    # fixed sensor's path (its static hits kept), not the moving sensor's.
+    copies = {p: [Rays(b.origins, np.array(b.directions)) for b in bundles] for p in ("embree", "bundle")}
+
     def whole(picker, w):
         def run(i):
             caster.picker = picker
-            caster.cast(bundles[i], times[i], workers=w)
+            caster.cast(copies[picker][i], times[i], workers=w)
         return in_turn(run, k)
 
     for w in (1, 2):
@@ -142,9 +146,13 @@ def frames(scene, kind, sensor, times, rounds, anchor):
     k = len(times) - 1
 
     def capture(picker):
+        # Each picker at its own times (the bundle's half a frame later): a camera's rays are
+        # kept per pose, read-only, and a bundle cast a second time takes the fixed sensor's path.
+        shift = 0.0 if picker == "embree" else 1 / 60
+
         def run(i):
             caster.picker = picker
-            sensor.capture(scene, times[i], np.random.default_rng(i))
+            sensor.capture(scene, times[i] + shift, np.random.default_rng(i))
         return in_turn(run, k)
 
     res = alternating({f"whole frame ({kind}), Embree picks": capture("embree"),
