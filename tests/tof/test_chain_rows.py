@@ -75,7 +75,7 @@ def test_rows_fed_in_any_order_from_two_threads_are_the_whole_image_bits(overrid
             th.start()
         for th in threads:
             th.join()
-        assert chain._taken2.all(), trial  # every row through both passes before finish
+        assert all(chain._taken2), trial  # every row through both passes before finish
         assert_same(chain.finish(2), want)
 
 
@@ -87,6 +87,28 @@ def test_rows_never_fed_are_run_by_finish():
     chain = ChainRows(ph.real, ph.imag, ph.tap_sum, lambda: slabs, *args)
     chain.feed(40, 77)
     chain.feed(0, 12)
+    assert_same(chain.finish(2), want)
+
+
+@pytest.mark.parametrize("ready_after", [0, 3, 10_000])
+def test_rows_fed_before_the_noise_is_drawn_wait_for_it_and_give_the_same_bits(ready_after):
+    # Until noise_ready() says yes, a feed leaves pass 1 for later (no worker held in a wait for the
+    # draw): the first feed after it takes the rows left behind; rows still left (the noise never
+    # ready while fed) run in finish's bands. Same bits in every case.
+    cfg = config()
+    cam, ph, slabs = phasors_and_noise(cfg)
+    args = (cfg, cam._pixel_dirs, LOOK_X.rotation, LOOK_X.position, NOISE_BLOCK_ROWS)
+    want = chain_frame(ph.real, ph.imag, ph.tap_sum, slabs, *args)
+    asked = []
+
+    def ready():
+        asked.append(1)
+        return len(asked) > ready_after
+
+    chain = ChainRows(ph.real, ph.imag, ph.tap_sum, lambda: slabs, *args, noise_ready=ready)
+    for a in range(0, cfg.height, 18):
+        chain.feed(a, min(a + 18, cfg.height))
+    assert all(chain._taken2) == (ready_after < 8)  # 9 feeds: the last ones took every row
     assert_same(chain.finish(2), want)
 
 

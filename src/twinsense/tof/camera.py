@@ -272,7 +272,8 @@ class _FedChain:
                     cam, noise = self._camera, self._noise
                     self.chain = ChainRows(real, imag, tap_sum, lambda: None if noise is None else noise.result(),
                                            cam.config, cam._pixel_dirs, self._pose.rotation, self._pose.position,
-                                           NOISE_BLOCK_ROWS, cam._chain_scratch if self._mine else None)
+                                           NOISE_BLOCK_ROWS, cam._chain_scratch if self._mine else None,
+                                           None if noise is None else noise.done)
                 chain = self.chain
         chain.feed(r0, r1)
 

@@ -28,6 +28,7 @@ the same in any band, so the frame does not depend on the number of threads.
 from __future__ import annotations
 
 import functools
+import itertools
 import math
 import threading
 
@@ -37,12 +38,12 @@ from scipy import ndimage
 from twinsense.compiled import jit
 from twinsense.constants import SPEED_OF_LIGHT
 from twinsense.errors import ConfigError
+from twinsense.render.parallel import pool
 from twinsense.tof.config import PHASE_STEPS, ToFConfig, _gcd_hz
 from twinsense.tof.demodulation import TWO_PI, unwrap_weights
 from twinsense.tof.effects import CROSSTALK_TRUNCATE
 from twinsense.tof.filters import noise_factor
 from twinsense.tof.frame import FrameProducts, InvalidReason
-from twinsense.tof.kernels import in_bands
 from twinsense.tof.pipeline import check_slabs
 
 _SATURATED = int(InvalidReason.SATURATED)
@@ -464,25 +465,27 @@ class ChainRows:
     above and below) are all final, pass 2 on every row whose pass-1 neighbours
     (one above and below: the flying-pixel test) are; so at the end of the cast
     only the rows at the last chunk's edges are left. :meth:`finish` runs
-    whatever is left (everything, in bands on the worker threads, when nothing
-    was fed) and returns the products. A pixel is computed the same in any
-    call, so the frame is the same bits as the two whole-image passes whatever
-    the chunks, their order and the threads.
+    whatever is left, in bands on the worker threads, and returns the products.
+    A pixel is computed the same in any call, so the frame is the same bits as
+    the two whole-image passes whatever the chunks, their order and the threads.
 
     ``noise()`` returns the frame's noise slabs (or None without noise); it is
-    called once, before the first row's pass 1 (it may wait for the draw).
+    called once, before the first row's pass 1. ``noise_ready()`` tells whether
+    it would return at once: until then a feed leaves pass 1 to later feeds (or
+    :meth:`finish`) instead of holding a worker thread in a wait for the draw.
     The arrays are the caller's and must not change until :meth:`finish`;
     ``feed`` may be called from several threads at once, with disjoint rows.
     """
 
     def __init__(self, real: np.ndarray, imag: np.ndarray, tap_sum: np.ndarray, noise, config: ToFConfig,
                  pixel_dirs: np.ndarray, rotation: np.ndarray, position: np.ndarray, block_rows: int,
-                 scratch: dict | None = None):
+                 scratch: dict | None = None, noise_ready=None):
         cfg = config
         f, h, w = real.shape
         self._h = h
         self._cfg = cfg
         self._noise = noise
+        self._noise_ready = noise_ready
         sigma = cfg.crosstalk_sigma_px
         weights = crosstalk_weights(sigma) if sigma > 0 else np.ones(1)
         self._radius = (len(weights) - 1) // 2
@@ -509,16 +512,18 @@ class ChainRows:
                                out.invalid, out.distance, out.depth, out.confidence, out.points_sensor,
                                out.points_world)
         self._lock = threading.Lock()
-        # Per row: phasors final, pass 1 taken, pass 1 done, pass 2 taken.
-        self._final = np.zeros(h, bool)
-        self._taken1 = np.zeros(h, bool)
-        self._done1 = np.zeros(h, bool)
-        self._taken2 = np.zeros(h, bool)
+        # Per row (1 = yes): phasors final, pass 1 taken, pass 1 done, pass 2 taken. Plain bytes: the
+        # book-keeping runs under the lock with the GIL, a few microseconds per feed.
+        self._final = bytearray(h)
+        self._taken1 = bytearray(h)
+        self._done1 = bytearray(h)
+        self._taken2 = bytearray(h)
+        self._waiting = False  # rows final while the noise was not ready: pass 1 left for later
 
     def _pixel_rows(self, r0: int, r1: int) -> None:
         args = self._pixel_args
         if args is None:
-            with self._lock:  # the noise fetched once (the first caller may wait for the draw)
+            with self._lock:  # the noise fetched once
                 if self._pixel_args is None:
                     slabs = self._noise() if self._cfg.noise else None
                     if self._cfg.noise:
@@ -535,56 +540,106 @@ class ChainRows:
     def _geometry_rows(self, r0: int, r1: int) -> None:
         _geometry_rows(r0, r1, *self._geometry_args)
 
-    def _take(self, ready: np.ndarray, radius: int, taken: np.ndarray) -> list[tuple[int, int]]:
-        """Runs [r0, r1) of rows not yet taken whose rows within ``radius`` are all ``ready``;
-        marks them taken (call under the lock)."""
+    def _take(self, ready: bytearray, radius: int, taken: bytearray, lo: int, hi: int) -> list[tuple[int, int]]:
+        """Runs [r0, r1) of the rows in [lo, hi) not yet taken whose rows within ``radius`` (clipped to
+        the image) are all ``ready``; marks them taken (call under the lock)."""
         h = self._h
-        if radius:
-            # A row is ready when no row in [r - radius, r + radius] (clipped) is missing.
-            missing = np.concatenate(([0], np.cumsum(~ready)))
-            r = np.arange(h)
-            lo, hi = np.maximum(r - radius, 0), np.minimum(r + radius + 1, h)
-            ok = missing[hi] - missing[lo] == 0
-        else:
-            ok = ready.copy()
-        ok &= ~taken
-        rows = np.flatnonzero(ok)
-        if len(rows) == 0:
+        runs: list[tuple[int, int]] = []
+        for r in range(max(lo, 0), min(hi, h)):
+            if taken[r] or 0 in ready[max(r - radius, 0):r + radius + 1]:
+                continue
+            taken[r] = 1
+            if runs and runs[-1][1] == r:
+                runs[-1] = (runs[-1][0], r + 1)
+            else:
+                runs.append((r, r + 1))
+        return runs
+
+    def _pass1_runs(self, lo: int, hi: int) -> list[tuple[int, int]]:
+        """Pass-1 runs made ready by rows [lo, hi) becoming final (under the lock)."""
+        if self._cfg.noise and self._pixel_args is None and self._noise_ready is not None \
+                and not self._noise_ready():
+            self._waiting = True  # the rows are looked at again once the noise is there
             return []
-        taken[rows] = True
-        cuts = np.flatnonzero(np.diff(rows) != 1) + 1
-        return [(int(run[0]), int(run[-1]) + 1) for run in np.split(rows, cuts)]
+        if self._waiting:
+            self._waiting = False
+            lo, hi = 0, self._h
+        rad = self._radius
+        return self._take(self._final, rad, self._taken1, lo - rad, hi + rad)
 
     def feed(self, r0: int, r1: int) -> None:
         """Pixel rows [r0, r1) have their final phasors: run both passes as far as they can go."""
         with self._lock:
-            self._final[r0:r1] = True
-            runs = self._take(self._final, self._radius, self._taken1)
+            self._final[r0:r1] = b"\x01" * (r1 - r0)
+            runs = self._pass1_runs(r0, r1)
+        self._after_pass1(runs)
+
+    def _after_pass1(self, runs: list[tuple[int, int]]) -> None:
+        """Pass 1 on ``runs`` (taken), then pass 2 on every row that this makes ready."""
         for a, b in runs:
             self._pixel_rows(a, b)
         if not runs:
             return
         with self._lock:
             for a, b in runs:
-                self._done1[a:b] = True
-            runs = self._take(self._done1, 1, self._taken2)
-        for a, b in runs:
+                self._done1[a:b] = b"\x01" * (b - a)
+            ready = [run for a, b in runs for run in self._take(self._done1, 1, self._taken2, a - 1, b + 1)]
+        for a, b in ready:
             self._geometry_rows(a, b)
 
     def finish(self, workers: int = 1) -> FrameProducts:
-        """The frame's products once every row's phasors are final (rows never fed: all passes here,
-        in ``workers`` bands when no row was fed)."""
+        """The frame's products once every row's phasors are final: the rows left (all of them when
+        none was fed) in ``workers`` bands, pass 1 and then pass 2."""
         h = self._h
-        if not self._final.any():
-            self._final[:] = True
-            self._taken1[:] = True
-            self._taken2[:] = True
-            in_bands(self._pixel_rows, h, workers)
-            in_bands(self._geometry_rows, h, workers)
-            return self.out
-        rest = np.flatnonzero(~self._final)
-        if len(rest):
-            self.feed(int(rest[0]), h)  # rows at the end never fed (fed ones are marked again: no-op)
-        if not (self._taken1.all() and self._taken2.all()):  # pragma: no cover - every row is fed above
-            raise RuntimeError("ChainRows: rows left without both passes")
+        with self._lock:
+            whole = not any(self._final)  # nothing fed (a fixed camera's kept phasors): every row here
+            self._final[:] = b"\x01" * h
+            self._waiting = False
+            if whole:
+                self._taken1[:] = self._final
+                runs1 = [(0, h)]
+            else:
+                runs1 = self._take(self._final, self._radius, self._taken1, 0, h)
+        _in_bands_of(runs1, self._pixel_rows, workers)
+        with self._lock:
+            for a, b in runs1:
+                self._done1[a:b] = b"\x01" * (b - a)
+            if 0 in self._done1:  # pragma: no cover - a feed still running: the caller's bug
+                raise RuntimeError("ChainRows.finish: a feed is still running")
+            if whole:
+                self._taken2[:] = self._done1
+                runs2 = [(0, h)]
+            else:
+                runs2 = self._take(self._done1, 1, self._taken2, 0, h)
+        _in_bands_of(runs2, self._geometry_rows, workers)
         return self.out
+
+
+def _in_bands_of(runs: list[tuple[int, int]], fn, workers: int) -> None:
+    """fn(r0, r1) over the rows of ``runs``, cut into ``workers`` bands of about equal rows (at least one
+    row each), each band's rows as contiguous runs; all bands but the last on the shared worker threads,
+    the last on this thread (which would otherwise only wait)."""
+    rows = [r for a, b in runs for r in range(a, b)]
+    if not rows:
+        return
+    edges = np.linspace(0, len(rows), max(1, min(workers, len(rows))) + 1).astype(int).tolist()
+    groups = []
+    for i, j in itertools.pairwise(edges):
+        group: list[tuple[int, int]] = []
+        for r in rows[i:j]:
+            if group and group[-1][1] == r:
+                group[-1] = (group[-1][0], r + 1)
+            else:
+                group.append((r, r + 1))
+        groups.append(group)
+
+    def run(group):
+        for a, b in group:
+            fn(a, b)
+
+    tasks = [pool(workers).submit(run, g) for g in groups[:-1]]
+    try:
+        run(groups[-1])
+    finally:
+        for task in tasks:
+            task.result()
