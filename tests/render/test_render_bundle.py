@@ -14,7 +14,7 @@ import pytest
 import trimesh
 
 from twinsense import PinholeCamera, Pose
-from twinsense.demos.robot_cell import ROBOT, build_arm_cell
+from twinsense.demos.robot_cell import ROBOT, build_arm_cell, build_arm_cell_sensors
 from twinsense.errors import ConfigError
 from twinsense.radar import FMCWRadar
 from twinsense.render.bundle import BundlePicker, bundle_frame
@@ -311,23 +311,30 @@ def test_worker_count_does_not_change_a_byte(cell):
 
 
 def test_tof_and_radar_frames_are_the_same_with_either_picker(cell):
-    scene, sensors = cell
+    scene, _ = cell
     # At 1.3 s every ray of both sensors picks the same triangle either way (checked first),
     # so every frame array must be the same bits.
     t = 1.3
-    tof = sensors[2]
-    radar = FMCWRadar.preset("paper_bgt60tr13c", mount=Mount(Pose((0.06, 0.0, 0.02)), parent=f"{ROBOT}/tool0"))
     for kind, rays in (("tof", wrist_tof_rays(cell, t)), ("radar", radar_rays(cell, t))):
         a = SceneCaster(scene, kind, picker="embree").cast(rays, t, ("distance",))
         b = SceneCaster(scene, kind, picker="bundle").cast(rays, t, ("distance",))
         np.testing.assert_array_equal(a.triangle_id, b.triangle_id)
         np.testing.assert_array_equal(a.object_id, b.object_id)
-    for sensor, kind in ((tof, "tof"), (radar, "radar")):
+
+    def radar():
+        return FMCWRadar.preset("paper_bgt60tr13c", mount=Mount(Pose((0.06, 0.0, 0.02)), parent=f"{ROBOT}/tool0"))
+
+    for kind, make in (("tof", lambda: build_arm_cell_sensors()[2]), ("radar", radar)):
+        caster = caster_for(scene, kind)
         frames = []
         for picker in ("embree", "bundle"):
-            caster_for(scene, kind).picker = picker
-            frames.append(sensor.capture(scene, t, np.random.default_rng(7)).streams())
-        caster_for(scene, kind).picker = "auto"
+            # A new sensor each time: its rays are new arrays, cast once (a camera's rays are
+            # kept per pose, read-only, and cast again they would take the fixed sensor's path).
+            caster.picker = picker
+            before = caster._instanced.bundle_picker().picks
+            frames.append(make().capture(scene, t, np.random.default_rng(7)).streams())
+            assert (caster._instanced.bundle_picker().picks > before) == (picker == "bundle")
+        caster.picker = "auto"
         assert frames[0].keys() == frames[1].keys()
         for key in frames[0]:
             np.testing.assert_array_equal(frames[0][key], frames[1][key], err_msg=f"{kind} {key}")

@@ -98,6 +98,8 @@ class BundlePicker:
         self._spare: list[_Workspace] = []
         self._embree_picks = 0  # picks left to Embree by the "auto" rule
         self.last_tests_per_ray = 0.0
+        #: Bundles picked so far (the ones handed back to Embree not counted).
+        self.picks = 0
         self._lock = threading.Lock()
 
     def _workspace(self) -> _Workspace:
@@ -221,6 +223,7 @@ class BundlePicker:
         _each(workers, spans, run)
         _ranges(workers, m, lambda a, b: bk.scatter_picks(a, b, order, best_k, self._tri_inst, self._tri_prim,
                                                             inst, prim))
+        self.picks += 1
         return inst, prim
 
 
