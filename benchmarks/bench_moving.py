@@ -236,6 +236,7 @@ def _stage_timers(stages: dict):
         fn = getattr(owner, name, None)
         if fn is None:  # a stage an older tree (bench_radar_trees.py --before) does not have
             continue
+        stages.setdefault(label, 0.0)  # printed in this order, nested stages under their parent
         saved.append((owner, name, fn))
 
         def timed(*a, _fn=fn, _label=label, **k):
