@@ -303,3 +303,27 @@ def test_per_chirp_path_of_a_few_movers_against_the_exact_sum(eps):
     cube = moving_chunk(p, v, None, None, w, geo, centres, eps)
     ref = synthesize_exact(p, v, w, cfg)
     assert np.linalg.norm(cube - ref) / np.linalg.norm(ref) <= 2 * eps
+
+
+def test_compiled_majorant_series_is_the_dictionaries_bits(monkeypatch):
+    # The series' selection (orders up to 6, the dictionary form) from the compiled
+    # majorants: the same monomials, majorants (bits) and order, and the same skipped sum,
+    # on random rests (1-8 monomials of degrees up to 3, bounds 1e-9 to 1, tolerances
+    # 1e-8 to 1e-3).
+    rng = np.random.default_rng(5)
+    compared = 0
+    for _ in range(400):
+        keys = {(int(rng.integers(0, 4)), int(rng.integers(0, 4))) for _ in range(rng.integers(1, 9))}
+        keys.discard((0, 0))
+        if not keys:
+            continue
+        bounds = {key: float(10 ** rng.uniform(-9, 0)) for key in keys}
+        order, tol = int(rng.integers(1, 7)), float(10 ** rng.uniform(-8, -3))
+        monkeypatch.setattr(nufft, "COMPILED_SERIES", False)
+        ref = nufft._exp_series_2d(bounds, order, tol)
+        monkeypatch.setattr(nufft, "COMPILED_SERIES", True)
+        got = nufft._exp_series_2d(bounds, order, tol)
+        assert list(got[0].items()) == list(ref[0].items())
+        assert got[1] == ref[1]
+        compared += 1
+    assert compared > 300

@@ -20,9 +20,11 @@ The 2-D mover path (``nufft.moving_chunk_2d``) has its per-block passes
 here too: :func:`leg_offsets`, :func:`block_coefficients` (the delay
 series, the phase coefficients per monomial and their extremes, any delay order),
 :func:`slow_rest` and :func:`rest_rows` (the per-scatterer rests),
+:func:`series_majorants` (the majorant series that selects the kept monomials),
 :func:`block_series` (the exp series of the rests) and :func:`block_rows_1d`
 (a 1-D block's monomial sums and chunk-wide phase), each with the bits of
-its NumPy form (``tests/radar/test_synthesis_block_kernels.py``,
+its NumPy form; and :func:`slow_rest_floor`, a lower bound on a block's
+slow-time rest before its plan (``nufft._split_floor``) (``tests/radar/test_synthesis_block_kernels.py``,
 ``tests/radar/test_block_rows_kernel.py``). Before the chunks, the movers'
 range rates (:func:`range_rates`), their stable sort (:func:`stable_argsort`
 on :func:`rate_keys`: NumPy's stable order) and each chunk's gather
@@ -656,3 +658,61 @@ def slow_rest_floor(p, v, pr, vr, sample, t_mid, tx, rx, inv_c, two_pi_fc, pi_s,
             if dist > best:
                 best = dist
     return 0.5 * best
+
+
+@jit
+def series_majorants(b_i, b_j, b_val, order, maj_i, maj_j, maj_val):  # pragma: no cover
+    """The majorant series of a 2-D block's exp series (nufft._exp_series_2d, dictionary
+    form): for k = 1..order the term T_k = T_{k-1} * B / k (B = sum_r b_val[r] U^b_i[r]
+    V^b_j[r], the rests' bounds in their dictionary order) and the majorants
+    M = sum_k T_k, each sum formed in the dictionaries' order (a term's monomials in the
+    order they first appear, each product (c1 c2) / k added to what is there), so the
+    same bits. Writes M's monomials in their order of first appearance, (0, 0) first,
+    into maj_i, maj_j, maj_val (capacity (order max b_i + 1) (order max b_j + 1)) and
+    returns their count."""
+    n_r = b_i.shape[0]
+    top_i, top_j = 0, 0
+    for r in range(n_r):
+        top_i = max(top_i, b_i[r])
+        top_j = max(top_j, b_j[r])
+    n_i, n_j = order * top_i + 1, order * top_j + 1
+    cap = n_i * n_j
+    maj_slot = np.full((n_i, n_j), -1, np.int64)
+    new_slot = np.full((n_i, n_j), -1, np.int64)
+    t_i = np.empty(cap, np.int64)
+    t_j = np.empty(cap, np.int64)
+    t_v = np.empty(cap)
+    w_i = np.empty(cap, np.int64)
+    w_j = np.empty(cap, np.int64)
+    w_v = np.empty(cap)
+    t_i[0], t_j[0], t_v[0] = 0, 0, 1.0
+    n_t = 1
+    maj_i[0], maj_j[0], maj_val[0] = 0, 0, 1.0
+    maj_slot[0, 0] = 0
+    n_maj = 1
+    for k in range(1, order + 1):
+        n_w = 0
+        for a in range(n_t):
+            c1 = t_v[a]
+            for r in range(n_r):
+                ki, kj = t_i[a] + b_i[r], t_j[a] + b_j[r]
+                x = c1 * b_val[r] / k
+                s = new_slot[ki, kj]
+                if s < 0:
+                    new_slot[ki, kj] = n_w
+                    w_i[n_w], w_j[n_w], w_v[n_w] = ki, kj, 0.0 + x
+                    n_w += 1
+                else:
+                    w_v[s] = w_v[s] + x
+        for a in range(n_w):
+            new_slot[w_i[a], w_j[a]] = -1
+            t_i[a], t_j[a], t_v[a] = w_i[a], w_j[a], w_v[a]
+            s = maj_slot[w_i[a], w_j[a]]
+            if s < 0:
+                maj_slot[w_i[a], w_j[a]] = n_maj
+                maj_i[n_maj], maj_j[n_maj], maj_val[n_maj] = w_i[a], w_j[a], 0.0 + w_v[a]
+                n_maj += 1
+            else:
+                maj_val[s] = maj_val[s] + w_v[a]
+        n_t = n_w
+    return n_maj

@@ -42,6 +42,7 @@ from twinsense.radar.kernels import (
     leg_offsets,
     moving_phases,
     rest_rows,
+    series_majorants,
     slow_rest,
     slow_rest_floor,
     static_phases,
@@ -672,6 +673,37 @@ def _exp_series_2d_dense(bounds: dict[tuple[int, int], float], order: int,
     return keep, skipped
 
 
+# The dictionaries' majorant series compiled (False: the dictionaries themselves, the
+# reference; the same monomials and bits).
+COMPILED_SERIES = True
+
+
+def _exp_series_2d_compiled(bounds: dict[tuple[int, int], float], order: int,
+                            tol: float) -> tuple[dict[tuple[int, int], float], float]:
+    """:func:`_exp_series_2d`'s dictionary form with its majorants from one compiled call
+    (:func:`twinsense.radar.kernels.series_majorants`: the same sums in the same order,
+    so the same bits) and its skipping rule on them (a stable sort: ties in order of
+    first appearance, as Python's sort of the dictionary's items)."""
+    keys = list(bounds)
+    b_i = np.array([k[0] for k in keys], np.int64)
+    b_j = np.array([k[1] for k in keys], np.int64)
+    b_val = np.array([bounds[k] for k in keys], float)
+    cap = (order * int(b_i.max()) + 1) * (order * int(b_j.max()) + 1)
+    maj_i, maj_j, maj_val = np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap)
+    n = series_majorants(b_i, b_j, b_val, order, maj_i, maj_j, maj_val)
+    vals = maj_val[:n].tolist()
+    ii, jj = maj_i[:n].tolist(), maj_j[:n].tolist()
+    skipped = 0.0
+    keep = {(0, 0): 1.0}
+    for q in sorted(range(n), key=vals.__getitem__):
+        c = vals[q]
+        if (ii[q], jj[q]) != (0, 0) and skipped + c <= tol:
+            skipped += c
+        else:
+            keep[(ii[q], jj[q])] = c
+    return keep, skipped
+
+
 def _exp_series_2d(bounds: dict[tuple[int, int], float], order: int,
                    tol: float) -> tuple[dict[tuple[int, int], float], float]:
     """Monomials to keep of sum_{k<=order} (j R)^k / k!, R = sum r_ij U^i V^j with |r_ij| <= bounds.
@@ -684,6 +716,8 @@ def _exp_series_2d(bounds: dict[tuple[int, int], float], order: int,
     """
     if order > _DENSE_ORDER and bounds:
         return _exp_series_2d_dense(bounds, order, tol)
+    if COMPILED_SERIES and bounds:
+        return _exp_series_2d_compiled(bounds, order, tol)
     maj: dict = {(0, 0): 1.0}
     term: dict = {(0, 0): 1.0}
     for k in range(1, order + 1):
