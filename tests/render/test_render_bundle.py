@@ -456,3 +456,27 @@ def test_picker_is_validated():
     assert caster.picker == "auto"
     with pytest.raises(ConfigError, match="picker"):
         caster.picker = None
+
+
+def test_auto_keeps_embree_for_dense_cells_and_looks_again_later():
+    # A finely tessellated sphere filling a small part of the view: each of its cells holds
+    # hundreds of small triangles, so every ray there would be tested against all of them.
+    ball = trimesh.creation.icosphere(6, 0.3)  # 81,920 triangles
+    wall = (np.array([[6.0, -5, -5], [6, 5, -5], [6, 0, 5]]), np.array([[0, 1, 2]]))
+    picker = BundlePicker(wall, [(np.array(ball.vertices), np.array(ball.faces))])
+    d = camera_rays(245, 245, (60.0, 60.0), (1.0, 0.0, 0.0)).directions  # 60,025 rays along +x
+    pose = (np.eye(3)[None], np.array([[3.0, 0.0, 0.0]]))
+    assert picker.pick(np.zeros(3), d, *pose, auto=True) is None  # too dense: Embree
+    assert picker.last_tests_per_ray > 30.0
+    # The next 30 bundles go to Embree without binning; then the picker looks again.
+    for _ in range(30):
+        assert picker.pick(np.zeros(3), d, *pose, auto=True) is None
+    assert picker.last_tests_per_ray > 30.0 and picker.picks == 0
+    # Forced, the same bundle is picked (and as the brute-force reference would: spot check).
+    inst, _ = picker.pick(np.zeros(3), d, *pose)
+    assert picker.picks == 1 and (inst == 1).any() and (inst == 0).any()
+    # A coarse sphere (320 triangles) in the same place: "auto" picks.
+    coarse = trimesh.creation.icosphere(2, 0.3)
+    small = BundlePicker(wall, [(np.array(coarse.vertices), np.array(coarse.faces))])
+    assert small.pick(np.zeros(3), d, *pose, auto=True) is not None
+    assert small.last_tests_per_ray < 30.0

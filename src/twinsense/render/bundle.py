@@ -32,7 +32,9 @@ from __future__ import annotations
 
 import itertools
 import math
+import os
 import threading
+import weakref
 from concurrent.futures import wait
 
 import numpy as np
@@ -55,6 +57,20 @@ AUTO_RETRY = 30
 AUTO_MIN_RAYS = 4096
 #: "auto" keeps Embree when the scene has more triangles than this many per ray (binning them dominates).
 AUTO_TRIANGLES_PER_RAY = 2.0
+
+
+# Every BundlePicker, for the fork hook below.
+_LIVE: weakref.WeakSet = weakref.WeakSet()
+
+
+def _after_fork_in_child() -> None:
+    """A forked child (a capture process) inherits each picker's lock, held forever if another
+    thread held it at the fork (a cast taking a workspace): new locks."""
+    for picker in list(_LIVE):
+        picker._lock = threading.Lock()
+
+
+os.register_at_fork(after_in_child=_after_fork_in_child)
 
 
 class BundlePicker:
@@ -100,6 +116,7 @@ class BundlePicker:
         self.last_tests_per_ray = 0.0
         #: Bundles picked so far (the ones handed back to Embree not counted).
         self.picks = 0
+        _LIVE.add(self)
         self._lock = threading.Lock()
 
     def _workspace(self) -> _Workspace:
