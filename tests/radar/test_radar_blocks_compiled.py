@@ -327,3 +327,17 @@ def test_compiled_majorant_series_is_the_dictionaries_bits(monkeypatch):
         assert got[1] == ref[1]
         compared += 1
     assert compared > 300
+
+
+@pytest.mark.parametrize(("chirps", "degrees", "modes"), [(64, 3, 64), (16, 5, 512), (64, 1, 64), (7, 2, 127)])
+def test_per_chirp_degree_sums_in_one_einsum_are_the_per_chirp_bits(chirps, degrees, modes):
+    # moving_chunk sums each chirp's transforms over the series' degrees in one einsum over
+    # all chirps: NumPy's sum of products runs over d in order for every output element,
+    # as the per-chirp einsum did (the bytes the per-chirp path had).
+    rng = np.random.default_rng(chirps + degrees)
+    out = rng.normal(size=(chirps, degrees, modes)) + 1j * rng.normal(size=(chirps, degrees, modes))
+    upow = rng.normal(size=(degrees, modes))
+    rows = np.empty((chirps, modes), dtype=complex)
+    np.einsum("mdn,dn->mn", out, upow, out=rows)
+    each = np.stack([np.einsum("dn,dn->n", out[m], upow) for m in range(chirps)])
+    assert rows.tobytes() == each.tobytes()

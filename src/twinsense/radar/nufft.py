@@ -411,12 +411,15 @@ def _moving_rows(x, ph32, a2, a3, w, geo: Geometry, eps: float) -> np.ndarray:
         coeffs[0] = strength
         coeffs[1:] *= strength
         upow = u[None, :] ** degrees[:, None]  # (D, N)
-        outs = (kernel_for(n_samp, eps * _TOL_SPREAD).transform_rows(x, coeffs) if SPREAD_1D
-                else None)
-        for m in range(n_chirps):
-            out = (outs[m] if outs is not None
-                   else transform_1d(x[m], coeffs[:, m, :], n_samp, eps * _TOL_SPREAD, eps))
-            rows[m] = np.einsum("dn,dn->n", out, upow)
+        if SPREAD_1D:
+            # Every chirp at once: the transforms in one call, the sums over the degrees in
+            # one einsum (its loop over d per output element in order: the per-chirp bits).
+            outs = kernel_for(n_samp, eps * _TOL_SPREAD).transform_rows(x, coeffs)  # (M, D, N)
+            np.einsum("mdn,dn->mn", outs, upow, out=rows)
+        else:
+            for m in range(n_chirps):
+                out = transform_1d(x[m], coeffs[:, m, :], n_samp, eps * _TOL_SPREAD, eps)
+                rows[m] = np.einsum("dn,dn->n", out, upow)
     if np.any(c2) or np.any(c3):
         rows *= np.exp(1j * (c2 * u**2 + c3 * u**3))
     return rows
