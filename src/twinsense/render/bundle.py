@@ -165,8 +165,15 @@ class BundlePicker:
         if self.n_triangles == 0:
             return inst, prim
         e1, e2, e3 = basis
-        u, v, valid = ws.get("u", n), ws.get("v", n), ws.get("valid", n, np.bool_)
         cos_min = math.cos(math.radians(CONE_DEG))
+        # A bundle wider than the cone (a spinning LiDAR's) is usually seen in a few thousand
+        # of its rays: turned down before a pass over all of them.
+        sample = np.asarray(d[::max(1, n // 4096)], dtype=float)
+        with np.errstate(invalid="ignore", over="ignore"):
+            r = np.linalg.norm(sample, axis=1)
+            if np.any(sample @ e3 < cos_min * r):  # NaN rows compare False: not counted
+                return None
+        u, v, valid = ws.get("u", n), ws.get("v", n), ws.get("valid", n, np.bool_)
         parts = _ranges(workers, n, lambda a, b: bk.ray_uv(a, b, d, e1, e2, e3, cos_min, u, v, valid))
         inside, m = all(p[0] for p in parts), sum(p[1] for p in parts)
         umin, umax = min(p[2] for p in parts), max(p[3] for p in parts)
