@@ -173,8 +173,23 @@ class BundlePicker:
             r = np.linalg.norm(sample, axis=1)
             if np.any(sample @ e3 < cos_min * r):  # NaN rows compare False: not counted
                 return None
-        u, v, valid = ws.get("u", n), ws.get("v", n), ws.get("valid", n, np.bool_)
-        parts = _ranges(workers, n, lambda a, b: bk.ray_uv(a, b, d, e1, e2, e3, cos_min, u, v, valid))
+        # The grid from the sample's extent (any grid serves: rays beyond it take its border
+        # cells, and so do the triangles there); the rays' exact extent from the pass.
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            su, sv = (sample @ e1) / (sample @ e3), (sample @ e2) / (sample @ e3)
+        keep = np.isfinite(su) & np.isfinite(sv)
+        if not keep.any():
+            su = sv = np.zeros(1)
+            keep = np.ones(1, bool)
+        m_est = max(1, round(n * keep.mean()))
+        gu, gv, grid = _grid(float(su[keep].min()), float(su[keep].max()), float(sv[keep].min()),
+                             float(sv[keep].max()), max(1, m_est // max(1, int(rays_per_cell))))
+        nc = gu * gv
+        spans = list(itertools.pairwise(_cuts(workers, n)))
+        counts = ws.get("counts", (len(spans), nc), np.int64)
+        cell = ws.get("cell", n, np.int64)
+        parts = _each(workers, list(enumerate(spans)), lambda ps: bk.bin_rays(
+            ps[1][0], ps[1][1], d, basis, cos_min, grid, gu, gv, cell, counts[ps[0]]))
         inside, m = all(p[0] for p in parts), sum(p[1] for p in parts)
         umin, umax = min(p[2] for p in parts), max(p[3] for p in parts)
         vmin, vmax = min(p[4] for p in parts), max(p[5] for p in parts)
@@ -182,31 +197,16 @@ class BundlePicker:
             return None
         if m == 0:
             return inst, prim
-        cells = max(1, m // max(1, int(rays_per_cell)))
-        wu, wv = umax - umin, vmax - vmin
-        if wu > 0 and wv > 0:
-            gu = min(cells, max(1, round(math.sqrt(cells * wu / wv))))
-            gv = max(1, min(cells, round(cells / gu)))
-        else:
-            gu, gv = (cells, 1) if wu > 0 else ((1, cells) if wv > 0 else (1, 1))
-        grid = np.array([umin, gu / wu if wu > 0 else 0.0, vmin, gv / wv if wv > 0 else 0.0])
         pad_u, pad_v = 1e-9 * (1.0 + abs(umin) + abs(umax)), 1e-9 * (1.0 + abs(vmin) + abs(vmax))
         extent = np.array([umin - pad_u, umax + pad_u, vmin - pad_v, vmax + pad_v])
-        # The rays counting-sorted by cell, in ranges (each range's rays at its own offsets).
-        nc = gu * gv
-        cuts = _cuts(workers, n)
-        spans = list(itertools.pairwise(cuts))
-        counts = ws.get("counts", (len(spans), nc), np.int64)
-        cell = ws.get("cell", n, np.int64)
-        _each(workers, list(enumerate(spans)), lambda ps: bk.cell_counts(
-            ps[1][0], ps[1][1], u, v, valid, grid, gu, gv, cell, counts[ps[0]]))
+        # The rays counting-sorted by cell, each range's rays at its own offsets.
         ray_start = np.zeros(nc + 1, np.int64)
         np.cumsum(counts.sum(axis=0), out=ray_start[1:])
         fills = ray_start[:-1] + np.cumsum(counts, axis=0) - counts
         order, us, vs = ws.get("order", m, np.int64), ws.get("us", m), ws.get("vs", m)
         _each(workers, list(enumerate(spans)), lambda ps: bk.scatter_order(
-            ps[1][0], ps[1][1], valid, cell, fills[ps[0]], order))
-        _ranges(workers, m, lambda a, b: bk.gather_uv(a, b, order, u, v, us, vs))
+            ps[1][0], ps[1][1], cell, fills[ps[0]], order))
+        _ranges(workers, m, lambda a, b: bk.gather_uv(a, b, order, d, basis, us, vs))
 
         # Vertices to the world, origin-relative; triangles binned.
         rots = np.ascontiguousarray(rots, dtype=float).reshape(-1, 3, 3)
@@ -296,6 +296,17 @@ class _Workspace:
 
 
 _RANGE_MIN = 4096  # items per task below which a range is not split
+
+
+def _grid(umin: float, umax: float, vmin: float, vmax: float, cells: int) -> tuple[int, int, np.ndarray]:
+    """(gu, gv, grid (4,): umin, 1/du, vmin, 1/dv): about ``cells`` cells over the extent, square-ish."""
+    wu, wv = umax - umin, vmax - vmin
+    if wu > 0 and wv > 0:
+        gu = min(cells, max(1, round(math.sqrt(cells * wu / wv))))
+        gv = max(1, min(cells, round(cells / gu)))
+    else:
+        gu, gv = (cells, 1) if wu > 0 else ((1, cells) if wv > 0 else (1, 1))
+    return gu, gv, np.array([umin, gu / wu if wu > 0 else 0.0, vmin, gv / wv if wv > 0 else 0.0])
 
 
 def _cuts(workers: int, n: int) -> list[int]:

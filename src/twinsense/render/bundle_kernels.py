@@ -66,37 +66,54 @@ def ray_frame_sums(d):  # pragma: no cover
 
 
 @jit
-def ray_uv(lo, hi, d, e1, e2, e3, cos_min, u, v, valid):  # pragma: no cover
-    """Normalised coordinates of rays lo..hi-1: u, v (n,) (NaN for an invalid ray), valid (n,) bool.
+def _uv(d, i, e1, e2, e3):  # pragma: no cover
+    """(u, v, c, |d|^2, valid) of ray i: u = d . e1 / c, v = d . e2 / c, c = d . e3; valid: its
+    coordinates are finite float32 numbers (as ``trace`` requires) and not all zero. The
+    one place these are computed (binning and gathering must give the same bits)."""
+    x, y, z = d[i, 0], d[i, 1], d[i, 2]
+    fx, fy, fz = np.float32(x), np.float32(y), np.float32(z)
+    r2 = x * x + y * y + z * z
+    ok = (fx - fx) + (fy - fy) + (fz - fz) == 0 and r2 != 0.0
+    a = x * e1[0] + y * e1[1] + z * e1[2]
+    b = x * e2[0] + y * e2[1] + z * e2[2]
+    c = x * e3[0] + y * e3[1] + z * e3[2]
+    return a / c, b / c, c, r2, ok
 
-    Returns (all valid rays within the cone d . e3 >= cos_min |d|, the number of
-    valid rays, umin, umax, vmin, vmax) over the valid rays (inf/-inf when none).
+
+@jit
+def bin_rays(lo, hi, d, basis, cos_min, grid, gu, gv, cell, counts):  # pragma: no cover
+    """Rays lo..hi-1 into the grid: cell (n,) int64 (cu + gu cv, -1 for an invalid ray), and
+    the number of rays per cell into counts (gu gv,) int64 (zeroed here).
+
+    basis (3, 3): rows e1, e2, e3; grid (4,): umin, 1/du, vmin, 1/dv (a ray beyond the
+    grid takes its border cell: triangles are mapped by the same clamped function).
+    Returns (every valid ray within the cone d . e3 >= cos_min |d|, the number of valid
+    rays, umin, umax, vmin, vmax over them: inf/-inf when none).
+
+    With :func:`scatter_order` and :func:`gather_uv`: a counting sort of the rays by
+    cell, in ranges of rays that threads can run at once (each range's rays land at
+    its own offsets: the order is the same for any ranges).
     """
+    e1, e2, e3 = basis[0], basis[1], basis[2]
+    counts[:] = 0
     m = 0
     umin = vmin = np.inf
     umax = vmax = -np.inf
     inside = True
     for i in range(lo, hi):
-        x, y, z = d[i, 0], d[i, 1], d[i, 2]
-        fx, fy, fz = np.float32(x), np.float32(y), np.float32(z)
-        r2 = x * x + y * y + z * z
-        if (fx - fx) + (fy - fy) + (fz - fz) != 0 or r2 == 0.0:
-            valid[i] = False
-            u[i] = v[i] = np.nan
+        u, v, c, r2, ok = _uv(d, i, e1, e2, e3)
+        cell[i] = -1
+        if not ok:
             continue
-        valid[i] = True
         m += 1
-        a = x * e1[0] + y * e1[1] + z * e1[2]
-        b = x * e2[0] + y * e2[1] + z * e2[2]
-        c = x * e3[0] + y * e3[1] + z * e3[2]
         if not c >= cos_min * np.sqrt(r2):
             inside = False
-            u[i] = v[i] = np.nan
             continue
-        uu, vv = a / c, b / c
-        u[i], v[i] = uu, vv
-        umin, umax = min(umin, uu), max(umax, uu)
-        vmin, vmax = min(vmin, vv), max(vmax, vv)
+        umin, umax = min(umin, u), max(umax, u)
+        vmin, vmax = min(vmin, v), max(vmax, v)
+        k = _cell_of(u, grid[0], grid[1], gu) + gu * _cell_of(v, grid[2], grid[3], gv)
+        cell[i] = k
+        counts[k] += 1
     return inside, m, umin, umax, vmin, vmax
 
 
@@ -112,42 +129,25 @@ def _cell_of(x, lo, inv, g):  # pragma: no cover
 
 
 @jit
-def cell_counts(lo, hi, u, v, valid, grid, gu, gv, cell, counts):  # pragma: no cover
-    """The cell (cu + gu cv) of every valid ray lo..hi-1 into cell (n,) int64, and the
-    number of those rays per cell into counts (gu gv,) int64 (zeroed here).
-
-    grid (4,): umin, 1/du, vmin, 1/dv. With :func:`scatter_order` and
-    :func:`gather_uv`: a counting sort of the rays by cell, in ranges of rays that
-    threads can run at once (each range's rays land at its own offsets: the order
-    is the same for any ranges).
-    """
-    counts[:] = 0
-    for i in range(lo, hi):
-        if valid[i]:
-            c = _cell_of(u[i], grid[0], grid[1], gu) + gu * _cell_of(v[i], grid[2], grid[3], gv)
-            cell[i] = c
-            counts[c] += 1
-
-
-@jit
-def scatter_order(lo, hi, valid, cell, fill, order):  # pragma: no cover
-    """order[fill[c]++] = i for the valid rays i = lo..hi-1 in cell c: ascending within a cell.
+def scatter_order(lo, hi, cell, fill, order):  # pragma: no cover
+    """order[fill[c]++] = i for the rays i = lo..hi-1 in cell c >= 0: ascending within a cell.
     fill (gu gv,) int64: this range's first slot in every cell."""
     for i in range(lo, hi):
-        if valid[i]:
-            c = cell[i]
+        c = cell[i]
+        if c >= 0:
             order[fill[c]] = i
             fill[c] += 1
 
 
 @jit
-def gather_uv(lo, hi, order, u, v, us, vs):  # pragma: no cover
-    """us, vs [lo:hi] = the sorted rays' u, v (structure of arrays: the loop over a cell's
-    rays vectorises; a gather, not a scatter of several arrays)."""
+def gather_uv(lo, hi, order, d, basis, us, vs):  # pragma: no cover
+    """us, vs [lo:hi] = the sorted rays' u, v (computed again by :func:`_uv`: the same bits as
+    when binned; structure of arrays: the loop over a cell's rays vectorises)."""
+    e1, e2, e3 = basis[0], basis[1], basis[2]
     for k in range(lo, hi):
-        i = order[k]
-        us[k] = u[i]
-        vs[k] = v[i]
+        u, v, _, _, _ = _uv(d, order[k], e1, e2, e3)
+        us[k] = u
+        vs[k] = v
 
 
 @jit
