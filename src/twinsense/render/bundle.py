@@ -310,13 +310,15 @@ def _grid(umin: float, umax: float, vmin: float, vmax: float, cells: int) -> tup
 
 
 def _cuts(workers: int, n: int) -> list[int]:
-    """Bounds of ``workers`` about equal ranges over [0, n) (one range if small)."""
-    parts = max(1, min(workers, n // _RANGE_MIN))
+    """Bounds of about equal ranges over [0, n): one on one worker (or if small), else four
+    per worker (the pool hands them out as threads free up: a thread the machine's other
+    work holds back delays the pass by a quarter of its share, not all of it)."""
+    parts = 1 if workers <= 1 else max(1, min(4 * workers, n // _RANGE_MIN))
     return [n * k // parts for k in range(parts + 1)]
 
 
 def _ranges(workers: int, n: int, fn) -> list:
-    """[fn(a, b) for each of ``workers`` ranges [a, b) over [0, n)] (one range if small)."""
+    """[fn(a, b) for each range [a, b) of :func:`_cuts` over [0, n)]."""
     return _each(workers, list(itertools.pairwise(_cuts(workers, n))), lambda s: fn(*s))
 
 
