@@ -6,9 +6,9 @@ normalised image coordinates (u, v) = (d . e1 / d . e3, d . e2 / d . e3) into a
 uniform grid (a few dozen rays per cell), bins every triangle (the static
 objects' in the world, each moving object's posed at the cast's time, all made
 origin-relative in float64) into the cells its projection can touch, and tests
-every triangle of a cell against every ray of the cell with origin-relative
-edge functions (:mod:`twinsense.render.bundle_kernels`): watertight, double
-sided, in float64. Per cell the triangles come nearest first, and a cell stops
+every triangle of a cell against every ray of the cell with the edge functions
+of its vertices sheared along the ray (:mod:`twinsense.render.bundle_kernels`):
+watertight, double sided, in float64. Per cell the triangles come nearest first, and a cell stops
 once every ray has a hit nearer than the next triangle can be.
 
 The pick is the triangle of least t > 0, ties to the lowest (instance,
