@@ -278,7 +278,8 @@ def synthesis_stages(p, v, w, cfg, eps: float, rounds: int = 3) -> None:
     runs = runs[1:]  # the first: warm-up
     print(f"  stages of the wrist synthesis, thread CPU on one thread (median of {rounds}; eps={eps:.2g}):")
     for label in runs[0]:
-        print(f"    {label:<58s} {np.median([r.get(label, 0.0) for r in runs]) * 1e3:7.1f} ms")
+        if any(r.get(label, 0.0) for r in runs):  # stages the frame never ran left out
+            print(f"    {label:<58s} {np.median([r.get(label, 0.0) for r in runs]) * 1e3:7.1f} ms")
 
 
 def wrist_synthesis(radar: FMCWRadar, scene, t: float, anchor: float) -> None:

@@ -170,6 +170,8 @@ def main() -> None:
         stage_names = list(dict.fromkeys(k for lb in labels for k in first[lb]["ms"]))
         print(f"  {'stage':<58s}" + "".join(f"{lb:>30s}" for lb in labels))
         for name in stage_names:
+            if not any(r[key]["ms"].get(name, 0.0) for lb in labels for r in results[lb]):
+                continue  # a stage neither tree ran on this frame
             cells = []
             for lb in labels:
                 vals = [r[key]["ms"].get(name, 0.0) for r in results[lb]]
