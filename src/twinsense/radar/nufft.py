@@ -1407,6 +1407,9 @@ def moving_chunk_2d(p, v, pr, vr, w, geo: Geometry, chirp_centre: np.ndarray,
     split that applies, whatever its cost (for tests). Each block takes the variant with
     the lower estimated cost: 2-D NUFFTs, or the slow-time frequency as one more rest
     with 1-D NUFFTs along the samples (``slow``: True or False forces one, for tests).
+    A split whose cost floor (:func:`_split_floor`, from a few movers, without plans)
+    already exceeds the per-chirp path's is skipped unplanned: the rule would turn it
+    down, so the blocks chosen and the cube are those without the floor.
     """
     pr = p if pr is None else pr
     vr = v if vr is None else vr
