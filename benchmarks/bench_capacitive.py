@@ -22,7 +22,13 @@ Frame solve against the NumPy solve (``--paths-only``): the default solver
 V-cycle) and the NumPy one with the hierarchy rebuilt by the changed-rows
 rule, alternating frame by frame, both solved to the readout's noise.
 
+The energy rule's early stop (``--early-stop-only``): the default rule and the
+classic one (``SolverConfig(early_stop=False)``), alternating frame by frame,
+each frame against a tight solve: CPU, CG steps and the largest Maxwell error
+as a share of ``capacitance_atol``.
+
 Run: .venv/bin/python benchmarks/bench_capacitive.py [--frames N] [--skip-condense] [--skip-gmsh] [--paths-only]
+     [--early-stop-only]
 """
 
 from __future__ import annotations
@@ -197,6 +203,36 @@ def run_paths(label: str, mesh: MeshSettings, frames: int) -> None:
     print(f"  largest Maxwell difference: {worst * 1e15:.4f} fF ({scale})")
 
 
+def run_early_stop(label: str, mesh: MeshSettings, frames: int) -> None:
+    """The energy rule with and without its early stop at the third CG step (``SolverConfig.early_stop``):
+    every frame of both against a tight solve of the same frame (rtol 1e-11, energy rule off), errors
+    as a share of the readout-derived ``capacitance_atol``; CPU per frame alternating in one process."""
+    scene = printer_scene(PATHS["T2"])
+    times = np.arange(frames) / 30.0
+    rules = {"classic": sensor_with(mesh, SolverConfig(early_stop=False)), "early": sensor_with(mesh)}
+    rules["early"]._mesh = rules["classic"].layout_mesh
+    ref_sensor = sensor_with(mesh, SolverConfig(rtol=1e-11, energy_tol=0.0))
+    ref_sensor._mesh = rules["classic"].layout_mesh
+    for s in rules.values():
+        s.capture(scene, times[0])
+    got = {name: {"cpu": [], "steps": [], "err": []} for name in rules}
+    for t in times[1:]:
+        ref = ref_sensor.solve_at(scene, t).matrix
+        for name, s in rules.items():
+            c0 = time.process_time()
+            frame = s.capture(scene, t)
+            got[name]["cpu"].append(time.process_time() - c0)
+            got[name]["steps"].append(int(frame.iterations.max()))
+            got[name]["err"].append(float(np.abs(frame.maxwell - ref).max()))
+    atol = rules["early"].frame_solver_config.capacitance_atol
+    print(f"{label}, energy rule with and without the early stop ({frames - 1} frames, alternating):")
+    for name, g in got.items():
+        err = np.array(g["err"]) / atol
+        print(f"  {name:8s}: {np.median(g['cpu']) * 1e3:7.1f} ms median CPU, CG steps (largest column) "
+              f"{min(g['steps'])}-{max(g['steps'])} (mean {np.mean(g['steps']):.2f}); largest Maxwell error against "
+              f"the tight solve {err.max():.3f} x capacitance_atol ({atol * 1e15:.4f} fF; median {np.median(err):.3f})")
+
+
 def run_gmsh(frames: int) -> None:
     """Printer bed on a gmsh mesh of about the target size: meshing and update times."""
     from twinsense.capacitive.gmsh_mesher import gmsh_version
@@ -227,8 +263,15 @@ def main() -> None:
     ap.add_argument("--skip-condense", action="store_true")
     ap.add_argument("--skip-gmsh", action="store_true")
     ap.add_argument("--paths-only", action="store_true", help="only the frame solve against the NumPy one")
+    ap.add_argument("--early-stop-only", action="store_true", help="only the energy rule with and without its "
+                    "early stop, every frame against a tight solve")
     args = ap.parse_args()
     print_machine()
+    if args.early_stop_only:
+        for label, mesh in CASES.items():
+            run_early_stop(label, mesh, args.frames)
+        print_load_at_end()
+        return
     if args.paths_only:
         for label, mesh in CASES.items():
             run_paths(label, mesh, args.frames)

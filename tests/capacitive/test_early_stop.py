@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from two_pad import two_pad_config
 
-from twinsense.capacitive.pcg import _MAX_RATIO, EARLY_TAIL_MARGIN, _EnergyTail
+from twinsense.capacitive.pcg import _MAX_RATIO, EARLY_RATIO_FLOOR, _EnergyTail
 from twinsense.capacitive.readout import ReadoutConfig
 from twinsense.capacitive.sensor import CapacitiveSensor
 from twinsense.capacitive.solver import MaxwellSolver, SolverConfig
@@ -34,28 +34,31 @@ def _tails(early: bool, drops: list[float]) -> list[float]:
     return [float(tail.tails(np.array([0]), np.array([d]))[0]) for d in drops]
 
 
-def test_third_step_tail_is_the_measured_ratios_with_the_margin():
+def test_third_step_tail_against_the_geometric_series():
     # Decrements of a geometric series with ratio q: the remaining sum after a decrement d is
     # d q / (1 - q) (closed form). Steps 1-2 (both rules) and step 3 (classic) take the placeholder
-    # 0.9: 9 d. Early at step 3: margin x d q / (1 - q). From step 4 on both rules are one.
-    q = 0.2
-    drops = [1.0, q, q**2, q**3, q**4]
-    classic = _tails(False, drops)
-    early = _tails(True, drops)
-    geometric = q / (1 - q)
+    # 0.9: 9 d. Early at step 3: the ratio max(q, EARLY_RATIO_FLOOR). From step 4 on both rules are one.
     placeholder = _MAX_RATIO / (1 - _MAX_RATIO)
-    # One multiplication and one division apart from the closed form: rel 1e-12 covers their rounding.
-    for k in range(2):
-        assert classic[k] == pytest.approx(placeholder * drops[k], rel=1e-12, abs=0)
-        assert early[k] == pytest.approx(classic[k], rel=1e-12, abs=0)
-    assert classic[2] == pytest.approx(placeholder * drops[2], rel=1e-12, abs=0)
-    assert early[2] == pytest.approx(EARLY_TAIL_MARGIN * geometric * drops[2], rel=1e-12, abs=0)
-    for k in (3, 4):
-        assert classic[k] == pytest.approx(geometric * drops[k], rel=1e-12, abs=0)
-        assert early[k] == pytest.approx(classic[k], rel=1e-12, abs=0)
-    # A column whose ratios grow (CG slowing down) keeps the larger measured one at step 3.
-    grow = _tails(True, [1.0, 0.05, 0.05 * 0.3])
-    assert grow[2] == pytest.approx(EARLY_TAIL_MARGIN * (0.3 / 0.7) * 0.015, rel=1e-12, abs=0)
+    floor = EARLY_RATIO_FLOOR / (1 - EARLY_RATIO_FLOOR)
+    # Each tail is one multiplication and one division from its closed form: rel 1e-12 covers the rounding.
+    for q in (0.2, 0.7):
+        drops = [q**k for k in range(5)]
+        classic = _tails(False, drops)
+        early = _tails(True, drops)
+        geometric = q / (1 - q)
+        for k in range(2):
+            assert classic[k] == pytest.approx(placeholder * drops[k], rel=1e-12, abs=0)
+            assert early[k] == pytest.approx(classic[k], rel=1e-12, abs=0)
+        assert classic[2] == pytest.approx(placeholder * drops[2], rel=1e-12, abs=0)
+        assert early[2] == pytest.approx(max(geometric, floor) * drops[2], rel=1e-12, abs=0)
+        # The early tail never exceeds the classic one: it can only stop a column sooner, at step 3.
+        assert early[2] < classic[2]
+        for k in (3, 4):
+            assert classic[k] == pytest.approx(geometric * drops[k], rel=1e-12, abs=0)
+            assert early[k] == pytest.approx(classic[k], rel=1e-12, abs=0)
+    # Ratios that grow (CG slowing down): the larger measured one counts at step 3.
+    grow = _tails(True, [1.0, 0.1, 0.1 * 0.8])
+    assert grow[2] == pytest.approx((0.8 / 0.2) * 0.08, rel=1e-12, abs=0)
 
 
 def test_same_bytes_as_the_classic_rule_where_no_column_stops_at_step_three():
@@ -105,9 +108,9 @@ def test_warm_frames_of_a_moving_hand_stop_earlier_and_stay_within_the_tolerance
             steps[early] += int(frame.iterations.sum())
             worst[early] = max(worst[early], float(np.max(np.abs(frame.maxwell - ref))))
         # Every Maxwell entry within capacitance_atol of the direct solve (the per-terminal tolerance;
-        # off-diagonals by Cauchy-Schwarz within the diagonal errors' geometric mean). Measured: 0.31
-        # (classic) and 0.61 (early) x atol, 67 and 59 CG steps over the 8 frames; the rule is
-        # deterministic, so the bound holds with the margin measured here, not by luck of a draw.
+        # off-diagonals by Cauchy-Schwarz within the diagonal errors' geometric mean). Measured: 0.31 x
+        # atol both, 67 and 65 CG steps over the 8 frames; the rule is deterministic, so the bound
+        # holds with the margin measured here, not by luck of a draw.
         assert worst[early] <= atol
     assert steps[True] < steps[False]
 

@@ -104,10 +104,11 @@ class SolverConfig:
         BENCHMARKS.md), hence off by default.
     early_stop : bool
         Let the energy rule stop a column at its third CG step, on the two
-        decrement ratios measured by then and a margin of
-        :data:`~twinsense.capacitive.pcg.EARLY_TAIL_MARGIN` (see
+        decrement ratios measured by then, floored at
+        :data:`~twinsense.capacitive.pcg.EARLY_RATIO_FLOOR` (see
         :func:`~twinsense.capacitive.pcg.block_pcg`). False: the first
-        step's placeholder ratio holds every column to a fourth step.
+        step's placeholder ratio (0.9, a tail of 9 decrements) holds every
+        column to a fourth step.
     """
 
     preconditioner: str = "amg"
