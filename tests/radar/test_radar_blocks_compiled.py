@@ -341,3 +341,25 @@ def test_per_chirp_degree_sums_in_one_einsum_are_the_per_chirp_bits(chirps, degr
     np.einsum("mdn,dn->mn", out, upow, out=rows)
     each = np.stack([np.einsum("dn,dn->n", out[m], upow) for m in range(chirps)])
     assert rows.tobytes() == each.tobytes()
+
+
+def test_compiled_dense_majorants_are_the_numpy_bits(monkeypatch):
+    # Long series (orders 7-15, the dense form): the compiled majorants and reach are the
+    # NumPy slices' bits, so the same kept monomials, majorants, order and skipped sum.
+    rng = np.random.default_rng(9)
+    compared = 0
+    for _ in range(150):
+        keys = {(int(rng.integers(0, 4)), int(rng.integers(0, 4))) for _ in range(rng.integers(1, 9))}
+        keys.discard((0, 0))
+        if not keys:
+            continue
+        bounds = {key: float(10 ** rng.uniform(-9, 0.2)) for key in keys}
+        order, tol = int(rng.integers(7, 16)), float(10 ** rng.uniform(-8, -3))
+        monkeypatch.setattr(nufft, "COMPILED_SERIES", False)
+        ref = nufft._exp_series_2d(bounds, order, tol)
+        monkeypatch.setattr(nufft, "COMPILED_SERIES", True)
+        got = nufft._exp_series_2d(bounds, order, tol)
+        assert list(got[0].items()) == list(ref[0].items())
+        assert got[1] == ref[1]
+        compared += 1
+    assert compared > 100

@@ -716,3 +716,50 @@ def series_majorants(b_i, b_j, b_val, order, maj_i, maj_j, maj_val):  # pragma: 
                 maj_val[s] = maj_val[s] + w_v[a]
         n_t = n_w
     return n_maj
+
+
+@jit
+def dense_majorants(b_i, b_j, b_val, order, maj, reach):  # pragma: no cover
+    """The majorant series on dense arrays (nufft._exp_series_2d_dense): maj (I, J) the sum
+    of the terms T_k = T_{k-1} * B / k over k = 0..order (T_0 = 1 at (0, 0)), each term's
+    element formed by adding, rest by rest in order, the previous term's element times
+    (b_val[r] / k) (NumPy's shifted-slice sums: the same bits), and reach (I, J) the
+    monomials the series forms; both written in place (zeroed here)."""
+    n_i, n_j = maj.shape
+    top_i, top_j = 0, 0
+    for r in range(b_i.shape[0]):
+        top_i = max(top_i, b_i[r])
+        top_j = max(top_j, b_j[r])
+    term = np.zeros((n_i, n_j))
+    new = np.empty((n_i, n_j))
+    prev = np.zeros((n_i, n_j), np.bool_)
+    new_reach = np.empty((n_i, n_j), np.bool_)
+    for a in range(n_i):
+        for b in range(n_j):
+            maj[a, b] = 0.0
+            reach[a, b] = False
+    term[0, 0] = 1.0
+    maj[0, 0] = 1.0
+    reach[0, 0] = True
+    prev[0, 0] = True
+    for k in range(1, order + 1):
+        for a in range(n_i):
+            for b in range(n_j):
+                new[a, b] = 0.0
+                new_reach[a, b] = False
+        hi, hj = (k - 1) * top_i + 1, (k - 1) * top_j + 1
+        for r in range(b_i.shape[0]):
+            i, j = b_i[r], b_j[r]
+            f = b_val[r] / k
+            for a in range(hi):
+                for b in range(hj):
+                    new[i + a, j + b] = new[i + a, j + b] + term[a, b] * f
+                    if prev[a, b]:
+                        new_reach[i + a, j + b] = True
+        for a in range(n_i):
+            for b in range(n_j):
+                term[a, b] = new[a, b]
+                prev[a, b] = new_reach[a, b]
+                maj[a, b] = maj[a, b] + new[a, b]
+                if new_reach[a, b]:
+                    reach[a, b] = True

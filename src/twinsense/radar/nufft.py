@@ -39,6 +39,7 @@ from twinsense.radar.kernels import (
     block_coefficients,
     block_rows_1d,
     block_series,
+    dense_majorants,
     leg_offsets,
     moving_phases,
     rest_rows,
@@ -644,25 +645,35 @@ def _exp_series_2d_dense(bounds: dict[tuple[int, int], float], order: int,
     of monomials (a chunk of fast tail movers tried 54 plans of orders up to ~12: ~20 ms
     of dictionary work). The kept monomials are the dictionaries' (tested); their
     majorants may differ in the last bit (another order of addition), so a tie at the cut
-    may go the other way, both within ``tol``."""
+    may go the other way, both within ``tol``. The majorants come from one compiled call
+    (:func:`twinsense.radar.kernels.dense_majorants`, the slices' sums element by element:
+    the same bits; the NumPy form with :data:`COMPILED_SERIES` off)."""
     rests = list(bounds.items())
     bi = max(i for (i, _), _ in rests)
     bj = max(j for (_, j), _ in rests)
-    term = np.zeros((order * bi + 1, order * bj + 1))
-    term[0, 0] = 1.0
-    maj = term.copy()
-    reach = term > 0.0  # the monomials the series forms (the dictionaries' keys)
-    prev = reach.copy()
-    for k in range(1, order + 1):
-        new = np.zeros_like(term)
-        new_reach = np.zeros_like(reach)
-        hi, hj = (k - 1) * bi + 1, (k - 1) * bj + 1  # the previous term's extent
-        for (i, j), c in rests:
-            new[i:i + hi, j:j + hj] += term[:hi, :hj] * (c / k)
-            new_reach[i:i + hi, j:j + hj] |= prev[:hi, :hj]
-        term, prev = new, new_reach
-        maj += term
-        reach |= new_reach
+    if COMPILED_SERIES:
+        # The same sums in one compiled call (kernels.dense_majorants: the same bits).
+        maj = np.empty((order * bi + 1, order * bj + 1))
+        reach = np.empty(maj.shape, np.bool_)
+        dense_majorants(np.array([i for (i, _), _ in rests], np.int64),
+                        np.array([j for (_, j), _ in rests], np.int64),
+                        np.array([c for _, c in rests], float), order, maj, reach)
+    else:
+        term = np.zeros((order * bi + 1, order * bj + 1))
+        term[0, 0] = 1.0
+        maj = term.copy()
+        reach = term > 0.0  # the monomials the series forms (the dictionaries' keys)
+        prev = reach.copy()
+        for k in range(1, order + 1):
+            new = np.zeros_like(term)
+            new_reach = np.zeros_like(reach)
+            hi, hj = (k - 1) * bi + 1, (k - 1) * bj + 1  # the previous term's extent
+            for (i, j), c in rests:
+                new[i:i + hi, j:j + hj] += term[:hi, :hj] * (c / k)
+                new_reach[i:i + hi, j:j + hj] |= prev[:hi, :hj]
+            term, prev = new, new_reach
+            maj += term
+            reach |= new_reach
     reach[0, 0] = False
     ii, jj = np.nonzero(reach)
     vals = maj[ii, jj]
