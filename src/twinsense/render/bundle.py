@@ -148,6 +148,8 @@ class BundlePicker:
 
     def _pick(self, ws, origin, d, rots, poss, workers, auto, rays_per_cell, early):
         o = np.asarray(origin, dtype=float).reshape(3)
+        # One memory layout for the compiled passes (each new layout is one more compile).
+        d = np.ascontiguousarray(d, dtype=float)
         n = len(d)
         if not np.isfinite(o.astype(np.float32)).all():
             return None
@@ -262,7 +264,7 @@ def bundle_frame(d) -> np.ndarray | None:
     direction across e3 when those two rays do not differ.
     """
     n = len(d)
-    total, m = bk.ray_frame_sums(d[::max(1, n // 4096)])
+    total, m = bk.ray_frame_sums(np.ascontiguousarray(d[::max(1, n // 4096)]))
     if m == 0:
         total, m = bk.ray_frame_sums(d)
     norm = math.sqrt(float(total @ total))
