@@ -205,10 +205,9 @@ class BundlePicker:
         ray_start = np.zeros(nc + 1, np.int64)
         np.cumsum(counts.sum(axis=0), out=ray_start[1:])
         fills = ray_start[:-1] + np.cumsum(counts, axis=0) - counts
-        order, us, vs = ws.get("order", m, np.int64), ws.get("us", m), ws.get("vs", m)
+        order = ws.get("order", m, np.int64)
         _each(workers, list(enumerate(spans)), lambda ps: bk.scatter_order(
             ps[1][0], ps[1][1], cell, fills[ps[0]], order))
-        _ranges(workers, m, lambda a, b: bk.gather_uv(a, b, order, d, basis, us, vs))
 
         # Vertices to the world, origin-relative; triangles binned.
         rots = np.ascontiguousarray(rots, dtype=float).reshape(-1, 3, 3)
@@ -235,20 +234,13 @@ class BundlePicker:
         reach = max(abs(umin), abs(umax), abs(vmin), abs(vmax))
         _ranges(workers, len(kept), lambda a, b: bk.triangle_data(a, b, kept, self._faces, proj, reach, data))
         zk = np.ascontiguousarray(zmin[kept])
-        best_t, best_k = ws.get("best_t", m), ws.get("best_k", m, np.int64)
         # Cells split into ranges of about equal work (rays x triangles).
         cum = np.cumsum(cost)
         parts = min(4 * workers, len(cost)) if workers > 1 else 1
         cuts = [0, *np.searchsorted(cum, cum[-1] * np.arange(1, parts) / parts).tolist(), len(cost)]
-        spans = [(a, b) for a, b in itertools.pairwise(cuts) if b > a]
-
-        def run(span):
-            bk.pick_cells(span[0], span[1], ray_start, us, vs, tri_start, tris, data, kept, zk, early,
-                          best_t, best_k)
-
-        _each(workers, spans, run)
-        _ranges(workers, m, lambda a, b: bk.scatter_picks(a, b, order, best_k, self._tri_inst, self._tri_prim,
-                                                            inst, prim))
+        _each(workers, [(a, b) for a, b in itertools.pairwise(cuts) if b > a], lambda span: bk.pick_cells(
+            span[0], span[1], ray_start, order, d, basis, tri_start, tris, data, kept, zk, early,
+            self._tri_inst, self._tri_prim, inst, prim))
         self.picks += 1
         return inst, prim
 

@@ -90,7 +90,7 @@ def bin_rays(lo, hi, d, basis, cos_min, grid, gu, gv, cell, counts):  # pragma: 
     Returns (every valid ray within the cone d . e3 >= cos_min |d|, the number of valid
     rays, umin, umax, vmin, vmax over them: inf/-inf when none).
 
-    With :func:`scatter_order` and :func:`gather_uv`: a counting sort of the rays by
+    With :func:`scatter_order`: a counting sort of the rays by
     cell, in ranges of rays that threads can run at once (each range's rays land at
     its own offsets: the order is the same for any ranges).
     """
@@ -137,17 +137,6 @@ def scatter_order(lo, hi, cell, fill, order):  # pragma: no cover
         if c >= 0:
             order[fill[c]] = i
             fill[c] += 1
-
-
-@jit
-def gather_uv(lo, hi, order, d, basis, us, vs):  # pragma: no cover
-    """us, vs [lo:hi] = the sorted rays' u, v (computed again by :func:`_uv`: the same bits as
-    when binned; structure of arrays: the loop over a cell's rays vectorises)."""
-    e1, e2, e3 = basis[0], basis[1], basis[2]
-    for k in range(lo, hi):
-        u, v, _, _, _ = _uv(d, order[k], e1, e2, e3)
-        us[k] = u
-        vs[k] = v
 
 
 @jit
@@ -357,46 +346,53 @@ def _test(us, vs, best_t, best_k, tri, k):  # pragma: no cover
 
 
 @jit
-def pick_cells(c_lo, c_hi, ray_start, us, vs, tri_start, tris, data, key, zmin, early,
-               best_t, best_k):  # pragma: no cover
-    """Closest triangle of every ray in cells c_lo..c_hi-1.
+def pick_cells(c_lo, c_hi, ray_start, order, d, basis, tri_start, tris, data, key, zmin, early,
+               tri_inst, tri_prim, inst, prim):  # pragma: no cover
+    """Closest triangle of every ray in cells c_lo..c_hi-1: its instance and primitive into
+    inst, prim (n,) int32 at the ray's index (left as they are, -1, on a miss).
 
-    ray_start, us, vs: :func:`sort_rays`; tri_start, tris: :func:`cell_lists`;
-    data (k, TRI_WORDS): :func:`triangle_data`; key (k,) int64 the triangles' indices
-    in the combined triangle list (in (instance, primitive) order: the lowest wins a
-    tie); zmin (k,) their least depth along e3, ascending in kept order (so in
-    every cell's list). Writes best_t (m,) (the hit's depth along e3, inf: no hit)
-    and best_k (m,) (the key of the hit triangle, -1) at the sorted rays' slots.
+    ray_start, order: the rays counting-sorted by cell (:func:`bin_rays`,
+    :func:`scatter_order`); d (n, 3) the directions and basis (3, 3) the bundle's axes
+    (each cell's u, v gathered by :func:`_uv`, the bits of binning, into
+    structure-of-arrays scratch: the loop over a cell's rays vectorises);
+    tri_start, tris: :func:`cell_lists`; data (k, TRI_WORDS): :func:`triangle_data`;
+    key (k,) int64 the triangles' indices in the combined triangle list (in
+    (instance, primitive) order: the lowest wins a tie) and tri_inst, tri_prim
+    their instance and primitive by that index; zmin (k,) their least depth along
+    e3, ascending in kept order (so in every cell's list).
 
     ``early``: a cell stops once every ray's hit lies nearer than the next
     triangle's nearest depth (t < zmin (1 - 1e-9): a margin far above the
     rounding of t, so that no triangle that could win or tie is skipped).
     """
+    e1, e2, e3 = basis[0], basis[1], basis[2]
+    size = 0
+    for c in range(c_lo, c_hi):
+        size = max(size, ray_start[c + 1] - ray_start[c])
+    us, vs = np.empty(size), np.empty(size)
+    best_t, best_k = np.empty(size), np.empty(size, np.int64)
     for c in range(c_lo, c_hi):
         r0, r1 = ray_start[c], ray_start[c + 1]
-        if r0 == r1:
+        k = r1 - r0
+        if k == 0:
             continue
-        for r in range(r0, r1):
-            best_t[r] = np.inf
-            best_k[r] = -1
+        for j in range(k):
+            u, v, _, _, _ = _uv(d, order[r0 + j], e1, e2, e3)
+            us[j], vs[j] = u, v
+            best_t[j] = np.inf
+            best_k[j] = -1
         reach = np.inf  # the farthest depth of a current hit in this cell
         for p in range(tri_start[c], tri_start[c + 1]):
             q = tris[p]
             if early and reach < zmin[q] * (1.0 - 1e-9):
                 break
-            _test(us[r0:r1], vs[r0:r1], best_t[r0:r1], best_k[r0:r1], data[q], key[q])
+            _test(us[:k], vs[:k], best_t[:k], best_k[:k], data[q], key[q])
             if early:
                 reach = 0.0
-                for r in range(r0, r1):
-                    reach = max(reach, best_t[r])
-
-
-@jit
-def scatter_picks(lo, hi, order, best_k, tri_inst, tri_prim, inst, prim):  # pragma: no cover
-    """inst, prim (n,) int32 (-1 already): the instance and primitive of the triangle
-    best_k[r] (combined index) picked for ray order[r], sorted slots r = lo..hi-1."""
-    for r in range(lo, hi):
-        q = best_k[r]
-        if q >= 0:
-            inst[order[r]] = tri_inst[q]
-            prim[order[r]] = tri_prim[q]
+                for j in range(k):
+                    reach = max(reach, best_t[j])
+        for j in range(k):
+            f = best_k[j]
+            if f >= 0:
+                inst[order[r0 + j]] = tri_inst[f]
+                prim[order[r0 + j]] = tri_prim[f]
