@@ -8,7 +8,8 @@ tree, the other from ``--before`` (a ``src`` directory, e.g. made with
 skin for the same times and captures its first frame untimed; then they
 capture frame k in turn, one process at a time, so both see the same
 machine load. Printed per tree: wall time per frame (median, best), the
-capturing process's CPU time (median), the CG iterations of the largest
+capturing process's CPU time (median and mean: a run's CPU is the mean's,
+and the median frame hides a cut that only some frames get), the CG iterations of the largest
 column, and the largest Maxwell difference between the two trees (against
 the skin's ``capacitance_atol``). Without ``--before`` only this tree runs.
 
@@ -19,7 +20,12 @@ With ``--exact`` this tree's worker also solves every frame directly
 (sparse LU of the free block, untimed) and the largest Maxwell error
 against that exact discrete solution is printed.
 
+With ``--classic`` a third worker runs this tree with the energy rule's early
+stop off (``SolverConfig(early_stop=False)``), in turn with the others: the
+early stop's share of a difference between the trees.
+
 Run:  .venv/bin/python benchmarks/bench_skin_frame.py [--before /tmp/before/src] [--frames 12] [--rounds 2] [--exact]
+      [--classic]
 """
 
 from __future__ import annotations
@@ -52,12 +58,20 @@ def exact_maxwell(system) -> np.ndarray:
     return reduce_floating(0.5 * (full + full.T), len(system.terminals))
 
 
-def worker(frames: int, exact: bool) -> None:
-    """The worker's side: read frame numbers on stdin, capture, answer on stdout (pickled)."""
+def worker(frames: int, exact: bool, classic: bool = False) -> None:
+    """The worker's side: read frame numbers on stdin, capture, answer on stdout (pickled).
+    ``classic``: the skin's solver with the energy rule's early stop off."""
     from twinsense.demos.robot_cell import build_arm_cell
 
     scene, sensors = build_arm_cell()
     skin = sensors[3]
+    if classic:
+        from dataclasses import replace
+
+        from twinsense.capacitive.sensor import CapacitiveSensor
+
+        cfg = replace(skin.config, solver=replace(skin.config.solver, early_stop=False))
+        skin = CapacitiveSensor(cfg, name=skin.name, mount=skin.mount)
     times = [T_REACH + k / 20.0 for k in range(frames + 1)]
     skin.prepare(scene, times)
     skin.capture(scene, times[0], None)  # untimed: mesh, baseline, hierarchy, compiled kernels
@@ -86,12 +100,12 @@ def worker(frames: int, exact: bool) -> None:
 
 
 class Worker:
-    def __init__(self, src: str, frames: int, exact: bool = False):
+    def __init__(self, src: str, frames: int, exact: bool = False, classic: bool = False):
         env = dict(os.environ, PYTHONPATH=os.pathsep.join([src, HERE]), OMP_NUM_THREADS="1",
                    OPENBLAS_NUM_THREADS="1")
         cmd = [sys.executable, os.path.abspath(__file__), "--worker", "--frames", str(frames)]
-        self.p = subprocess.Popen(cmd + (["--exact"] if exact else []), stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                  env=env)
+        cmd += (["--exact"] if exact else []) + (["--classic"] if classic else [])
+        self.p = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
 
     def ask(self, cmd: str) -> dict:
         self.p.stdin.write((cmd + "\n").encode())
@@ -112,12 +126,14 @@ def main() -> None:
                     "start from the last frame of the pass)")
     ap.add_argument("--exact", action="store_true", help="also solve each frame of this tree directly (untimed) "
                     "and print its largest Maxwell error")
+    ap.add_argument("--classic", action="store_true", help="also run this tree with the energy rule's early stop "
+                    "off (SolverConfig(early_stop=False)), in turn with the others")
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.frames < 1 or args.rounds < 1:
         ap.error("--frames and --rounds must be at least 1")
     if args.worker:
-        worker(args.frames, args.exact)
+        worker(args.frames, args.exact, args.classic)
         return
     print_machine()
     trees = {"this tree": os.path.join(os.path.dirname(HERE), "src")}
@@ -125,7 +141,10 @@ def main() -> None:
         if not os.path.isdir(os.path.join(args.before, "twinsense")):
             ap.error(f"--before {args.before!r}: no twinsense package there (give a src directory)")
         trees = {"before": args.before, **trees}
-    workers = {name: Worker(src, args.frames, args.exact and name == "this tree") for name, src in trees.items()}
+    if args.classic:
+        trees["classic rule"] = trees["this tree"]
+    workers = {name: Worker(src, args.frames, args.exact and name == "this tree", name == "classic rule")
+               for name, src in trees.items()}
     got = {name: {"wall": [], "cpu": [], "iters": []} for name in trees}
     worst = 0.0
     errors = []
@@ -142,9 +161,8 @@ def main() -> None:
                     atol = r["atol"]
                     if "exact" in r:
                         errors.append(float(np.abs(r["maxwell"] - r["exact"]).max()))
-                if len(mats) == 2:
-                    a, b = mats.values()
-                    worst = max(worst, float(np.abs(a - b).max()))
+                if "before" in mats:
+                    worst = max(worst, float(np.abs(mats["before"] - mats["this tree"]).max()))
         anchor = workers["this tree"].ask("anchor")["anchor"]
     finally:
         for w in workers.values():
@@ -154,11 +172,12 @@ def main() -> None:
           f"{args.rounds} rounds, trees in turn frame by frame):")
     for name, g in got.items():
         wall, cpu = np.array(g["wall"]), np.array(g["cpu"])
-        print(f"  {name:10s}: {np.median(wall) * 1e3:6.1f} ms median wall ({wall.min() * 1e3:.1f} best, "
-              f"{np.percentile(wall, 90) * 1e3:.1f} 90th percentile), {np.median(cpu) * 1e3:6.1f} ms median CPU; "
+        print(f"  {name:12s}: {np.median(wall) * 1e3:6.1f} ms median wall ({wall.min() * 1e3:.1f} best, "
+              f"{np.percentile(wall, 90) * 1e3:.1f} 90th percentile), {np.median(cpu) * 1e3:6.1f} ms median CPU "
+              f"({np.mean(cpu) * 1e3:.1f} mean: CPU per scene second / 20); "
               f"CG iterations {min(g['iters'])}-{max(g['iters'])} (mean {np.mean(g['iters']):.2f}) over {n} frames; "
               f"{'under' if np.median(wall) < 0.05 else 'NOT under'} 50 ms")
-    if len(got) == 2:
+    if "before" in got:
         print(f"  largest Maxwell difference between the trees: {worst * 1e15:.4f} fF ({worst / atol:.2f} x "
               f"capacitance_atol {atol * 1e15:.4f} fF)")
     if errors:
