@@ -228,7 +228,8 @@ class ScatterRenderer:
         self.compiled = compiled
         self.camera = PinholeCamera.from_fov(config.render_width, config.render_height,
                                              config.hfov_deg, config.vfov_deg)
-        d = self.camera.directions().reshape(-1, 3)
+        d = self.camera.directions().reshape(-1, 3).copy()
+        d.setflags(write=False)  # read-only: the rays' local bundle (binned once)
         self._dirs = d
         # The same directions as three contiguous columns (x, y, z), for fast per-axis work.
         self._dirs_cols = np.ascontiguousarray(d.T)
@@ -288,7 +289,7 @@ class ScatterRenderer:
             if self.reuse_static_hits:
                 origin.setflags(write=False)
                 world.setflags(write=False)
-            kept = self._rays = (key, Rays(origin, world))
+            kept = self._rays = (key, Rays(origin, world, local=(self._dirs, rot)))
         return kept[1]
 
     def render(self, scene, sensor_state, t: float) -> Scatterers:

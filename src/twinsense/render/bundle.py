@@ -57,6 +57,8 @@ AUTO_RETRY = 30
 AUTO_MIN_RAYS = 4096
 #: "auto" keeps Embree when the scene has more triangles than this many per ray (binning them dominates).
 AUTO_TRIANGLES_PER_RAY = 2.0
+_BINNINGS = 4  # local directions arrays whose binning a picker keeps
+_RULES = 16  # bundle sizes whose "auto" state a picker keeps
 
 
 # Every BundlePicker, for the fork hook below.
@@ -112,7 +114,10 @@ class BundlePicker:
         # Work arrays kept between casts (fresh ones cost a page fault per 4 kB: ~15 ms a
         # cast for the radar's 342,000 rays); one set per cast under way.
         self._spare: list[_Workspace] = []
-        self._embree_picks = 0  # picks left to Embree by the "auto" rule
+        # The "auto" rule's picks left to Embree, per bundle size (a local bundle keeps its own).
+        self._rules: dict[int, list[int]] = {}
+        # Binnings of fixed local directions arrays: (weakref to the array, rays per cell, _Binning).
+        self._binnings: list[tuple] = []
         self.last_tests_per_ray = 0.0
         #: Bundles picked so far (the ones handed back to Embree not counted).
         self.picks = 0
@@ -128,7 +133,7 @@ class BundlePicker:
             self._spare.append(ws)
 
     def pick(self, origin, d, rots, poss, workers: int = 1, auto: bool = False,
-             rays_per_cell: int = RAYS_PER_CELL, early: bool = True):
+             rays_per_cell: int = RAYS_PER_CELL, early: bool = True, local=None):
         """(inst, prim) (n,) int32 of the closest triangle of every ray (-1: a miss), or None.
 
         origin (3,) float64: the rays' one origin; d (n, 3) float64 directions (any
@@ -137,112 +142,179 @@ class BundlePicker:
         3), poss (m, 3): the movers' poses (local -> world). ``workers``: threads (the
         result does not depend on it). None: the bundle is not for this picker (see
         the module's docstring); ``auto``: also None where Embree is faster.
+        ``local``: None, or (directions (n, 3) in the sensor's frame, read-only,
+        rotation (3, 3) sensor -> world) with d = rotation @ directions row by row
+        (:attr:`twinsense.render.rays.Rays.local`): the rays are then binned once per
+        directions array (in the sensor's frame; kept while the array lives) and each
+        pick only moves the triangles into that frame; validity and the cone are
+        then the local directions'.
         ``rays_per_cell`` and ``early`` (the cells' early exit) are for measurements:
         the pick is the same with any.
         """
         ws = self._workspace()
         try:
-            return self._pick(ws, origin, d, rots, poss, workers, auto, rays_per_cell, early)
+            return self._pick(ws, origin, d, rots, poss, workers, auto, rays_per_cell, early, local)
         finally:
             self._give_back(ws)
 
-    def _pick(self, ws, origin, d, rots, poss, workers, auto, rays_per_cell, early):
+    def _pick(self, ws, origin, d, rots, poss, workers, auto, rays_per_cell, early, local):
         o = np.asarray(origin, dtype=float).reshape(3)
-        # One memory layout for the compiled passes (each new layout is one more compile).
-        d = np.ascontiguousarray(d, dtype=float)
         n = len(d)
         if not np.isfinite(o.astype(np.float32)).all():
             return None
         if auto and (n < AUTO_MIN_RAYS or self.n_triangles > AUTO_TRIANGLES_PER_RAY * n):
             return None
-        if auto and self._embree_picks > 0:  # a recent pick found Embree faster
-            self._embree_picks -= 1
+        # The "auto" rule's state belongs to the bundle (a local bundle's binning, else
+        # the bundles of n rays): a dense bundle must not send another sensor's to Embree.
+        b = self._local_binning(local[0], rays_per_cell, workers) if local is not None else None
+        rule = b.rule if b is not None else None
+        if rule is None:
+            with self._lock:
+                rule = self._rules.setdefault(n, [0])
+                if len(self._rules) > _RULES:  # bounded: the oldest sizes forgotten
+                    self._rules.pop(next(iter(self._rules)))
+        if auto and rule[0] > 0:  # a recent pick of this bundle found Embree faster
+            rule[0] -= 1
             return None
+        if local is None:
+            # One memory layout for the compiled passes (each new layout is one more compile).
+            b = _bin(np.ascontiguousarray(d, dtype=float), rays_per_cell, workers, ws)
         inst, prim = np.full(n, -1, np.int32), np.full(n, -1, np.int32)
-        if n == 0:
-            return inst, prim
-        basis = bundle_frame(d)
-        if basis is None:  # no valid ray (all misses), or rays that cancel out (no cone: Embree)
-            return None if bk.ray_frame_sums(d)[1] else (inst, prim)
-        if self.n_triangles == 0:
-            return inst, prim
-        e1, e2, e3 = basis
-        cos_min = math.cos(math.radians(CONE_DEG))
-        # A bundle wider than the cone (a spinning LiDAR's) is usually seen in a few thousand
-        # of its rays: turned down before a pass over all of them.
-        sample = np.asarray(d[::max(1, n // 4096)], dtype=float)
-        with np.errstate(invalid="ignore", over="ignore"):
-            r = np.linalg.norm(sample, axis=1)
-            if np.any(sample @ e3 < cos_min * r):  # NaN rows compare False: not counted
-                return None
-        # The grid from the sample's extent (any grid serves: rays beyond it take its border
-        # cells, and so do the triangles there); the rays' exact extent from the pass.
-        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-            su, sv = (sample @ e1) / (sample @ e3), (sample @ e2) / (sample @ e3)
-        keep = np.isfinite(su) & np.isfinite(sv)
-        if not keep.any():
-            su = sv = np.zeros(1)
-            keep = np.ones(1, bool)
-        m_est = max(1, round(n * keep.mean()))
-        gu, gv, grid = _grid(float(su[keep].min()), float(su[keep].max()), float(sv[keep].min()),
-                             float(sv[keep].max()), max(1, m_est // max(1, int(rays_per_cell))))
-        nc = gu * gv
-        spans = list(itertools.pairwise(_cuts(workers, n)))
-        counts = ws.get("counts", (len(spans), nc), np.int64)
-        cell = ws.get("cell", n, np.int64)
-        parts = _each(workers, list(enumerate(spans)), lambda ps: bk.bin_rays(
-            ps[1][0], ps[1][1], d, basis, cos_min, grid, gu, gv, cell, counts[ps[0]]))
-        inside, m = all(p[0] for p in parts), sum(p[1] for p in parts)
-        umin, umax = min(p[2] for p in parts), max(p[3] for p in parts)
-        vmin, vmax = min(p[4] for p in parts), max(p[5] for p in parts)
-        if not inside:
+        if b is None:  # rays that cancel out or leave the cone: Embree
             return None
-        if m == 0:
+        if b.m == 0 or self.n_triangles == 0:  # no valid ray, or nothing to hit
             return inst, prim
-        pad_u, pad_v = 1e-9 * (1.0 + abs(umin) + abs(umax)), 1e-9 * (1.0 + abs(vmin) + abs(vmax))
-        extent = np.array([umin - pad_u, umax + pad_u, vmin - pad_v, vmax + pad_v])
-        # The rays counting-sorted by cell, each range's rays at its own offsets.
-        ray_start = np.zeros(nc + 1, np.int64)
-        np.cumsum(counts.sum(axis=0), out=ray_start[1:])
-        fills = ray_start[:-1] + np.cumsum(counts, axis=0) - counts
-        order = ws.get("order", m, np.int64)
-        _each(workers, list(enumerate(spans)), lambda ps: bk.scatter_order(
-            ps[1][0], ps[1][1], cell, fills[ps[0]], order))
+        basis = b.basis
+        if local is not None:  # rows R e_k: (v - o) . R e_k = (R^T (v - o)) . e_k, the sensor frame's
+            basis = np.ascontiguousarray(b.basis @ np.asarray(local[1], dtype=float).T)
+        gu, gv, nc = b.gu, b.gv, b.gu * b.gv
 
-        # Vertices to the world, origin-relative; triangles binned.
+        # Phase 1: every triangle moved (to the world, origin-relative, along the axes),
+        # binned and prepared in one pass.
         rots = np.ascontiguousarray(rots, dtype=float).reshape(-1, 3, 3)
         poss = np.ascontiguousarray(poss, dtype=float).reshape(-1, 3)
-        nv, nt = len(self._verts), self.n_triangles
-        proj = ws.get("proj", (nv, 3))
-        _ranges(workers, nv, lambda a, b: bk.relative_vertices(a, b, self._verts, self._owner, rots, poss, o,
-                                                                basis, proj))
+        nt = self.n_triangles
         box, zmin = ws.get("box", (nt, 4), np.int64), ws.get("zmin", nt)
-        _ranges(workers, nt, lambda a, b: bk.bin_triangles(a, b, self._faces, proj, grid, extent, gu, gv,
-                                                           box, zmin))
+        data = ws.get("data", (nt, bk.TRI_WORDS))
+        _ranges(workers, nt, lambda a, c: bk.triangles(
+            a, c, self._faces, self._verts, self._owner, rots, poss, o, basis, b.grid, b.extent, gu, gv,
+            b.reach, box, zmin, data))
         kept = np.flatnonzero(box[:, 0] >= 0)
         # Nearest first (a stable sort: equal depths keep the triangles' order).
         kept = kept[np.argsort(zmin[kept], kind="stable")]
         tri_start, tris = bk.cell_lists(kept, box, gu, gv)
-        rays_c = np.diff(ray_start)
-        cost = rays_c * (np.diff(tri_start) + 1)
+        cost = b.rays_c * (np.diff(tri_start) + 1)
         #: Ray-triangle tests per ray of the last pick (without the early exit), for the "auto" rule.
-        self.last_tests_per_ray = float(cost.sum()) / m - 1.0
+        self.last_tests_per_ray = float(cost.sum()) / b.m - 1.0
         if auto and self.last_tests_per_ray > AUTO_TESTS_PER_RAY:
-            self._embree_picks = AUTO_RETRY
+            rule[0] = AUTO_RETRY
             return None
-        data = np.empty((len(kept), bk.TRI_WORDS))
-        reach = max(abs(umin), abs(umax), abs(vmin), abs(vmax))
-        _ranges(workers, len(kept), lambda a, b: bk.triangle_data(a, b, kept, self._faces, proj, reach, data))
-        zk = np.ascontiguousarray(zmin[kept])
-        # Cells split into ranges of about equal work (rays x triangles).
+        # Phase 2: cells, in ranges of about equal work (rays x triangles); every cell's rays
+        # are written by one range.
         cum = np.cumsum(cost)
-        parts = min(4 * workers, len(cost)) if workers > 1 else 1
-        cuts = [0, *np.searchsorted(cum, cum[-1] * np.arange(1, parts) / parts).tolist(), len(cost)]
-        _each(workers, [(a, b) for a, b in itertools.pairwise(cuts) if b > a], lambda span: bk.pick_cells(
-            span[0], span[1], ray_start, order, d, basis, tri_start, tris, data, kept, zk, early,
+        parts = min(4 * workers, nc) if workers > 1 else 1
+        cuts = [0, *np.searchsorted(cum, cum[-1] * np.arange(1, parts) / parts).tolist(), nc]
+        _each(workers, [(a, c) for a, c in itertools.pairwise(cuts) if c > a], lambda span: bk.pick_cells(
+            span[0], span[1], b.ray_start, b.order, b.us, b.vs, tri_start, tris, data, zmin, early,
             self._tri_inst, self._tri_prim, inst, prim))
         self.picks += 1
         return inst, prim
+
+    def _local_binning(self, dl, rays_per_cell, workers) -> _Binning | None:
+        """The binning of a fixed local directions array (None: not for this picker),
+        made at its first pick and kept, by identity, while the array lives."""
+        key = int(rays_per_cell)
+        with self._lock:
+            for ref, k, b in self._binnings:
+                if ref() is dl and k == key:
+                    return b
+        b = _bin(np.ascontiguousarray(dl, dtype=float), rays_per_cell, workers, None)
+        if b is None:
+            b = _Binning.refused()
+        with self._lock:
+            # Entries of arrays that died go; the newest few kept (bounded).
+            live = [e for e in self._binnings if e[0]() is not None]
+            self._binnings = [*live[-(_BINNINGS - 1):], (weakref.ref(dl), key, b)]
+        return None if b.refused_ else b
+
+
+class _Binning:
+    """The rays of a bundle in the grid: axes, grid, extent and the rays counting-sorted
+    by cell with their (u, v) (what :func:`bundle_kernels.pick_cells` reads)."""
+
+    @classmethod
+    def refused(cls) -> _Binning:
+        """A bundle that is not for the picker (kept so that it is not binned again)."""
+        b = cls()
+        b.refused_ = True
+        return b
+
+    def __init__(self):
+        self.refused_ = False
+        self.m = 0
+        self.rule = None  # the "auto" rule's count of picks left to Embree ([k]), for local bundles
+
+
+def _bin(d, rays_per_cell, workers, ws) -> _Binning | None:
+    """The rays d (n, 3) C-contiguous binned (:class:`_Binning`; m = 0: no valid ray), or None
+    when they are not for the picker (they cancel out, or one leaves the cone).
+    ws: the workspace to take the arrays from, or None for arrays of their own (kept)."""
+    def get(name, shape, dtype=np.float64):
+        return np.empty(shape, dtype) if ws is None else ws.get(name, shape, dtype)
+
+    n = len(d)
+    out = _Binning()
+    if ws is None:
+        out.rule = [0]
+    basis = bundle_frame(d)
+    if basis is None:  # no valid ray (all misses), or rays that cancel out (no cone: Embree)
+        return None if bk.ray_frame_sums(d)[1] else out
+    e1, e2, e3 = basis
+    cos_min = math.cos(math.radians(CONE_DEG))
+    # A bundle wider than the cone (a spinning LiDAR's) is usually seen in a few thousand
+    # of its rays: turned down before a pass over all of them.
+    sample = np.asarray(d[::max(1, n // 4096)], dtype=float)
+    with np.errstate(invalid="ignore", over="ignore"):
+        r = np.linalg.norm(sample, axis=1)
+        if np.any(sample @ e3 < cos_min * r):  # NaN rows compare False: not counted
+            return None
+    # The grid from the sample's extent (any grid serves: rays beyond it take its border
+    # cells, and so do the triangles there); the rays' exact extent from the pass.
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        su, sv = (sample @ e1) / (sample @ e3), (sample @ e2) / (sample @ e3)
+    keep = np.isfinite(su) & np.isfinite(sv)
+    if not keep.any():
+        su = sv = np.zeros(1)
+        keep = np.ones(1, bool)
+    m_est = max(1, round(n * keep.mean()))
+    gu, gv, grid = _grid(float(su[keep].min()), float(su[keep].max()), float(sv[keep].min()),
+                         float(sv[keep].max()), max(1, m_est // max(1, int(rays_per_cell))))
+    nc = gu * gv
+    spans = list(itertools.pairwise(_cuts(workers, n)))
+    counts = get("counts", (len(spans), nc), np.int64)
+    cell = np.empty(n, np.int64) if ws is None else ws.get("cell", n, np.int64)
+    parts = _each(workers, list(enumerate(spans)), lambda ps: bk.bin_rays(
+        ps[1][0], ps[1][1], d, basis, cos_min, grid, gu, gv, cell, counts[ps[0]]))
+    inside, m = all(p[0] for p in parts), sum(p[1] for p in parts)
+    umin, umax = min(p[2] for p in parts), max(p[3] for p in parts)
+    vmin, vmax = min(p[4] for p in parts), max(p[5] for p in parts)
+    if not inside:
+        return None
+    if m == 0:
+        return out
+    pad_u, pad_v = 1e-9 * (1.0 + abs(umin) + abs(umax)), 1e-9 * (1.0 + abs(vmin) + abs(vmax))
+    # The rays counting-sorted by cell, each range's rays at its own offsets, with their u, v.
+    ray_start = np.zeros(nc + 1, np.int64)
+    np.cumsum(counts.sum(axis=0), out=ray_start[1:])
+    fills = ray_start[:-1] + np.cumsum(counts, axis=0) - counts
+    order, us, vs = get("order", m, np.int64), get("us", m), get("vs", m)
+    _each(workers, list(enumerate(spans)), lambda ps: bk.scatter_rays(
+        ps[1][0], ps[1][1], d, basis, cell, fills[ps[0]], order, us, vs))
+    out.basis, out.gu, out.gv, out.grid, out.m = basis, gu, gv, grid, m
+    out.extent = np.array([umin - pad_u, umax + pad_u, vmin - pad_v, vmax + pad_v])
+    out.reach = max(abs(umin), abs(umax), abs(vmin), abs(vmax))
+    out.ray_start, out.rays_c, out.order, out.us, out.vs = ray_start, np.diff(ray_start), order, us, vs
+    return out
 
 
 def bundle_frame(d) -> np.ndarray | None:

@@ -90,7 +90,7 @@ def bin_rays(lo, hi, d, basis, cos_min, grid, gu, gv, cell, counts):  # pragma: 
     Returns (every valid ray within the cone d . e3 >= cos_min |d|, the number of valid
     rays, umin, umax, vmin, vmax over them: inf/-inf when none).
 
-    With :func:`scatter_order`: a counting sort of the rays by
+    With :func:`scatter_rays`: a counting sort of the rays by
     cell, in ranges of rays that threads can run at once (each range's rays land at
     its own offsets: the order is the same for any ranges).
     """
@@ -129,39 +129,40 @@ def _cell_of(x, lo, inv, g):  # pragma: no cover
 
 
 @jit
-def scatter_order(lo, hi, cell, fill, order):  # pragma: no cover
-    """order[fill[c]++] = i for the rays i = lo..hi-1 in cell c >= 0: ascending within a cell.
+def scatter_rays(lo, hi, d, basis, cell, fill, order, us, vs):  # pragma: no cover
+    """order[fill[c]++] = i for the rays i = lo..hi-1 in cell c >= 0 (ascending within a cell),
+    and their u, v (:func:`_uv`: the bits of binning) into us, vs (m,) at the same slots.
     fill (gu gv,) int64: this range's first slot in every cell."""
+    e1, e2, e3 = basis[0], basis[1], basis[2]
     for i in range(lo, hi):
         c = cell[i]
         if c >= 0:
-            order[fill[c]] = i
-            fill[c] += 1
+            u, v, _, _, _ = _uv(d, i, e1, e2, e3)
+            s = fill[c]
+            order[s] = i
+            us[s], vs[s] = u, v
+            fill[c] = s + 1
 
 
 @jit
-def relative_vertices(lo, hi, verts, vert_owner, rots, poss, o, basis, proj):  # pragma: no cover
-    """Vertices lo..hi-1 moved to the world, made origin-relative and expressed along e1, e2, e3.
-
-    verts (nv, 3): static vertices in the world, a mover's in its frame;
-    vert_owner (nv,) int: -1 static, else the mover j posed by rots[j] (3, 3),
-    poss[j] (3,) (local -> world). o (3,) the origin; basis (3, 3) rows e1, e2, e3.
-    Writes proj (nv, 3) = ((v - o) . e1, (v - o) . e2, (v - o) . e3), v in the world.
-    """
-    for i in range(lo, hi):
-        j = vert_owner[i]
-        x, y, z = verts[i, 0], verts[i, 1], verts[i, 2]
-        if j >= 0:
-            r = rots[j]
-            wx = r[0, 0] * x + r[0, 1] * y + r[0, 2] * z + poss[j, 0]
-            wy = r[1, 0] * x + r[1, 1] * y + r[1, 2] * z + poss[j, 1]
-            wz = r[2, 0] * x + r[2, 1] * y + r[2, 2] * z + poss[j, 2]
-            x, y, z = wx, wy, wz
-        x -= o[0]
-        y -= o[1]
-        z -= o[2]
-        for k in range(3):
-            proj[i, k] = x * basis[k, 0] + y * basis[k, 1] + z * basis[k, 2]
+def _vertex(i, verts, vert_owner, rots, poss, o, basis):  # pragma: no cover
+    """Vertex i moved to the world, made origin-relative and expressed along e1, e2, e3:
+    ((v - o) . e1, (v - o) . e2, (v - o) . e3). The one place this is computed: every
+    triangle that holds a vertex gets the same bits (what makes the picks watertight)."""
+    j = vert_owner[i]
+    x, y, z = verts[i, 0], verts[i, 1], verts[i, 2]
+    if j >= 0:
+        r = rots[j]
+        wx = r[0, 0] * x + r[0, 1] * y + r[0, 2] * z + poss[j, 0]
+        wy = r[1, 0] * x + r[1, 1] * y + r[1, 2] * z + poss[j, 1]
+        wz = r[2, 0] * x + r[2, 1] * y + r[2, 2] * z + poss[j, 2]
+        x, y, z = wx, wy, wz
+    x -= o[0]
+    y -= o[1]
+    z -= o[2]
+    return (x * basis[0, 0] + y * basis[0, 1] + z * basis[0, 2],
+            x * basis[1, 0] + y * basis[1, 1] + z * basis[1, 2],
+            x * basis[2, 0] + y * basis[2, 1] + z * basis[2, 2])
 
 
 @jit
@@ -189,37 +190,55 @@ def _clip(px, py, pz, k, a, b, c):  # pragma: no cover
 
 
 @jit
-def bin_triangles(lo, hi, faces, proj, grid, extent, gu, gv, box, zmin):  # pragma: no cover
-    """The grid cells triangles lo..hi-1 can touch: box (t, 4) int64 rows (cu0, cu1, cv0, cv1),
-    cu0 = -1 for a triangle dropped; zmin (t,) its least coordinate along e3.
+def triangles(lo, hi, faces, verts, vert_owner, rots, poss, o, basis, grid, extent, gu, gv, reach,
+              box, zmin, data):  # pragma: no cover
+    """Triangles lo..hi-1 moved, binned and prepared in one pass.
 
-    faces (t, 3) vertex rows of proj (origin-relative, along e1, e2, e3). grid (4,):
-    umin, 1/du, vmin, 1/dv; extent (4,): umin, umax, vmin, vmax of the rays, padded
-    outwards. Dropped: a triangle of zero area within rounding (|N| <= 1e-10 |E0| |E1|:
-    its edge functions and t would be rounding noise; Embree hits none either),
-    one with no vertex in front of the plane through o normal
-    to e3, one whose projection misses the rays' extent. A triangle reaching that
-    plane is clipped to the rays' frustum (four planes through o) first; if a
-    clipped vertex still has no positive depth, it gets the whole grid.
+    verts (nv, 3): static vertices in the world, a mover's in its frame; vert_owner
+    (nv,) int: -1 static, else the mover j posed by rots[j] (3, 3), poss[j] (3,)
+    (local -> world); o (3,) the origin; basis (3, 3) rows e1, e2, e3 (each vertex
+    by :func:`_vertex`). faces (t, 3). grid (4,): umin, 1/du, vmin, 1/dv; extent
+    (4,): umin, umax, vmin, vmax of the rays, padded outwards; reach: the rays'
+    largest |u| or |v|.
+
+    Writes box (t, 4) int64 rows (cu0, cu1, cv0, cv1) of the cells the triangle can
+    touch (cu0 = -1: dropped), zmin (t,) its least coordinate along e3, and, for a
+    triangle kept, data (t, TRI_WORDS): its vertices along e1, e2, e3, W0 . (W1 x W2)
+    and the edge tolerance 8 eps S^2.
+
+    Dropped: a triangle of zero area within rounding (|N| <= 1e-10 |E0| |E1|: its
+    edge functions and t would be rounding noise; Embree hits none either), one
+    with no vertex in front of the plane through o normal to e3, one whose
+    projection misses the rays' extent. A triangle reaching that plane is clipped
+    to the rays' frustum (four planes through o) first; if a clipped vertex still
+    has no positive depth, it gets the whole grid.
+
+    The tolerance: S = max_k (|x_k| + |y_k| + |z_k|) (1 + reach) bounds every
+    sheared coordinate |x - z u| for rays with |u|, |v| <= reach; a sheared
+    coordinate is off by at most 2 eps S and a 2-D cross product of two by at most
+    ~6 eps S^2: an edge function within 8 eps S^2 of zero is a ray on the edge
+    within float64 rounding, and counts as inside (so a ray exactly through a
+    silhouette edge hits, as in exact arithmetic; a shared edge was already exact).
     """
     px, py, pz = np.empty(8), np.empty(8), np.empty(8)
+    w = np.empty(9)
     for f in range(lo, hi):
-        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        ex0, ey0, ez0 = proj[b, 0] - proj[a, 0], proj[b, 1] - proj[a, 1], proj[b, 2] - proj[a, 2]
-        ex1, ey1, ez1 = proj[c, 0] - proj[a, 0], proj[c, 1] - proj[a, 1], proj[c, 2] - proj[a, 2]
+        for k in range(3):
+            w[3 * k], w[3 * k + 1], w[3 * k + 2] = _vertex(faces[f, k], verts, vert_owner, rots, poss, o, basis)
+        ex0, ey0, ez0 = w[3] - w[0], w[4] - w[1], w[5] - w[2]
+        ex1, ey1, ez1 = w[6] - w[0], w[7] - w[1], w[8] - w[2]
         nx = ey0 * ez1 - ez0 * ey1
         ny = ez0 * ex1 - ex0 * ez1
         nz = ex0 * ey1 - ey0 * ex1
         nn = nx * nx + ny * ny + nz * nz
         ee = (ex0 * ex0 + ey0 * ey0 + ez0 * ez0) * (ex1 * ex1 + ey1 * ey1 + ez1 * ez1)
-        za, zb, zc = proj[a, 2], proj[b, 2], proj[c, 2]
+        za, zb, zc = w[2], w[5], w[8]
         zmin[f] = min(za, zb, zc)
         box[f, 0] = -1
         if not nn > 1e-20 * ee or not max(za, zb, zc) > 0.0:
             continue
-        px[0], py[0], pz[0] = proj[a, 0], proj[a, 1], za
-        px[1], py[1], pz[1] = proj[b, 0], proj[b, 1], zb
-        px[2], py[2], pz[2] = proj[c, 0], proj[c, 1], zc
+        for k in range(3):
+            px[k], py[k], pz[k] = w[3 * k], w[3 * k + 1], w[3 * k + 2]
         k = 3
         if not min(za, zb, zc) > 0.0:
             # The frustum's four side planes (they keep only depth >= 0).
@@ -241,17 +260,26 @@ def bin_triangles(lo, hi, faces, proj, grid, extent, gu, gv, box, zmin):  # prag
             v0, v1 = min(v0, vv), max(v1, vv)
         if whole:
             box[f, 0], box[f, 1], box[f, 2], box[f, 3] = 0, gu - 1, 0, gv - 1
-            continue
-        # Padded by a relative 1e-9: the projection's rounding is ~1e-16 relative.
-        pu = 1e-9 * (1.0 + abs(u0) + abs(u1))
-        pv = 1e-9 * (1.0 + abs(v0) + abs(v1))
-        u0, u1, v0, v1 = u0 - pu, u1 + pu, v0 - pv, v1 + pv
-        if u1 < extent[0] or u0 > extent[1] or v1 < extent[2] or v0 > extent[3]:
-            continue
-        box[f, 0] = _cell_of(u0, grid[0], grid[1], gu)
-        box[f, 1] = _cell_of(u1, grid[0], grid[1], gu)
-        box[f, 2] = _cell_of(v0, grid[2], grid[3], gv)
-        box[f, 3] = _cell_of(v1, grid[2], grid[3], gv)
+        else:
+            # Padded by a relative 1e-9: the projection's rounding is ~1e-16 relative.
+            pu = 1e-9 * (1.0 + abs(u0) + abs(u1))
+            pv = 1e-9 * (1.0 + abs(v0) + abs(v1))
+            u0, u1, v0, v1 = u0 - pu, u1 + pu, v0 - pv, v1 + pv
+            if u1 < extent[0] or u0 > extent[1] or v1 < extent[2] or v0 > extent[3]:
+                continue
+            box[f, 0] = _cell_of(u0, grid[0], grid[1], gu)
+            box[f, 1] = _cell_of(u1, grid[0], grid[1], gu)
+            box[f, 2] = _cell_of(v0, grid[2], grid[3], gv)
+            box[f, 3] = _cell_of(v1, grid[2], grid[3], gv)
+        size = 0.0
+        for k in range(9):
+            data[f, k] = w[k]
+        for k in range(3):
+            size = max(size, abs(w[3 * k]) + abs(w[3 * k + 1]) + abs(w[3 * k + 2]))
+        x0, y0, z0, x1, y1, z1, x2, y2, z2 = w[0], w[1], w[2], w[3], w[4], w[5], w[6], w[7], w[8]
+        data[f, 9] = x0 * (y1 * z2 - z1 * y2) + y0 * (z1 * x2 - x1 * z2) + z0 * (x1 * y2 - y1 * x2)
+        size *= 1.0 + reach
+        data[f, 10] = 8.0 * _EPS * size * size
 
 
 @jit
@@ -259,7 +287,7 @@ def cell_lists(kept, box, gu, gv):  # pragma: no cover
     """Counting sort of the kept triangles (indices, in the order given) into cells.
 
     Returns tri_start (gu gv + 1,) int64 and tris (p,) int64: cell c's triangles
-    are positions tris[tri_start[c]:tri_start[c + 1]] into ``kept``, in kept's order.
+    are tris[tri_start[c]:tri_start[c + 1]] (triangle indices), in kept's order.
     """
     nc = gu * gv
     start = np.zeros(nc + 1, np.int64)
@@ -277,39 +305,9 @@ def cell_lists(kept, box, gu, gv):  # pragma: no cover
         for cv in range(box[f, 2], box[f, 3] + 1):
             for cu in range(box[f, 0], box[f, 1] + 1):
                 c = cu + gu * cv
-                tris[fill[c]] = q
+                tris[fill[c]] = f
                 fill[c] += 1
     return start, tris
-
-
-@jit
-def triangle_data(lo, hi, kept, faces, proj, reach, data):  # pragma: no cover
-    """data[q] (TRI_WORDS,) of kept triangles q = lo..hi-1: the vertices' rows of proj
-    (along e1, e2, e3; shared rows for shared vertices), W0 . (W1 x W2), and the edge
-    tolerance 8 eps S^2.
-
-    S = max_k (|x_k| + |y_k| + |z_k|) (1 + reach) bounds every sheared coordinate
-    |x - z u| for rays with |u|, |v| <= ``reach``; a sheared coordinate is off by at
-    most 2 eps S and a 2-D cross product of two by at most ~6 eps S^2: an edge
-    function within 8 eps S^2 of zero is a ray on the edge within float64 rounding,
-    and counts as inside (so a ray exactly through a silhouette edge hits, as in
-    exact arithmetic; a shared edge was already exact).
-    """
-    for q in range(lo, hi):
-        f = kept[q]
-        size = 0.0
-        for k in range(3):
-            i = faces[f, k]
-            data[q, 3 * k] = proj[i, 0]
-            data[q, 3 * k + 1] = proj[i, 1]
-            data[q, 3 * k + 2] = proj[i, 2]
-            size = max(size, abs(proj[i, 0]) + abs(proj[i, 1]) + abs(proj[i, 2]))
-        x0, y0, z0 = data[q, 0], data[q, 1], data[q, 2]
-        x1, y1, z1 = data[q, 3], data[q, 4], data[q, 5]
-        x2, y2, z2 = data[q, 6], data[q, 7], data[q, 8]
-        data[q, 9] = x0 * (y1 * z2 - z1 * y2) + y0 * (z1 * x2 - x1 * z2) + z0 * (x1 * y2 - y1 * x2)
-        size *= 1.0 + reach
-        data[q, 10] = 8.0 * _EPS * size * size
 
 
 @jit
@@ -346,30 +344,25 @@ def _test(us, vs, best_t, best_k, tri, k):  # pragma: no cover
 
 
 @jit
-def pick_cells(c_lo, c_hi, ray_start, order, d, basis, tri_start, tris, data, key, zmin, early,
+def pick_cells(c_lo, c_hi, ray_start, order, us, vs, tri_start, tris, data, zmin, early,
                tri_inst, tri_prim, inst, prim):  # pragma: no cover
     """Closest triangle of every ray in cells c_lo..c_hi-1: its instance and primitive into
     inst, prim (n,) int32 at the ray's index (left as they are, -1, on a miss).
 
-    ray_start, order: the rays counting-sorted by cell (:func:`bin_rays`,
-    :func:`scatter_order`); d (n, 3) the directions and basis (3, 3) the bundle's axes
-    (each cell's u, v gathered by :func:`_uv`, the bits of binning, into
-    structure-of-arrays scratch: the loop over a cell's rays vectorises);
-    tri_start, tris: :func:`cell_lists`; data (k, TRI_WORDS): :func:`triangle_data`;
-    key (k,) int64 the triangles' indices in the combined triangle list (in
-    (instance, primitive) order: the lowest wins a tie) and tri_inst, tri_prim
-    their instance and primitive by that index; zmin (k,) their least depth along
-    e3, ascending in kept order (so in every cell's list).
+    ray_start, order, us, vs: the rays counting-sorted by cell with their u, v
+    (:func:`bin_rays`, :func:`scatter_rays`: structure of arrays, so the loop over a
+    cell's rays vectorises); tri_start, tris: :func:`cell_lists`; data (t,
+    TRI_WORDS), zmin (t,): :func:`triangles`, by triangle index, which is also the
+    key of a tie (in (instance, primitive) order: the lowest wins) and indexes
+    tri_inst, tri_prim; every cell's list ascends in zmin.
 
     ``early``: a cell stops once every ray's hit lies nearer than the next
     triangle's nearest depth (t < zmin (1 - 1e-9): a margin far above the
     rounding of t, so that no triangle that could win or tie is skipped).
     """
-    e1, e2, e3 = basis[0], basis[1], basis[2]
     size = 0
     for c in range(c_lo, c_hi):
         size = max(size, ray_start[c + 1] - ray_start[c])
-    us, vs = np.empty(size), np.empty(size)
     best_t, best_k = np.empty(size), np.empty(size, np.int64)
     for c in range(c_lo, c_hi):
         r0, r1 = ray_start[c], ray_start[c + 1]
@@ -377,16 +370,14 @@ def pick_cells(c_lo, c_hi, ray_start, order, d, basis, tri_start, tris, data, ke
         if k == 0:
             continue
         for j in range(k):
-            u, v, _, _, _ = _uv(d, order[r0 + j], e1, e2, e3)
-            us[j], vs[j] = u, v
             best_t[j] = np.inf
             best_k[j] = -1
         reach = np.inf  # the farthest depth of a current hit in this cell
         for p in range(tri_start[c], tri_start[c + 1]):
-            q = tris[p]
-            if early and reach < zmin[q] * (1.0 - 1e-9):
+            f = tris[p]
+            if early and reach < zmin[f] * (1.0 - 1e-9):
                 break
-            _test(us[:k], vs[:k], best_t[:k], best_k[:k], data[q], key[q])
+            _test(us[r0:r1], vs[r0:r1], best_t[:k], best_k[:k], data[f], f)
             if early:
                 reach = 0.0
                 for j in range(k):

@@ -206,7 +206,8 @@ class SceneCaster:
             # instanced scene. A fixed sensor keeps its static hits and traces only movers.
             states = self._states(t)
             self._instanced.cast(o, d, [states[i] for i in self._moving], out, per_chunk,
-                                 workers if n >= _PARALLEL_MIN_RAYS else 1, then, self._picker)
+                                 workers if n >= _PARALLEL_MIN_RAYS else 1, then, self._picker,
+                                 local=rays.local)
             return Hits(**{f: out.get(f) for f in HIT_FIELDS})
         # Tracing dominates a cold cast: chunks of rays on all workers, small
         # enough to keep their per-ray arrays in cache. With the static hits

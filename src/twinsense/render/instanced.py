@@ -124,7 +124,7 @@ class InstancedScene:
             return self._picker
 
     def cast(self, o, d, states: list, out: dict, chunk: int, workers: int, then=None,
-             picker: str = "embree") -> None:
+             picker: str = "embree", local=None) -> None:
         """Every field in ``out`` (views of (n,) or (n, 3) arrays, see Hits; ``distance`` and
         ``object_id`` always there) for rays o, d (n, 3) float64 (o may be a stride-0
         broadcast of one origin), the moving objects posed as ``states`` (their
@@ -134,7 +134,8 @@ class InstancedScene:
         "embree" (Embree's traversal picks every ray's triangle), "bundle" (rays from
         one origin within the cone picked by :meth:`bundle_picker`, all at once
         before the chunks; other rays by Embree) or "auto" (the bundle picker where
-        its rule finds it faster)."""
+        its rule finds it faster). ``local``: :attr:`Rays.local <twinsense.render.rays.Rays>`
+        (the rays as a fixed bundle in the sensor's frame, rotated) or None."""
         m = len(states)
         rots = np.array([s.pose.rotation for s in states], dtype=float).reshape(m, 3, 3)
         poss = np.array([s.pose.position for s in states], dtype=float).reshape(m, 3)
@@ -150,7 +151,8 @@ class InstancedScene:
         n = len(d)
         picks = None
         if picker != "embree" and n and (o.strides[0] == 0 or bool((o == o[0]).all())):
-            picks = self.bundle_picker().pick(o[0], d, rots, poss, workers, auto=picker == "auto")
+            picks = self.bundle_picker().pick(o[0], d, rots, poss, workers, auto=picker == "auto",
+                                              local=local)
         top = self._acquire(tr) if picks is None else None
         mat = out.get("material_id")
         cos = out.get("cos_incidence")

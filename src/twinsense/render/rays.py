@@ -30,10 +30,19 @@ class Rays:
         Ray origins [m].
     directions : (n, 3) float
         Unit directions.
+    local : None or (directions (n, 3) float64, rotation (3, 3) float64)
+        Optional: the same rays as a fixed bundle in the sensor's frame, rotated:
+        ``directions[i] = rotation @ local_directions[i]`` (rotation: sensor ->
+        world). A camera's or radar's rays are such a bundle; the bundle picker
+        then bins them once per local array (kept while that array lives) instead
+        of every frame. The local array must be read-only, and everything it views
+        (it is recognised by identity, so it must never change); the rotation is
+        checked to be a rotation, and a few rows against ``directions`` (1e-9).
     """
 
     origins: np.ndarray
     directions: np.ndarray
+    local: tuple | None = None
 
     def __post_init__(self):
         o = np.asarray(self.origins, dtype=float)
@@ -45,9 +54,45 @@ class Rays:
                               "origins and directions of the same shape (n, 3)")
         object.__setattr__(self, "origins", o)
         object.__setattr__(self, "directions", d)
+        if self.local is not None:
+            object.__setattr__(self, "local", _checked_local(self.local, d))
 
     def __len__(self) -> int:
         return len(self.directions)
+
+
+def _checked_local(local, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``Rays.local`` validated: (read-only float64 (n, 3) directions, (3, 3) rotation)."""
+    allowed = ("(directions (n, 3) float64, read-only with everything it views; rotation (3, 3) "
+               "sensor -> world) with directions = rotation @ local row by row")
+    if not isinstance(local, tuple) or len(local) != 2:
+        raise ConfigError("Rays.local", type(local).__name__, allowed)
+    dl, rot = local
+    if not isinstance(dl, np.ndarray) or dl.dtype != np.float64 or dl.shape != d.shape:
+        raise ConfigError("Rays.local", f"directions {getattr(dl, 'shape', type(dl).__name__)}", allowed)
+    a = dl
+    while isinstance(a, np.ndarray):  # identity keys a kept binning: nothing may change it in place
+        if a.flags.writeable:
+            raise ConfigError("Rays.local", "writeable directions", allowed)
+        a = a.base
+    try:
+        rot = np.array(rot, dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigError("Rays.local", f"rotation {rot!r}", allowed) from None
+    if (rot.shape != (3, 3) or not np.isfinite(rot).all()
+            or not np.abs(rot.T @ rot - np.eye(3)).max() <= 1e-9 or not np.linalg.det(rot) > 0):
+        raise ConfigError("Rays.local", f"rotation {rot.tolist()}", allowed + " (a proper rotation)")
+    rot.setflags(write=False)
+    # A few rows checked (a transposed rotation, another array): 1e-9 is far above the rounding
+    # of a 3 x 3 product (~1e-16 relative) and far below any real mistake.
+    rows = np.unique(np.linspace(0, len(d) - 1, min(len(d), 9)).astype(int))
+    with np.errstate(invalid="ignore", over="ignore"):
+        want, got = dl[rows] @ rot.T, d[rows]
+        scale = 1.0 + np.abs(got).max(axis=1, initial=0.0)
+        bad = ~(np.abs(want - got).max(axis=1, initial=0.0) <= 1e-9 * scale) & np.isfinite(got).all(axis=1)
+    if bad.any():
+        raise ConfigError("Rays.local", f"row {int(rows[np.argmax(bad)])} not rotation @ local", allowed)
+    return dl, rot
 
 
 def _grid(n_pix: int, supersample: int) -> np.ndarray:

@@ -64,7 +64,8 @@ class ToFRenderer:
         self.pinhole = pinhole_for(config)
         n = config.supersample
         sub = self.pinhole.directions(n)  # (H*N, W*N, 3) float64, read-only
-        self._sub_rows = sub.reshape(-1, 3)
+        self._sub_rows = sub.reshape(-1, 3).copy()
+        self._sub_rows.setflags(write=False)  # read-only: the rays' local bundle (binned once)
         self.sub_dirs = sub.astype(np.float32)
         self.pixel_dirs = self.pinhole.directions(1).astype(np.float32)
         self.radiometry = Radiometry(config, self.sub_dirs)
@@ -90,7 +91,7 @@ class ToFRenderer:
             d.setflags(write=False)
             o = np.array(position, dtype=float)
             o.setflags(write=False)
-            r = Rays(np.broadcast_to(o, d.shape), d)
+            r = Rays(np.broadcast_to(o, d.shape), d, local=(self._sub_rows, rotation))
             if len(self._rays) >= _RAY_BUNDLES:  # a moving camera: keep only the newest poses
                 self._rays.pop(next(iter(self._rays)))
             self._rays[key] = r
