@@ -61,6 +61,7 @@ def brute_force(static, movers, rots, poss, o, d, rays_per_block=64):
         dt = x0 * (y1 * z2 - z1 * y2) + y0 * (z1 * x2 - x1 * z2) + z0 * (x1 * y2 - y1 * x2)
         size = np.maximum(np.maximum(np.abs(w0).sum(axis=1), np.abs(w1).sum(axis=1)), np.abs(w2).sum(axis=1))
         sizes.append(size)
+        dt = np.where(np.abs(dt) <= 8.0 * 2.0**-53 * size**3, 0.0, dt)  # a plane through o within rounding
         tri.append(np.column_stack([w0, w1, w2]))
         det.append(np.where(nn > 1e-20 * ee, dt, np.nan))  # zero area within rounding: never hit
         inst.append(np.full(len(f), k)), prim.append(np.arange(len(f)))

@@ -204,7 +204,8 @@ def triangles(lo, hi, faces, verts, vert_owner, rots, poss, o, basis, grid, exte
     Writes box (t, 4) int64 rows (cu0, cu1, cv0, cv1) of the cells the triangle can
     touch (cu0 = -1: dropped), zmin (t,) its least coordinate along e3, and, for a
     triangle kept, data (t, TRI_WORDS): its vertices along e1, e2, e3, W0 . (W1 x W2)
-    and the edge tolerance 8 eps S^2.
+    (0 for a plane through the origin within rounding: never hit) and the edge
+    tolerance 8 eps S^2.
 
     Dropped: a triangle of zero area within rounding (|N| <= 1e-10 |E0| |E1|: its
     edge functions and t would be rounding noise; Embree hits none either), one
@@ -277,7 +278,12 @@ def triangles(lo, hi, faces, verts, vert_owner, rots, poss, o, basis, grid, exte
         for k in range(3):
             size = max(size, abs(w[3 * k]) + abs(w[3 * k + 1]) + abs(w[3 * k + 2]))
         x0, y0, z0, x1, y1, z1, x2, y2, z2 = w[0], w[1], w[2], w[3], w[4], w[5], w[6], w[7], w[8]
-        data[f, 9] = x0 * (y1 * z2 - z1 * y2) + y0 * (z1 * x2 - x1 * z2) + z0 * (x1 * y2 - y1 * x2)
+        det = x0 * (y1 * z2 - z1 * y2) + y0 * (z1 * x2 - x1 * z2) + z0 * (x1 * y2 - y1 * x2)
+        # A plane through the origin within rounding (|det| <= 8 eps S^3 bounds the rounding of
+        # a triple product of coordinates up to S): t would be rounding noise around 0, a "hit"
+        # at ~1e-16 m hiding everything, or a ray in the plane itself: never hit (det = 0: t = 0
+        # or NaN). A ray can lie in a triangle's plane only if that plane holds the origin.
+        data[f, 9] = 0.0 if abs(det) <= 8.0 * _EPS * size * size * size else det
         size *= 1.0 + reach
         data[f, 10] = 8.0 * _EPS * size * size
 

@@ -1,0 +1,355 @@
+"""The bundle picker's fixed local bundles (``Rays.local``: rays binned once in the sensor's
+frame) and its review: caches, threads, forks, the "auto" rule per bundle, extreme scales.
+
+References: the per-frame world binning of the same rays (the same edge functions decide:
+picks array_equal), the brute-force float64 reference of test_render_bundle.py (every ray
+against every triangle with the picker's edge functions: array_equal), and Embree.
+"""
+
+from __future__ import annotations
+
+import gc
+import math
+import os
+import threading
+import time
+
+import numpy as np
+import pytest
+import trimesh
+from test_render_bundle import brute_force, cell, cone_directions, random_rotation, soup  # noqa: F401
+
+from twinsense import PinholeCamera, Pose
+from twinsense.demos.robot_cell import ROBOT
+from twinsense.errors import ConfigError
+from twinsense.radar import FMCWRadar
+from twinsense.render.bundle import _BINNINGS, _RULES, CONE_DEG, BundlePicker
+from twinsense.render.caster import SceneCaster
+from twinsense.render.rays import Rays
+from twinsense.scene import Box, ConstantVelocity, Mount, Scene
+from twinsense.scene.motion import Motion, MotionState
+
+NO_MOVERS = (np.zeros((0, 3, 3)), np.zeros((0, 3)))
+
+
+def frozen(a):
+    a = np.array(a, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
+def local_rays(dl, rot, o):
+    """Rays of the fixed local directions dl rotated by rot, from o: the world directions as
+    the ToF camera makes them (rows dl @ rot^T), with and without their local bundle."""
+    d = frozen(dl @ np.asarray(rot).T)
+    o = frozen(o)
+    return Rays(o, d, local=(dl, rot)), Rays(o, d)
+
+
+def radar_local():
+    radar = FMCWRadar.preset("paper_bgt60tr13c", mount=Mount(Pose((0.06, 0.0, 0.02)), parent=f"{ROBOT}/tool0"))
+    cfg = radar.config
+    cam = PinholeCamera.from_fov(cfg.render_width, cfg.render_height, cfg.hfov_deg, cfg.vfov_deg)
+    return radar, frozen(cam.directions().reshape(-1, 3))
+
+
+def assert_same_picks(a, b):
+    np.testing.assert_array_equal(a.object_id, b.object_id)
+    np.testing.assert_array_equal(a.triangle_id, b.triangle_id)
+
+
+# --------------------------------------------------------------------------- local == world
+
+
+def test_wrist_tof_local_bundle_picks_as_the_world_binning(cell):  # noqa: F811
+    scene, sensors = cell
+    tof = sensors[2]
+    caster = SceneCaster(scene, "tof", picker="bundle")
+    for t in (0.4, 1.7, 3.0):
+        pose = tof.mount.pose_at(scene, t)
+        rays = tof._renderer.rays(pose.rotation, pose.position)
+        assert rays.local is not None and rays.local[0] is tof._renderer._sub_rows
+        world = Rays(rays.origins, rays.directions)
+        # The picks are decided by the edge functions, not by the binning: the same triangles.
+        assert_same_picks(caster.cast(rays, t, ("distance",)), caster.cast(world, t, ("distance",)))
+    picker = caster._instanced.bundle_picker()
+    assert len(picker._binnings) == 1  # binned once for the three frames
+
+
+def test_radar_local_bundle_under_random_rotations_picks_as_the_world_binning(cell):  # noqa: F811
+    scene, _ = cell
+    radar, dl = radar_local()
+    caster = SceneCaster(scene, "radar", picker="bundle")
+    rng = np.random.default_rng(7)
+    for t in (0.9, 2.2):
+        o = radar.mount.pose_at(scene, t).position
+        for _ in range(2):
+            with_local, world = local_rays(dl, random_rotation(rng), o)
+            a, b = caster.cast(with_local, t, ("distance",)), caster.cast(world, t, ("distance",))
+            assert_same_picks(a, b)
+    assert len(caster._instanced.bundle_picker()._binnings) == 1
+
+
+@pytest.mark.parametrize("seed", [3, 4])
+def test_local_bundle_of_random_soups_picks_as_the_brute_force_reference(seed):
+    rng = np.random.default_rng(seed)
+    static = soup(rng, 150, (-2, -2, 1), (2, 2, 4), 0.6)
+    mover = soup(rng, 60, (-0.5, -0.5, -0.5), (0.5, 0.5, 0.5), 0.4)
+    rots, poss = random_rotation(rng)[None], np.array([[0.2, -0.1, 2.0]])
+    dl = frozen(cone_directions(rng, 3000, (0.0, 0.0, 1.0), 50.0))
+    for _ in range(3):
+        rot = random_rotation(rng)
+        o = rng.uniform(-0.3, 0.3, 3)
+        # The scene turned with the sensor: the world rays meet it as in the sensor's frame.
+        st = (static[0] @ rot.T + o, static[1])
+        r2, p2 = rot @ rots, poss @ rot.T + o
+        with_local, world = local_rays(dl, rot, o)
+        got = BundlePicker(st, [mover]).pick(o, world.directions, r2, p2, workers=2, local=with_local.local)
+        want = brute_force(st, [mover], r2, p2, o, world.directions)
+        assert (want[0] >= 0).mean() > 0.3  # both objects in view
+        np.testing.assert_array_equal(got[0], want[0])
+        np.testing.assert_array_equal(got[1], want[1])
+        got1 = BundlePicker(st, [mover]).pick(o, world.directions, r2, p2, workers=1, local=with_local.local)
+        np.testing.assert_array_equal(got1[0], got[0])  # one worker or two: the same picks
+
+
+# --------------------------------------------------------------------------- caches
+
+
+def test_a_binning_is_kept_by_identity_and_never_reused_for_another_array():
+    rng = np.random.default_rng(1)
+    tri = soup(rng, 40, (-1, -1, 2), (1, 1, 3), 0.5)
+    picker = BundlePicker(tri, [])
+    first = frozen(cone_directions(rng, 500, (0, 0, 1), 30.0))
+    b = picker._local_binning(first, 32, 1)
+    assert picker._local_binning(first, 32, 1) is b
+    assert picker._local_binning(first, 16, 1) is not b  # another grid: its own binning
+    # Arrays that die leave; a new array (even at a freed address, even with other
+    # contents) gets its own binning: its picks are the reference's.
+    for k in range(3 * _BINNINGS):
+        dl = frozen(cone_directions(rng, 500, (0.1 * k, 0, 1), 30.0))
+        got = picker.pick(np.zeros(3), dl, *NO_MOVERS, local=(dl, np.eye(3)))
+        want = brute_force(tri, [], *NO_MOVERS, np.zeros(3), dl)
+        np.testing.assert_array_equal(got[1], want[1])
+        del dl
+        gc.collect()
+        assert len(picker._binnings) <= _BINNINGS  # bounded
+
+
+def test_many_frames_keep_the_caches_bounded(cell):  # noqa: F811
+    scene, sensors = cell
+    tof = sensors[2]
+    caster = SceneCaster(scene, "tof", picker="auto")
+    for k in range(12):
+        t = 0.25 * k
+        pose = tof.mount.pose_at(scene, t)
+        caster.cast(tof._renderer.rays(pose.rotation, pose.position), t, ("distance",))
+    picker = caster._instanced.bundle_picker()
+    assert picker.picks == 12 and len(picker._binnings) == 1 and len(picker._spare) == 1
+    # World bundles of many sizes: the "auto" state per size stays bounded.
+    rng = np.random.default_rng(0)
+    small = BundlePicker(soup(rng, 20, (-1, -1, 2), (1, 1, 3), 0.5), [])
+    d = cone_directions(rng, 4200, (0.0, 0, 1.0), 30.0)
+    for k in range(2 * _RULES):
+        assert small.pick(np.zeros(3), d[: 4096 + k], *NO_MOVERS, auto=True) is not None
+    assert len(small._rules) <= _RULES
+
+
+def test_rays_local_is_validated():
+    dl = frozen(cone_directions(np.random.default_rng(2), 50, (0, 0, 1), 30.0))
+    rot = random_rotation(np.random.default_rng(3))
+    d = dl @ rot.T
+    assert Rays(np.zeros(3), d, local=(dl, rot)).local[0] is dl
+    writeable = np.array(dl)
+    view_of_writeable = writeable[:]
+    view_of_writeable.setflags(write=False)
+    bad = [
+        ("pair", (dl,)),
+        ("shape", (dl[:10], rot)),
+        ("float32", (frozen(dl).astype(np.float32), rot)),
+        ("writeable", (writeable, rot)),
+        ("view of writeable", (view_of_writeable, rot)),
+        ("not a rotation", (dl, 2.0 * rot)),
+        ("reflection", (dl, -rot)),
+        ("NaN rotation", (dl, np.full((3, 3), np.nan))),
+        ("transposed", (dl, rot.T)),
+        ("text", (dl, "R")),
+    ]
+    for what, local in bad:
+        with pytest.raises(ConfigError, match="Rays.local"):
+            Rays(np.zeros(3), d, local=local)
+            pytest.fail(what)
+
+
+# --------------------------------------------------------------------------- the "auto" rule
+
+
+def test_the_auto_rule_is_per_bundle():
+    # A dense ball (81,920 triangles) ahead on +x, a wall on -x: the bundle looking at the
+    # ball is sent to Embree; another bundle (the same size: a second sensor) is not.
+    ball = trimesh.creation.icosphere(6, 0.3)
+    wall = (np.array([[-6.0, -5, -5], [-6, 5, -5], [-6, 0, 5]]), np.array([[0, 1, 2]]))
+    picker = BundlePicker(wall, [(np.array(ball.vertices), np.array(ball.faces))])
+    pose = (np.eye(3)[None], np.array([[3.0, 0.0, 0.0]]))
+    cam = PinholeCamera.from_fov(245, 245, 60.0, 60.0)
+    dl = frozen(cam.directions().reshape(-1, 3))
+    to_ball = Pose.look_at((0, 0, 0), (1.0, 0, 0)).rotation
+    to_wall = Pose.look_at((0, 0, 0), (-1.0, 0, 0)).rotation
+    dense, _ = local_rays(dl, to_ball, np.zeros(3))
+    dl2 = frozen(dl)  # a second sensor's own array
+    sparse, _ = local_rays(dl2, to_wall, np.zeros(3))
+    assert picker.pick(np.zeros(3), dense.directions, *pose, auto=True, local=dense.local) is None
+    assert picker.last_tests_per_ray > 30.0
+    assert picker.pick(np.zeros(3), sparse.directions, *pose, auto=True, local=sparse.local) is not None
+    # World bundles: by size (the dense one of n rays, a sparse one of n - 1 rays).
+    assert picker.pick(np.zeros(3), dense.directions, *pose, auto=True) is None
+    inst, _ = picker.pick(np.zeros(3), sparse.directions[1:], *pose, auto=True)
+    assert (inst == 0).mean() > 0.5  # the wall spans +-40 deg of the 60 deg view
+
+
+# --------------------------------------------------------------------------- threads and forks
+
+
+def test_two_sensors_casting_at_once_with_one_caster_get_their_own_picks(cell):  # noqa: F811
+    scene, sensors = cell
+    tof = sensors[2]
+    radar, dl = radar_local()
+    caster = SceneCaster(scene, "tof", picker="bundle")
+    jobs = []
+    for t in (0.6, 2.6):
+        pose = tof.mount.pose_at(scene, t)
+        jobs.append((tof._renderer.rays(pose.rotation, pose.position), t))
+        rp = radar.mount.pose_at(scene, t)
+        jobs.append((local_rays(dl, rp.rotation, rp.position)[0], t))
+    want = [caster.cast(r, t, ("distance",), workers=1) for r, t in jobs]
+    got = [None] * len(jobs)
+    start = threading.Barrier(len(jobs))
+
+    def run(k):
+        start.wait()
+        got[k] = caster.cast(jobs[k][0], jobs[k][1], ("distance",), workers=2)
+
+    threads = [threading.Thread(target=run, args=(k,)) for k in range(len(jobs))]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    for a, b in zip(got, want, strict=True):
+        assert a.distance.tobytes() == b.distance.tobytes()
+        assert_same_picks(a, b)
+
+
+def test_a_forked_child_picks_even_if_a_lock_was_held_at_the_fork():
+    rng = np.random.default_rng(5)
+    tri = soup(rng, 30, (-1, -1, 2), (1, 1, 3), 0.5)
+    dl = frozen(cone_directions(rng, 400, (0, 0, 1), 30.0))
+    picker = BundlePicker(tri, [])
+    want = picker.pick(np.zeros(3), dl, *NO_MOVERS, local=(dl, np.eye(3)))[1]
+    picker._lock.acquire()  # another thread taking a workspace at the fork
+    try:
+        pid = os.fork()
+        if pid == 0:  # the child: a fresh lock, the kept binning, the same picks
+            code = 1
+            try:
+                got = picker.pick(np.zeros(3), dl, *NO_MOVERS, local=(dl, np.eye(3)))[1]
+                code = 0 if np.array_equal(got, want) else 2
+            finally:
+                os._exit(code)
+    finally:
+        picker._lock.release()
+    for _ in range(600):  # up to 60 s; a deadlocked child is killed and fails the test
+        done, status = os.waitpid(pid, os.WNOHANG)
+        if done:
+            break
+        time.sleep(0.1)
+    else:
+        os.kill(pid, 9)
+        os.waitpid(pid, 0)
+        pytest.fail("the forked child hung on an inherited lock")
+    assert os.waitstatus_to_exitcode(status) == 0
+
+
+# --------------------------------------------------------------------------- extreme geometry
+
+
+@pytest.mark.parametrize("offset, scale", [(1e4, 1.0), (0.0, 1e-6), (1e4, 1e-5)])
+def test_huge_coordinates_and_tiny_triangles_pick_as_the_reference(offset, scale):
+    # Origin and scene 1e4 m out (origin-relative float64 keeps ~1e-12 m), triangles of
+    # 1e-6 m seen from 1e-6..4e-6 m: the picks are the reference's, and most rays hit.
+    rng = np.random.default_rng(11)
+    v, f = soup(rng, 200, (-1, -1, 1), (1, 1, 4), 0.8)
+    o = np.full(3, offset)
+    static = (v * scale + o, f)
+    dl = frozen(cone_directions(rng, 2000, (0, 0, 1), 40.0))
+    rot = random_rotation(rng)
+    st = (static[0] - o) @ rot.T + o
+    with_local, world = local_rays(dl, rot, o)
+    for local in (with_local.local, None):
+        got = BundlePicker((st, f), []).pick(o, world.directions, *NO_MOVERS, workers=2, local=local)
+        want = brute_force((st, f), [], *NO_MOVERS, o, world.directions)
+        assert (want[0] >= 0).mean() > 0.5
+        np.testing.assert_array_equal(got[1], want[1])
+
+
+def test_triangles_through_the_origin_are_never_hit_and_hide_nothing():
+    # One triangle with a vertex exactly at the origin, one whose plane holds the origin
+    # (seen edge-on) crossing the plane z = 0: t = 0 or edge-on, never a hit; the wall
+    # behind both is hit by every ray.
+    v = np.array([[0.0, 0, 0], [0.5, 0.1, 2], [0.4, -0.3, 2],
+                  [-1.0, 0, -1], [1, 0, -1], [0, 0, 3],
+                  [-50.0, -50, 5], [50, -50, 5], [0, 50, 5]])
+    picker = BundlePicker((v, np.arange(9).reshape(3, 3)), [])
+    d = cone_directions(np.random.default_rng(2), 3000, (0.3, 0.0, 1.0), 25.0)
+    d = np.concatenate([d, [[0.9, 0.1, 4.0], [0.0, 0.0, 1.0], [0.3, 0.0, 1.0]]])  # inside, on the edge-on plane
+    for local in (None, (frozen(d), np.eye(3))):
+        _, prim = picker.pick(np.zeros(3), d, *NO_MOVERS, local=local)
+        assert (prim == 2).all()
+        want = brute_force((v, np.arange(9).reshape(3, 3)), [], *NO_MOVERS, np.zeros(3), d)
+        np.testing.assert_array_equal(prim, want[1])
+
+
+def test_rays_at_the_cone_limit_pick_as_the_reference_or_go_to_embree():
+    # A bundle symmetric about +z (the mean direction exactly +z) with rays at 79.9, exactly
+    # 80 and 80.1 deg: 79.9 picks, 80.1 goes to Embree; exactly 80 may go either way (the
+    # test compares in float64 rounding), but never picks wrong.
+    s = Scene()
+    s.add_object("wall", Box((40.0, 40.0, 0.02)), "drywall", pose=Pose((0.0, 0.0, 2.0)))
+    s.add_object("cart", Box((0.4, 0.4, 0.4)), "metal",
+                 motion=ConstantVelocity(Pose((0.5, 0.0, 1.0)), (0.0, -0.5, 0.0)))
+    embree = SceneCaster(s, "tof", picker="embree")
+    bundle = SceneCaster(s, "tof", picker="bundle")
+    axis = cone_directions(np.random.default_rng(0), 200, (0, 0, 1.0), 20.0)
+    for deg, picked in ((79.9, True), (CONE_DEG, None), (80.1, False)):
+        a = math.radians(deg)
+        edge = np.array([[math.sin(a), 0, math.cos(a)], [-math.sin(a), 0, math.cos(a)],
+                         [0, math.sin(a), math.cos(a)], [0, -math.sin(a), math.cos(a)]])
+        d = np.concatenate([axis, axis * [-1, -1, 1], edge])  # mirrored: the x, y sums cancel exactly
+        rays = Rays(np.zeros(3), d)
+        before = bundle._instanced.bundle_picker().picks if bundle._instanced._picker else 0
+        got, want = bundle.cast(rays, 0.2), embree.cast(rays, 0.2)
+        used = bundle._instanced.bundle_picker().picks > before
+        if picked is not None:
+            assert used == picked, deg
+        assert_same_picks(got, want)
+
+
+class NanMotion(Motion):
+    """A motion whose position is NaN from t = 1 s on (a user's motion gone wrong)."""
+
+    def state(self, t):
+        pos = np.full(3, np.nan) if t >= 1.0 else np.array([0.5, 0.0, 1.0])
+        return MotionState(Pose._trusted(pos, np.eye(3)), np.zeros(3), np.zeros(3))
+
+
+def test_a_nan_mover_pose_is_refused_on_the_bundle_path():
+    s = Scene()
+    s.add_object("wall", Box((40.0, 40.0, 0.02)), "drywall", pose=Pose((0.0, 0.0, 2.0)))
+    s.add_object("cart", Box((0.4, 0.4, 0.4)), "metal", motion=NanMotion())
+    cam = PinholeCamera.from_fov(80, 60, 60.0, 45.0)
+    dl = frozen(cam.directions().reshape(-1, 3))
+    rays, _ = local_rays(dl, np.eye(3), np.zeros(3))
+    caster = SceneCaster(s, "tof", picker="bundle")
+    with pytest.raises(ConfigError, match="cart"):
+        caster.cast(rays, 1.5)
+    with pytest.raises(ConfigError, match="Rays.local"):
+        Rays(np.zeros(3), rays.directions, local=(dl, np.full((3, 3), np.nan)))
