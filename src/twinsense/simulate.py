@@ -797,6 +797,7 @@ class _Sender:
         self._conn = conn
         self._queue: queue.Queue = queue.Queue(chunks)
         self._broken = False
+        self._failure: BaseException | None = None  # a write's error other than a closed pipe
         self._thread = threading.Thread(target=self._run, daemon=True, name="twinsense-capture-sender")
         self._thread.start()
 
@@ -808,8 +809,15 @@ class _Sender:
                 self._conn.send_bytes(piece)
             except OSError:
                 self._broken = True
+            except BaseException as exc:  # kept for send_bytes to raise; the thread goes on draining
+                self._failure = exc
+                self._broken = True
 
     def send_bytes(self, piece) -> None:
+        if self._failure is not None:
+            # Not a closed pipe: the capture process ends with this error (a non-zero exit code, which
+            # the parent names), its message possibly cut short on the pipe.
+            raise RuntimeError("the capture process's sender thread failed to write a frame") from self._failure
         if self._broken:
             raise BrokenPipeError("the run's process stopped reading")
         self._queue.put(piece)
@@ -1049,9 +1057,12 @@ class _Processes:
             p.join()
         for k, r in enumerate(self._readers):
             # This process's own lane ends after its capture running (as a capture thread's): waited
-            # for, unless it is the one that hung.
-            if not (k == self.home and self._hung):
+            # for, unless it is the one that hung; after a stop or another group's error, for at most one
+            # frame's wait (process_wait), since its capture may be the one hanging, not yet found.
+            if k != self.home:
                 r.join()
+            elif not self._hung:
+                r.join(None if finished else process_wait(self._timeout, self._slowest))
         for c in self._conns:
             if c is not None:
                 c.close()
