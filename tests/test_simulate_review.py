@@ -1,0 +1,112 @@
+"""simulate's failure paths around the group kept in the calling process and the capture processes' sender
+thread: a stop or a child's error while the kept lane hangs, and a sender thread whose write raises
+something other than a closed pipe. Real threads, real pipes and real forked processes.
+"""
+
+import multiprocessing
+import threading
+
+import numpy as np
+import pytest
+
+from test_simulate_concurrent import plain_scene
+from test_simulate_processes import Probe
+from twinsense.scene import Mount
+from twinsense.simulate import CaptureProcessError, _Sender, simulate
+
+
+class Stuck:
+    """A 10 Hz sensor (kept in the calling process beside a 20 Hz one) whose capture at ``at`` blocks until
+    ``release`` is set (bounded at 30 s, far past the runs' waits); ``returned`` tells whether it came back."""
+
+    kind = "camera"
+
+    def __init__(self, name, at, release):
+        self.name, self.frame_rate, self.mount = name, 10.0, Mount()
+        self.at, self.release, self.returned = at, release, False
+
+    def capture(self, scene, t, rng=None):
+        if t == self.at:
+            self.release.wait(timeout=30.0)
+            self.returned = True
+        return Probe(self.name).capture(scene, t, rng)
+
+
+class Fails(Probe):
+    """A 20 Hz sensor (forked) whose capture at ``at`` raises."""
+
+    def __init__(self, name, at):
+        super().__init__(name, 20.0)
+        self.at = at
+
+    def capture(self, scene, t, rng=None):
+        if t == self.at:
+            raise ValueError(f"{self.name} failed at {t}")
+        return super().capture(scene, t, rng)
+
+
+class Stopped(Exception):
+    """The reason a test's stop callback gives."""
+
+
+def test_a_stop_while_the_kept_lane_hangs_ends_the_run_within_the_wait(tmp_path):
+    # a (kept here) hangs at 0.1 s; the stop asks once a's frame at 0.0 s is written. The run ends with the
+    # stop's reason after at most one frame's wait for the running capture (process_timeout = 1 s), not
+    # after the hung capture: the capture is still blocked when simulate returns.
+    release = threading.Event()
+    a = Stuck("a", 0.1, release)
+    seen = []
+    try:
+        with pytest.raises(Stopped):
+            simulate(plain_scene(), [a, Probe("b", 20.0)], 0.3, tmp_path / "run.h5", processes=2,
+                     process_timeout=1.0, on_frame=lambda s, f: seen.append((s.name, f.t)),
+                     stop=lambda: Stopped("stop asked") if ("b", 0.05) in seen else None)
+        assert not a.returned  # simulate did not wait for the hung capture
+    finally:
+        release.set()
+    assert seen[:3] == [("a", 0.0), ("b", 0.0), ("b", 0.05)]
+    assert (tmp_path / "run.partial.h5").exists() and not (tmp_path / "run.h5").exists()
+    assert multiprocessing.active_children() == []
+
+
+def test_a_childs_error_while_the_kept_lane_hangs_is_raised_within_the_wait(tmp_path):
+    # b (forked) fails at 0.05 s while a (kept here) hangs at 0.1 s: b's own error, raised in clock order,
+    # once the kept lane's running capture has had one frame's wait.
+    release = threading.Event()
+    a = Stuck("a", 0.1, release)
+    try:
+        with pytest.raises(ValueError, match="b failed at 0.05"):
+            simulate(plain_scene(), [a, Fails("b", 0.05)], 0.3, tmp_path / "run.h5", processes=2,
+                     process_timeout=1.0)
+        assert not a.returned
+    finally:
+        release.set()
+    assert (tmp_path / "run.partial.h5").exists() and not (tmp_path / "run.h5").exists()
+    assert multiprocessing.active_children() == []
+
+
+def test_a_sender_whose_write_raises_reports_it_and_never_blocks():
+    # A piece the connection refuses (TypeError: not bytes-like) stands for any failure of the thread's
+    # write other than a closed pipe. With a queue of 2 pieces, later sends must raise (not block once
+    # the queue is full behind a dead thread) and close must return. Run on a helper thread: joined with a
+    # bound only so that the failing form of this test ends.
+    recv, send = multiprocessing.Pipe(duplex=False)
+    sender = _Sender(send, 2)
+    raised: list = []
+
+    def feed():
+        sender.send_bytes(object())
+        try:
+            for _ in range(100):
+                sender.send_bytes(b"x")
+        except Exception as exc:  # noqa: BLE001 - the test inspects it
+            raised.append(exc)
+        sender.close()
+
+    t = threading.Thread(target=feed, daemon=True)
+    t.start()
+    t.join(timeout=20.0)
+    assert not t.is_alive(), "a send or close blocked behind the failed sender thread"
+    assert len(raised) == 1 and isinstance(raised[0].__cause__, TypeError)
+    recv.close()
+
