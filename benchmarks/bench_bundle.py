@@ -8,7 +8,13 @@ every frame at a new time, so every moving object moves):
   (``paper_bgt60tr13c``, 1000 x 342 = 342,000 rays): the pick alone, the bundle
   picker (``BundlePicker.pick``) against Embree's traversal of the same
   instanced scene (``trace`` per chunk of 16,384 rays, on the same workers),
-  alternating in one run, wall and process CPU, 1 and 2 workers; then the
+  alternating in one run, wall and process CPU, 1 and 2 workers; the bundle
+  picker both ways: the world rays binned every pick, and the sensor's fixed
+  local bundle (``Rays.local``: binned once, each pick moving only the
+  triangles into the sensor's frame); with ``--before-picker SRC`` also the
+  picker of another checkout's ``src`` (``git archive <commit> src | tar -x
+  -C DIR``; its ``render/bundle.py`` and ``bundle_kernels.py`` loaded beside
+  this package's), in the same turns; then the
   whole cast (every Hits field) with either picker;
 - the whole wrist ToF frame (``tof.capture``) and the whole radar frame
   (``radar.capture``) with either picker, alternating;
@@ -22,13 +28,17 @@ Same-run anchor: a bare single-thread embreex cast of the same rays against
 the scene posed at that time (one world-space BVH built beforehand), as in
 the other benchmarks.
 
-Run:  .venv/bin/python benchmarks/bench_bundle.py [--rounds N]
+Run:  .venv/bin/python benchmarks/bench_bundle.py [--rounds N] [--before-picker SRC] [--picks-only]
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
+import sys
+import types
 from concurrent.futures import wait
+from pathlib import Path
 
 import numpy as np
 from _cell import flange_radar, radar_rays
@@ -83,9 +93,37 @@ def embree_pick(caster, rays, t, workers):
     return inst, prim
 
 
-def bundle_pick(caster, rays, t, workers, **kw):
+def bundle_pick(caster, rays, t, workers, picker=None, **kw):
     rots, poss, _ = posed(caster, t)
-    return caster._instanced.bundle_picker().pick(rays.origins[0], rays.directions, rots, poss, workers, **kw)
+    picker = caster._instanced.bundle_picker() if picker is None else picker
+    return picker.pick(rays.origins[0], rays.directions, rots, poss, workers, **kw)
+
+
+def before_picker_class(src: str):
+    """The BundlePicker class of another checkout's ``src`` (its bundle.py with its own kernels)."""
+    root = Path(src) / "twinsense" / "render"
+    name = "twinsense.render._before_bundle_kernels"
+    spec = importlib.util.spec_from_file_location(name, root / "bundle_kernels.py")
+    kernels = importlib.util.module_from_spec(spec)
+    sys.modules[name] = kernels
+    spec.loader.exec_module(kernels)
+    text = (root / "bundle.py").read_text()
+    text = text.replace("from twinsense.render import bundle_kernels as bk", f"import {name} as bk")
+    mod = types.ModuleType("twinsense.render._before_bundle")
+    sys.modules[mod.__name__] = mod
+    exec(compile(text, str(root / "bundle.py"), "exec"), mod.__dict__)
+    return mod.BundlePicker
+
+
+def picker_like(cls, instanced):
+    """A ``cls`` picker over the instanced scene's triangles (as InstancedScene.bundle_picker builds it)."""
+    static = None
+    if instanced._static_meshes is not None:
+        meshes = instanced._static_meshes
+        base = np.cumsum([0] + [len(v) for v, _ in meshes[:-1]])
+        static = (np.concatenate([v for v, _ in meshes]),
+                  np.concatenate([f + b for (_, f), b in zip(meshes, base, strict=True)]))
+    return cls(static, instanced._mover_meshes)
 
 
 def line(label, res, anchor=None):
@@ -94,24 +132,34 @@ def line(label, res, anchor=None):
     print(f"  {label:<58s} {best * 1e3:7.1f} ms best {med * 1e3:7.1f} ms median, CPU {cpu * 1e3:7.1f} ms{extra}")
 
 
-def compare_picks(scene, kind, rays_at, times, rounds, anchor):
+def compare_picks(scene, kind, rays_at, times, rounds, anchor, before=None, picks_only=False):
     """The pick alone and the whole cast, both pickers, 1 and 2 workers, alternating."""
     caster = caster_for(scene, kind)
     bundles = [rays_at(t) for t in times]
     k = len(times) - 1
+    old = None if before is None else picker_like(before, caster._instanced)
     for w in (1, 2):
         variants = {
             f"pick, Embree traversal, {w} worker(s)":
                 in_turn(lambda i, w=w: embree_pick(caster, bundles[i], times[i], w), k),
-            f"pick, bundle picker, {w} worker(s)":
+            f"pick, bundle picker, world rays binned every pick, {w} worker(s)":
                 in_turn(lambda i, w=w: bundle_pick(caster, bundles[i], times[i], w), k),
         }
+        if bundles[0].local is not None:
+            variants[f"pick, bundle picker, local bundle binned once, {w} worker(s)"] = in_turn(
+                lambda i, w=w: bundle_pick(caster, bundles[i], times[i], w, local=bundles[i].local), k)
+        if old is not None:
+            variants[f"pick, bundle picker of --before-picker, {w} worker(s)"] = in_turn(
+                lambda i, w=w: bundle_pick(caster, bundles[i], times[i], w, picker=old), k)
         for label, res in alternating(variants, rounds).items():
             line(label, res, anchor)
+    if picks_only:
+        return
 
     # Writable copies, one set per picker: a read-only bundle cast a second time would take the
     # fixed sensor's path (its static hits kept), not the moving sensor's.
-    copies = {p: [Rays(b.origins, np.array(b.directions)) for b in bundles] for p in ("embree", "bundle")}
+    copies = {p: [Rays(b.origins, np.array(b.directions), local=b.local) for b in bundles]
+              for p in ("embree", "bundle")}
 
     def whole(picker, w):
         def run(i):
@@ -165,7 +213,11 @@ def frames(scene, kind, sensor, times, rounds, anchor):
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--rounds", type=int, default=9)
+    ap.add_argument("--before-picker", default=None, help="another checkout's src: its picker in the same turns")
+    ap.add_argument("--picks-only", action="store_true", help="the robot cell's picks only (no casts, frames, "
+                    "settings, visual meshes or office)")
     args = ap.parse_args()
+    before = None if args.before_picker is None else before_picker_class(args.before_picker)
     print_machine()
     times = [T0 + i / 30.0 for i in range(args.rounds + 1)]
 
@@ -178,8 +230,15 @@ def main() -> None:
         pose = tof.mount.pose_at(scene, t)
         return tof._renderer.rays(pose.rotation, pose.position)
 
+    cfg = radar.config
+    radar_local = PinholeCamera.from_fov(cfg.render_width, cfg.render_height, cfg.hfov_deg,
+                                         cfg.vfov_deg).directions().reshape(-1, 3).copy()
+    radar_local.setflags(write=False)
+
     def radar_rays_at(t):
-        return radar_rays(radar, radar.mount.pose_at(scene, t))
+        pose = radar.mount.pose_at(scene, t)
+        r = radar_rays(radar, pose)
+        return Rays(r.origins, r.directions, local=(radar_local, pose.rotation))  # as the radar casts them
 
     n_tri = sum(len(o.geometry.mesh.faces) for o in scene.objects)
     for label, kind, rays_at, sensor in (
@@ -189,10 +248,15 @@ def main() -> None:
         anchor = embree_anchor(scene, kind, times[1], r.origins, r.directions, 7)[1]
         print(f"\n== robot cell ({n_tri} triangles, UR5 collision meshes), {label}: {len(r)} rays")
         print(f"  anchor: bare embreex cast, 1 thread, same rays       {anchor * 1e3:7.1f} ms median")
-        compare_picks(scene, kind, rays_at, times, args.rounds, anchor)
+        compare_picks(scene, kind, rays_at, times, args.rounds, anchor, before, args.picks_only)
+        if args.picks_only:
+            continue
         frames(scene, kind, sensor, times, args.rounds, anchor)
         settings(scene, kind, rays_at, times, max(3, args.rounds // 2))
 
+    if args.picks_only:
+        print_load_at_end()
+        return
     print("\n== the robot cell with the UR5's visual meshes, wrist ToF rays")
     heavy = build_arm_cell_scene(shapes="visual")
     print(f"  {sum(len(o.geometry.mesh.faces) for o in heavy.objects)} triangles")

@@ -66,18 +66,26 @@ def ray_frame_sums(d):  # pragma: no cover
 
 
 @jit
-def _uv(d, i, e1, e2, e3):  # pragma: no cover
-    """(u, v, c, |d|^2, valid) of ray i: u = d . e1 / c, v = d . e2 / c, c = d . e3; valid: its
-    coordinates are finite float32 numbers (as ``trace`` requires) and not all zero. The
-    one place these are computed (binning and gathering must give the same bits)."""
-    x, y, z = d[i, 0], d[i, 1], d[i, 2]
+def _uv(x, y, z, e):  # pragma: no cover
+    """(u, v, c, |d|^2, valid) of the ray d = (x, y, z): u = d . e1 / c, v = d . e2 / c,
+    c = d . e3 (e: the 9 numbers of e1, e2, e3 as a tuple: scalars only, so the call costs
+    nothing; array arguments cost ~10x the arithmetic); valid: its coordinates are finite
+    float32 numbers (as ``trace`` requires) and not all zero. The one place these are
+    computed (binning and sorting must give the same bits)."""
     fx, fy, fz = np.float32(x), np.float32(y), np.float32(z)
     r2 = x * x + y * y + z * z
     ok = (fx - fx) + (fy - fy) + (fz - fz) == 0 and r2 != 0.0
-    a = x * e1[0] + y * e1[1] + z * e1[2]
-    b = x * e2[0] + y * e2[1] + z * e2[2]
-    c = x * e3[0] + y * e3[1] + z * e3[2]
+    a = x * e[0] + y * e[1] + z * e[2]
+    b = x * e[3] + y * e[4] + z * e[5]
+    c = x * e[6] + y * e[7] + z * e[8]
     return a / c, b / c, c, r2, ok
+
+
+@jit
+def _axes(basis):  # pragma: no cover
+    """The 9 numbers of basis (3, 3) rows e1, e2, e3, as a tuple (for :func:`_uv`)."""
+    return (basis[0, 0], basis[0, 1], basis[0, 2], basis[1, 0], basis[1, 1], basis[1, 2],
+            basis[2, 0], basis[2, 1], basis[2, 2])
 
 
 @jit
@@ -94,14 +102,14 @@ def bin_rays(lo, hi, d, basis, cos_min, grid, gu, gv, cell, counts):  # pragma: 
     cell, in ranges of rays that threads can run at once (each range's rays land at
     its own offsets: the order is the same for any ranges).
     """
-    e1, e2, e3 = basis[0], basis[1], basis[2]
+    e = _axes(basis)
     counts[:] = 0
     m = 0
     umin = vmin = np.inf
     umax = vmax = -np.inf
     inside = True
     for i in range(lo, hi):
-        u, v, c, r2, ok = _uv(d, i, e1, e2, e3)
+        u, v, c, r2, ok = _uv(d[i, 0], d[i, 1], d[i, 2], e)
         cell[i] = -1
         if not ok:
             continue
@@ -133,36 +141,15 @@ def scatter_rays(lo, hi, d, basis, cell, fill, order, us, vs):  # pragma: no cov
     """order[fill[c]++] = i for the rays i = lo..hi-1 in cell c >= 0 (ascending within a cell),
     and their u, v (:func:`_uv`: the bits of binning) into us, vs (m,) at the same slots.
     fill (gu gv,) int64: this range's first slot in every cell."""
-    e1, e2, e3 = basis[0], basis[1], basis[2]
+    e = _axes(basis)
     for i in range(lo, hi):
         c = cell[i]
         if c >= 0:
-            u, v, _, _, _ = _uv(d, i, e1, e2, e3)
+            u, v, _, _, _ = _uv(d[i, 0], d[i, 1], d[i, 2], e)
             s = fill[c]
             order[s] = i
             us[s], vs[s] = u, v
             fill[c] = s + 1
-
-
-@jit
-def _vertex(i, verts, vert_owner, rots, poss, o, basis):  # pragma: no cover
-    """Vertex i moved to the world, made origin-relative and expressed along e1, e2, e3:
-    ((v - o) . e1, (v - o) . e2, (v - o) . e3). The one place this is computed: every
-    triangle that holds a vertex gets the same bits (what makes the picks watertight)."""
-    j = vert_owner[i]
-    x, y, z = verts[i, 0], verts[i, 1], verts[i, 2]
-    if j >= 0:
-        r = rots[j]
-        wx = r[0, 0] * x + r[0, 1] * y + r[0, 2] * z + poss[j, 0]
-        wy = r[1, 0] * x + r[1, 1] * y + r[1, 2] * z + poss[j, 1]
-        wz = r[2, 0] * x + r[2, 1] * y + r[2, 2] * z + poss[j, 2]
-        x, y, z = wx, wy, wz
-    x -= o[0]
-    y -= o[1]
-    z -= o[2]
-    return (x * basis[0, 0] + y * basis[0, 1] + z * basis[0, 2],
-            x * basis[1, 0] + y * basis[1, 1] + z * basis[1, 2],
-            x * basis[2, 0] + y * basis[2, 1] + z * basis[2, 2])
 
 
 @jit
@@ -196,10 +183,10 @@ def triangles(lo, hi, faces, verts, vert_owner, rots, poss, o, basis, grid, exte
 
     verts (nv, 3): static vertices in the world, a mover's in its frame; vert_owner
     (nv,) int: -1 static, else the mover j posed by rots[j] (3, 3), poss[j] (3,)
-    (local -> world); o (3,) the origin; basis (3, 3) rows e1, e2, e3 (each vertex
-    by :func:`_vertex`). faces (t, 3). grid (4,): umin, 1/du, vmin, 1/dv; extent
-    (4,): umin, umax, vmin, vmax of the rays, padded outwards; reach: the rays'
-    largest |u| or |v|.
+    (local -> world); o (3,) the origin; basis (3, 3) rows e1, e2, e3: each vertex
+    v (in the world) becomes ((v - o) . e1, (v - o) . e2, (v - o) . e3). faces (t, 3).
+    grid (4,): umin, 1/du, vmin, 1/dv; extent (4,): umin, umax, vmin, vmax of the
+    rays, padded outwards; reach: the rays' largest |u| or |v|.
 
     Writes box (t, 4) int64 rows (cu0, cu1, cv0, cv1) of the cells the triangle can
     touch (cu0 = -1: dropped), zmin (t,) its least coordinate along e3, and, for a
@@ -225,7 +212,23 @@ def triangles(lo, hi, faces, verts, vert_owner, rots, poss, o, basis, grid, exte
     w = np.empty(9)
     for f in range(lo, hi):
         for k in range(3):
-            w[3 * k], w[3 * k + 1], w[3 * k + 2] = _vertex(faces[f, k], verts, vert_owner, rots, poss, o, basis)
+            # The vertex moved to the world, origin-relative, along e1, e2, e3: the same operations
+            # for every triangle that holds it (the same bits: what makes the picks watertight).
+            # Written here, not as a call: a compiled call with array arguments costs ~10x this.
+            i = faces[f, k]
+            j = vert_owner[i]
+            x, y, z = verts[i, 0], verts[i, 1], verts[i, 2]
+            if j >= 0:
+                wx = rots[j, 0, 0] * x + rots[j, 0, 1] * y + rots[j, 0, 2] * z + poss[j, 0]
+                wy = rots[j, 1, 0] * x + rots[j, 1, 1] * y + rots[j, 1, 2] * z + poss[j, 1]
+                wz = rots[j, 2, 0] * x + rots[j, 2, 1] * y + rots[j, 2, 2] * z + poss[j, 2]
+                x, y, z = wx, wy, wz
+            x -= o[0]
+            y -= o[1]
+            z -= o[2]
+            w[3 * k] = x * basis[0, 0] + y * basis[0, 1] + z * basis[0, 2]
+            w[3 * k + 1] = x * basis[1, 0] + y * basis[1, 1] + z * basis[1, 2]
+            w[3 * k + 2] = x * basis[2, 0] + y * basis[2, 1] + z * basis[2, 2]
         ex0, ey0, ez0 = w[3] - w[0], w[4] - w[1], w[5] - w[2]
         ex1, ey1, ez1 = w[6] - w[0], w[7] - w[1], w[8] - w[2]
         nx = ey0 * ez1 - ez0 * ey1
