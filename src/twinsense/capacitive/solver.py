@@ -178,11 +178,23 @@ class PCGSolver:
         # The finest matrix the hierarchy was built on: (data copy, row of every entry).
         self._built: tuple[np.ndarray, np.ndarray] | None = None
         self.builds = 0
+        # A refreshed hierarchy set aside by invalidate() and the base matrix it was built on: the
+        # next build on the same base (bit for bit) takes it back instead (see _take_kept).
+        self._kept: tuple | None = None
+        self._on: sp.csr_matrix | None = None
+        self.reuses = 0
 
     def invalidate(self) -> None:
-        """Rebuild the preconditioner at the next solve."""
+        """Rebuild the preconditioner at the next solve.
+
+        A refreshed hierarchy (``coarse_refresh``) is set aside: the next build on the very same
+        base takes it back (:attr:`reuses`), the same hierarchy a build would make (the build is
+        deterministic, and a refresh replaces every operator it changes)."""
+        if self._ml is not None and self._refreshing and self._on is not None:
+            self._kept = (self._ml, self._on)
         self._ml = None
         self._built = None
+        self._on = None
 
     def changed_rows(self, sparse) -> float:
         """Share of the rows of ``sparse`` (csr) that differ from the matrix the hierarchy was built on.
@@ -273,12 +285,21 @@ class PCGSolver:
                 # coarse patterns come from the same structure (a frame outside it takes the fallback).
                 on = sp.csr_matrix(base, copy=True)
                 on.eliminate_zeros()
-                self._ml = BlockAMG(on, cfg.amg_strength_theta, cfg.smoothing_steps, pattern=on)
+                kept = self._take_kept(on)
+                if kept is None:
+                    self._ml = BlockAMG(on, cfg.amg_strength_theta, cfg.smoothing_steps, pattern=on)
+                    self.builds += 1
+                else:
+                    self._ml = kept
+                    self.reuses += 1
+                self._on = on
             else:
                 self._ml = BlockAMG(sparse, cfg.amg_strength_theta, cfg.smoothing_steps)
+                self._on = None
+                self.builds += 1
+            self._kept = None
             self._n = sparse.shape[0]
             self._refreshing = refresh
-            self.builds += 1
             rebuilt = True
             if cfg.rebuild_rows < 1.0 and sp.issparse(key) and key.format == "csr":
                 self._built = (key.data.copy(), np.repeat(np.arange(self._n), np.diff(key.indptr)))
@@ -295,10 +316,25 @@ class PCGSolver:
             # its own for this solve, and a new base at the next.
             self._ml = BlockAMG(sparse, cfg.amg_strength_theta, cfg.smoothing_steps)
             self._built = None
+            self._on = None
             self._refreshing = False
             self.builds += 1
             return True
         return rebuilt
+
+    def _take_kept(self, on: sp.csr_matrix):
+        """The set-aside hierarchy when it was built on ``on`` exactly (structure and every bit of the
+        values), else None. Its refreshes left nothing behind that the next one reads: a refresh
+        recomputes every coarse operator, the coarsest factor and the damping from the build's
+        prolongators and first-level terms, which a build on ``on`` would make the same."""
+        kept = self._kept
+        if kept is None:
+            return None
+        ml, b = kept
+        if (b.shape == on.shape and np.array_equal(b.indptr, on.indptr) and np.array_equal(b.indices, on.indices)
+                and np.array_equal(b.data.view(np.int64), on.data.view(np.int64))):
+            return ml
+        return None
 
 
 def check_solver_config(config) -> SolverConfig:
