@@ -6,13 +6,12 @@ something other than a closed pipe. Real threads, real pipes and real forked pro
 import multiprocessing
 import threading
 
-import numpy as np
 import pytest
 
 from test_simulate_concurrent import plain_scene
 from test_simulate_processes import Probe
 from twinsense.scene import Mount
-from twinsense.simulate import CaptureProcessError, _Sender, simulate
+from twinsense.simulate import _Sender, simulate
 
 
 class Stuck:
@@ -99,7 +98,7 @@ def test_a_sender_whose_write_raises_reports_it_and_never_blocks():
         try:
             for _ in range(100):
                 sender.send_bytes(b"x")
-        except Exception as exc:  # noqa: BLE001 - the test inspects it
+        except Exception as exc:
             raised.append(exc)
         sender.close()
 
@@ -110,3 +109,45 @@ def test_a_sender_whose_write_raises_reports_it_and_never_blocks():
     assert len(raised) == 1 and isinstance(raised[0].__cause__, TypeError)
     recv.close()
 
+
+
+class PrepareFails:
+    """A sensor whose prepare raises; ``captured`` lists the times its capture was asked for."""
+
+    kind = "camera"
+
+    def __init__(self, name):
+        self.name, self.frame_rate, self.mount, self.captured = name, 10.0, Mount(), []
+
+    def prepare(self, scene, times):
+        raise ValueError(f"{self.name} cannot be prepared")
+
+    def capture(self, scene, t, rng=None):
+        self.captured.append(t)
+        return Probe(self.name).capture(scene, t, rng)
+
+
+class PrepareWaits(Probe):
+    """A sensor whose prepare waits until ``other`` has been asked for a frame, at most ``bound`` [s]."""
+
+    def __init__(self, name, other, bound=2.0):
+        super().__init__(name)
+        self.other, self.bound = other, bound
+
+    def prepare(self, scene, times):
+        import time
+
+        end = time.monotonic() + self.bound
+        while not self.other.captured and time.monotonic() < end:
+            time.sleep(0.01)
+
+
+def test_a_sensor_whose_prepare_failed_is_never_captured_on_capture_threads(tmp_path):
+    # a's prepare fails at once while b's is still running (it waits, bounded, for a capture of a): the
+    # lane of a is dropped with its prepare, so a free thread never captures an unprepared sensor (one
+    # after another it would not be captured either); a's error, and no file.
+    a = PrepareFails("a")
+    with pytest.raises(ValueError, match="a cannot be prepared"):
+        simulate(plain_scene(), [a, PrepareWaits("b", a)], 0.3, tmp_path / "run.h5", workers=2)
+    assert a.captured == []
+    assert list(tmp_path.iterdir()) == []

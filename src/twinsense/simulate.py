@@ -475,6 +475,7 @@ class _Ahead:
         self._wake = threading.Condition()
         self._lanes: list[deque] = [deque() for _ in sensors]
         self._busy = [False] * len(sensors)
+        self._dropped = [False] * len(sensors)  # lanes whose prepare failed
         self._order: deque = deque()  # (sensor index, times, future) in clock order
         self._closed = False
         # [s] per frame: the kind's expected cost until the lane's first capture, then measured.
@@ -529,7 +530,7 @@ class _Ahead:
         """The lane a free thread takes (the lock held): a queued prepare first, else the most work left."""
         best, key = None, None
         for i, lane in enumerate(self._lanes):
-            if lane and not self._busy[i]:
+            if lane and not self._busy[i] and not self._dropped[i]:
                 k = (lane[0][0] is None, self._cost[i] * self._left[i], -i)
                 if key is None or k > key:
                     best, key = i, k
@@ -554,6 +555,10 @@ class _Ahead:
                     else:
                         block = _capture(self._scene, self._sensors[i], times, self._rngs[i])
                 except BaseException as exc:  # handed to the writer's thread, raised there at this run
+                    if times is None:
+                        # A sensor that could not be prepared is never captured (the run ends with this error
+                        # at wait_prepared, as one after another): its lane is no longer picked.
+                        self._dropped[i] = True
                     fut.set_exception(exc)
                 else:
                     fut.set_result(block)

@@ -4,8 +4,8 @@ compiled code computes every pixel whatever the rows of the call)."""
 
 import numpy as np
 import pytest
-
 from test_chain_rows import LOOK_X, assert_same, config, phasors_and_noise
+
 from twinsense.errors import ConfigError
 from twinsense.tof.chain_kernels import ChainRows, chain_frame
 from twinsense.tof.pipeline import NOISE_BLOCK_ROWS
