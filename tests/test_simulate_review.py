@@ -6,6 +6,7 @@ something other than a closed pipe. Real threads, real pipes and real forked pro
 import multiprocessing
 import threading
 
+import numpy as np
 import pytest
 
 from test_simulate_concurrent import plain_scene
@@ -151,3 +152,46 @@ def test_a_sensor_whose_prepare_failed_is_never_captured_on_capture_threads(tmp_
         simulate(plain_scene(), [a, PrepareWaits("b", a)], 0.3, tmp_path / "run.h5", workers=2)
     assert a.captured == []
     assert list(tmp_path.iterdir()) == []
+
+
+class Heavy:
+    """A 100 Hz sensor (forked) of 1 MB frames that counts its captures in memory shared with the parent."""
+
+    kind = "camera"
+
+    def __init__(self, name, counter):
+        self.name, self.frame_rate, self.mount, self.counter = name, 100.0, Mount(), counter
+
+    def capture(self, scene, t, rng=None):
+        with self.counter.get_lock():
+            self.counter.value += 1
+        return Big(t)
+
+
+class Big:
+    def __init__(self, t):
+        self.t, self.x = t, np.full(2**17, t)  # 1 MB: the pipe (64 kB) holds less than a frame
+
+    def streams(self):
+        return {"x": self.x}
+
+
+def test_a_child_runs_at_most_a_bounded_number_of_frames_ahead_of_a_slow_writer():
+    # The parent takes 10 ms per frame of b in on_frame; b captures far faster. The frames held between
+    # them are bounded: the reader's queue (2 x 2 sensors = 4 runs) + one in the reader's hands + the
+    # sender's queue (16 x 2 = 32 pieces, 3 per frame: 11 frames) + one being written + one being
+    # captured: 18; 20 allowed. Without a bound b would run all 60 frames ahead.
+    import time
+
+    counter = multiprocessing.Value("i", 0)
+    ahead = []
+
+    def on_frame(s, f):
+        if s.name == "b":
+            ahead.append(counter.value - len(ahead) - 1)
+            time.sleep(0.01)
+
+    res = simulate(plain_scene(), [Heavy("b", counter), Probe("a")], 0.6, processes=2, on_frame=on_frame,
+                   keep_frames=False)
+    assert res.frame_counts["b"] == 60 and counter.value == 60
+    assert max(ahead) <= 20 and max(ahead) >= 10  # bounded, and the child did run ahead (the sender's queue)
