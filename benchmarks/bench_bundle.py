@@ -35,7 +35,9 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import shutil
 import sys
+import tempfile
 import types
 from concurrent.futures import wait
 from pathlib import Path
@@ -101,7 +103,11 @@ def bundle_pick(caster, rays, t, workers, picker=None, **kw):
 
 def before_picker_class(src: str):
     """The BundlePicker class of another checkout's ``src`` (its bundle.py with its own kernels)."""
-    root = Path(src) / "twinsense" / "render"
+    # Copies in a directory of their own: numba's disk cache is kept per source file, and
+    # the other checkout's own (its module names) must not meet these.
+    root = Path(tempfile.mkdtemp(prefix="before_picker_"))
+    for f in ("bundle.py", "bundle_kernels.py"):
+        shutil.copy(Path(src) / "twinsense" / "render" / f, root / f)
     name = "twinsense.render._before_bundle_kernels"
     spec = importlib.util.spec_from_file_location(name, root / "bundle_kernels.py")
     kernels = importlib.util.module_from_spec(spec)
