@@ -131,7 +131,7 @@ class PrepareFails:
 class PrepareWaits(Probe):
     """A sensor whose prepare waits until ``other`` has been asked for a frame, at most ``bound`` [s]."""
 
-    def __init__(self, name, other, bound=2.0):
+    def __init__(self, name, other, bound=0.5):
         super().__init__(name)
         self.other, self.bound = other, bound
 
