@@ -195,3 +195,20 @@ def test_a_child_runs_at_most_a_bounded_number_of_frames_ahead_of_a_slow_writer(
                    keep_frames=False)
     assert res.frame_counts["b"] == 60 and counter.value == 60
     assert max(ahead) <= 20 and max(ahead) >= 10  # bounded, and the child did run ahead (the sender's queue)
+
+
+def test_a_message_cut_short_by_a_dying_child_ends_as_an_end_of_file():
+    # A child killed while its sender writes a frame leaves the pipe mid-message: the sizes and the pickle
+    # arrived, a buffer did not. The reader's receive sees an end of file (taken as the process's end,
+    # whose CaptureProcessError names the sensor and time), not a frame with missing bytes.
+    import pickle
+
+    from twinsense.simulate import _pickled, _receive
+
+    data, raws = _pickled(("frames", (0.1, [np.arange(1000.0)])))
+    recv, send = multiprocessing.Pipe(duplex=False)
+    send.send_bytes(pickle.dumps([r.nbytes for r in raws]))
+    send.send_bytes(data)
+    send.close()
+    with pytest.raises(EOFError):
+        _receive(recv)
