@@ -21,6 +21,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import threading
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -106,7 +107,9 @@ def save(spec: TableSpec, table: np.ndarray, z0: complex, directory: Path) -> Pa
     path = Path(directory) / f"{spec.key()}.npz"
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
+        # Named per process and thread: sensors prepare on capture threads at once, and two
+        # writers of the same table must not share (and truncate) one temporary file.
+        tmp = path.with_suffix(f".{os.getpid()}.{threading.get_ident()}.tmp.npz")
         np.savez(tmp, delta_z=table, z0=np.complex128(z0))
         os.replace(tmp, path)
     except OSError:
