@@ -27,7 +27,8 @@ its NumPy form; and :func:`slow_rest_floor`, a lower bound on a block's
 slow-time rest before its plan (``nufft._split_floor``) (``tests/radar/test_synthesis_block_kernels.py``,
 ``tests/radar/test_block_rows_kernel.py``). Before the chunks, the movers'
 range rates (:func:`range_rates`), their stable sort (:func:`stable_argsort`
-on :func:`rate_keys`: NumPy's stable order) and each chunk's gather
+on :func:`rate_keys`: NumPy's stable order; with two workers each sorts half the
+movers and :func:`merge_orders` joins them) and each chunk's gather
 (:func:`gather_movers`; ``tests/radar/test_mover_sort.py``).
 """
 
@@ -432,6 +433,35 @@ def stable_argsort(keys):  # pragma: no cover
                 return _full_radix(keys)
         a = b
     return idx
+
+
+@jit
+def merge_orders(keys, left, right, out):  # pragma: no cover
+    """out (a + b,) int64: the stable merge of ``left`` (a,) and ``right`` (b,), each a
+    stable ascending order of ``keys`` (n,) uint64 over its own rows, every row of
+    ``left`` below every row of ``right``. On equal keys ``left`` goes first, so the
+    result is :func:`stable_argsort` of the rows together (the parallel sort's last step)."""
+    i = 0
+    j = 0
+    m = 0
+    a = left.shape[0]
+    b = right.shape[0]
+    while i < a and j < b:
+        if keys[right[j]] < keys[left[i]]:
+            out[m] = right[j]
+            j += 1
+        else:
+            out[m] = left[i]
+            i += 1
+        m += 1
+    while i < a:
+        out[m] = left[i]
+        i += 1
+        m += 1
+    while j < b:
+        out[m] = right[j]
+        j += 1
+        m += 1
 
 
 @jit

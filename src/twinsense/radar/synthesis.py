@@ -91,7 +91,13 @@ from twinsense.constants import SPEED_OF_LIGHT
 from twinsense.errors import ConfigError
 from twinsense.radar import effects
 from twinsense.radar.config import RadarConfig
-from twinsense.radar.kernels import gather_movers, range_rates, rate_keys, stable_argsort
+from twinsense.radar.kernels import (
+    gather_movers,
+    merge_orders,
+    range_rates,
+    rate_keys,
+    stable_argsort,
+)
 from twinsense.radar.nufft import (
     CHUNK,
     Geometry,
@@ -289,6 +295,35 @@ def _range_rate(p: np.ndarray, v: np.ndarray, rows: np.ndarray) -> np.ndarray:
     return dot / np.maximum(np.sqrt(_norm2(p)), 1e-12)
 
 
+def _sorted_rates(p: np.ndarray, v: np.ndarray, rows: np.ndarray,
+                  workers: int) -> tuple[np.ndarray, np.ndarray]:
+    """Range rates (k,) [m/s] of ``rows`` (k,) of p, v (n, 3) and their stable ascending
+    order (k,) int64: ``np.argsort(rate, kind="stable")``'s, whatever ``workers``.
+
+    With two or more workers each of two halves gets its rates, keys and stable sort on
+    its own worker (compiled, without the GIL), and one serial merge that takes the left
+    half first on equal keys joins them: the stable sort of the whole (~1 ms of the
+    ~9 ms serial sort of the wrist frame's 342,000 movers).
+    """
+    k = len(rows)
+    rate = np.empty(k)
+    keys = np.empty(k, np.uint64)
+    halves = [(0, k // 2), (k // 2, k)] if workers > 1 and k >= 2 * CHUNK else [(0, k)]
+
+    def half(b):
+        lo, hi = b
+        range_rates(p, v, rows[lo:hi], rate[lo:hi])
+        rate_keys(rate[lo:hi], keys[lo:hi])
+        return stable_argsort(keys[lo:hi]) + lo
+
+    parts = map_ordered(half, halves, workers)
+    if len(parts) == 1:
+        return rate, parts[0]
+    order = np.empty(k, np.int64)
+    merge_orders(keys, parts[0], parts[1], order)
+    return rate, order
+
+
 def _output(cube: np.ndarray, config: RadarConfig) -> np.ndarray:
     return cube if config.if_chain.complex_if else cube.real.copy()
 
@@ -385,20 +420,23 @@ def synthesize(points: np.ndarray, velocities: np.ndarray | None, weights: np.nd
             # curvature around the chunk's mid-range (S x range rate), which
             # lowers its order when the whole scene moves (a moving radar).
             # (Monostatic: both legs' rates are the same, and 2 x a rate sorts as the rate.)
-            if COMPILED_SORT:
-                rate = np.empty(len(mv))
-                range_rates(p, v, mv, rate)
+            if COMPILED_SORT and pr is p and vr is v:
+                rate, order = _sorted_rates(p, v, mv, workers)
             else:
-                rate = _range_rate(p, v, mv)
-            if pr is not p or vr is not v:
-                rate = rate + _range_rate(pr, vr, mv)
-            if COMPILED_SORT:
-                # A compiled stable radix argsort: NumPy's order (tests/radar/test_mover_sort.py).
-                keys = np.empty(len(rate), np.uint64)
-                rate_keys(rate, keys)
-                order = stable_argsort(keys)
-            else:
-                order = np.argsort(rate, kind="stable")
+                if COMPILED_SORT:
+                    rate = np.empty(len(mv))
+                    range_rates(p, v, mv, rate)
+                else:
+                    rate = _range_rate(p, v, mv)
+                if pr is not p or vr is not v:
+                    rate = rate + _range_rate(pr, vr, mv)
+                if COMPILED_SORT:
+                    # A compiled stable radix argsort: NumPy's order (tests/radar/test_mover_sort.py).
+                    keys = np.empty(len(rate), np.uint64)
+                    rate_keys(rate, keys)
+                    order = stable_argsort(keys)
+                else:
+                    order = np.argsort(rate, kind="stable")
             mv = mv[order]
             bounds = rate_bounds(rate[order], rate_floor(config))
         else:
