@@ -51,11 +51,11 @@ __all__ = [
 
 READOUT_ERROR_SHARE = 0.1
 """Capacitance error the frame solves may leave, as a share of the readout's error per
-sample (``SolverConfig.capacitance_atol`` None). The energy rule's estimate errs by up to
-~2.7x (measured on the printer bed's 200k-tet mesh; tests/capacitive/test_frame_speed.py
-allows 3x), so a frame's capacitances sit within about 0.3 of a noise standard deviation of
-the exact ones: the reading's rms error, noise and solver error together, grows by at most
-sqrt(1 + 0.3^2) - 1 = 4.4 %."""
+sample (``SolverConfig.capacitance_atol`` None). Every frame's Maxwell entries lie within
+that of a direct solve (tests/capacitive/test_atol_contract.py; where the energy rule's
+estimate is not trusted the solver keeps ``energy_tol``, see ``PCGSolver._rule``), so the
+reading's rms error, noise and solver error together, grows by at most
+sqrt(1 + 0.1^2) - 1 = 0.5 %."""
 
 RESOLUTION_SLACK = 1.5
 """A capture warns when an object's cells exceed its resolving size by this factor
