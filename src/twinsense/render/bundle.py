@@ -232,6 +232,9 @@ class BundlePicker:
         if b is None:
             b = _Binning.refused()
         with self._lock:
+            for ref, k, kept in self._binnings:  # binned meanwhile by another thread: one entry
+                if ref() is dl and k == key:
+                    return None if kept.refused_ else kept
             # Entries of arrays that died go; the newest few kept (bounded).
             live = [e for e in self._binnings if e[0]() is not None]
             self._binnings = [*live[-(_BINNINGS - 1):], (weakref.ref(dl), key, b)]
