@@ -20,6 +20,14 @@ With ``--exact`` this tree's worker also solves every frame directly
 (sparse LU of the free block, untimed) and the largest Maxwell error
 against that exact discrete solution is printed.
 
+With ``--start N`` each worker also starts a run again N times, in turn: a
+prepare over the same times on the same scene (what ``simulate`` does at the
+start of every run of a window: the bench_robot_cell.py runs), then frames 0,
+1 and 2 of the reach. Printed per tree: the prepare's CPU and page faults
+(minor faults, ``resource.getrusage``), the first frame's, and the second
+(a reaching frame, warm); and whether both trees' three frames are the same
+bytes.
+
 With ``--classic`` a third worker runs this tree with the energy rule's early
 stop off (``SolverConfig(early_stop=False)``), in turn with the others: the
 early stop's share of a difference between the trees.
@@ -78,7 +86,44 @@ def worker(frames: int, exact: bool, classic: bool = False) -> None:
     out = sys.stdout.buffer
     for line in sys.stdin:
         cmd = line.split()
-        if cmd[0] == "anchor":
+        if cmd[0] == "start":
+            import resource
+
+            def usage():
+                r = resource.getrusage(resource.RUSAGE_SELF)
+                return time.process_time(), r.ru_minflt
+
+            def start():
+                reply = {"bytes": []}
+                c0, p0 = usage()
+                skin.prepare(scene, times)
+                c1, p1 = usage()
+                reply["prepare"] = (c1 - c0, p1 - p0)
+                for k in range(3):
+                    c0, p0 = usage()
+                    f = skin.capture(scene, times[k], None)
+                    c1, p1 = usage()
+                    reply[f"frame{k}"] = (c1 - c0, p1 - p0)
+                    reply["bytes"].append(f.maxwell.tobytes())
+                return reply
+
+            if len(cmd) > 1 and cmd[1] == "fork":
+                # As in a capture process of simulate(processes=N): a forked child that inherits the
+                # sensor and starts the run (every page it writes is copied first).
+                r_fd, w_fd = os.pipe()
+                pid = os.fork()
+                if pid == 0:
+                    os.close(r_fd)
+                    with os.fdopen(w_fd, "wb") as fh:
+                        fh.write(pickle.dumps(start()))
+                    os._exit(0)
+                os.close(w_fd)
+                with os.fdopen(r_fd, "rb") as fh:
+                    reply = pickle.loads(fh.read())
+                os.waitpid(pid, 0)
+            else:
+                reply = start()
+        elif cmd[0] == "anchor":
             from _timing import skfem_pyamg_anchor
 
             lm = skin.layout_mesh
@@ -128,6 +173,8 @@ def main() -> None:
                     "and print its largest Maxwell error")
     ap.add_argument("--classic", action="store_true", help="also run this tree with the energy rule's early stop "
                     "off (SolverConfig(early_stop=False)), in turn with the others")
+    ap.add_argument("--start", type=int, default=0, help="also start a run again this many times per tree, in "
+                    "turn: the prepare's and the first frames' CPU and page faults")
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.frames < 1 or args.rounds < 1:
@@ -163,6 +210,17 @@ def main() -> None:
                         errors.append(float(np.abs(r["maxwell"] - r["exact"]).max()))
                 if "before" in mats:
                     worst = max(worst, float(np.abs(mats["before"] - mats["this tree"]).max()))
+        starts = {name: [] for name in trees}
+        same = True
+        forks = {name: [] for name in trees}
+        for _ in range(args.start):
+            for how, into in (("start", starts), ("start fork", forks)):
+                got_bytes = {}
+                for name, w in workers.items():
+                    r = w.ask(how)
+                    into[name].append(r)
+                    got_bytes[name] = r["bytes"]
+                same &= len({tuple(b) for b in got_bytes.values()}) == 1
         anchor = workers["this tree"].ask("anchor")["anchor"]
     finally:
         for w in workers.values():
@@ -183,6 +241,19 @@ def main() -> None:
     if errors:
         print(f"  this tree against a direct solve of each frame: largest Maxwell error {max(errors) * 1e15:.4f} fF "
               f"({max(errors) / atol:.2f} x capacitance_atol; median over frames {np.median(errors) / atol:.2f} x)")
+    if args.start:
+        print(f"a run started again {args.start} times per tree (a prepare over the same times, frames 0-2), "
+              "CPU median (best) and page faults median:")
+        for name, rs in [(n, r) for n, r in starts.items()] + [(n + ", forked", r) for n, r in forks.items()]:
+            parts = []
+            for key, label in (("prepare", "prepare"), ("frame0", "first frame"), ("frame1", "second frame"),
+                               ("frame2", "third frame")):
+                cpu = np.array([r[key][0] for r in rs]) * 1e3
+                faults = np.array([r[key][1] for r in rs])
+                parts.append(f"{label} {np.median(cpu):.1f} ({cpu.min():.1f}) ms, {np.median(faults):.0f} faults")
+            print(f"  {name:20s}: " + "; ".join(parts))
+        if len(starts) > 1:
+            print(f"  frames 0-2 the same bytes in every tree: {same}")
     print_anchor("scikit-fem + pyamg solve, same mesh", anchor, float(np.median(got["this tree"]["wall"])))
     print_load_at_end()
 
