@@ -79,7 +79,7 @@ def stages(scene, radar, frames: int, anchor: float) -> None:
         # As render casts: into the arrays it keeps (after), into new ones (before).
         kept = r._hit_buffers(len(rays.directions), _DIRECT_FIELDS) if r.compiled else None
         hits = caster.cast(rays, t, _DIRECT_FIELDS, r.workers, buffers=kept)
-        done("cast: Embree 4 instanced traversal + float64 hits")
+        done("cast: picks (as the caster chooses) + float64 hits")
         (r._direct_compiled if r.compiled else r._direct_numpy)(scene, state, hits, True)
         done("scatterers: points, velocities, RCS, amplitudes")
 
@@ -101,7 +101,7 @@ def stages(scene, radar, frames: int, anchor: float) -> None:
     print(f"    {'sum of the stages':<52s} " + "  ".join(
         f"{f'{totals[lab][0] * 1e3:8.1f} / {totals[lab][1] * 1e3:8.1f} ms':>28s}" for lab in labels))
     for lab in labels:
-        cast = np.median(np.array(spent[lab]["cast: Embree 4 instanced traversal + float64 hits"][1:]),
+        cast = np.median(np.array(spent[lab]["cast: picks (as the caster chooses) + float64 hits"][1:]),
                          axis=0)[0]
         print(f"    {lab}: CPU outside the cast {(totals[lab][0] - cast) * 1e3:.1f} ms, "
               f"{(totals[lab][0] - cast) / anchor:.2f} x anchor; whole stage {totals[lab][0] / anchor:.2f} x anchor")
