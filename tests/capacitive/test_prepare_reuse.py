@@ -127,6 +127,10 @@ def test_every_change_of_the_scene_or_mount_prepares_anew():
     n += 1
     s.prepare(scene, TIMES)
     assert s.prepare_builds == n
+    # The config replaced (its mesh settings may differ).
+    s.config = dataclasses.replace(s.config, mesh=dataclasses.replace(s.config.mesh, h_max=5e-3))
+    s.prepare(scene, TIMES)
+    assert s.prepare_builds == n + 1
 
 
 def test_pushed_setpoints_and_a_replaced_joint_motion_prepare_anew():

@@ -300,7 +300,7 @@ class CapacitiveSensor:
         (m,) bool, the active cells.
         """
         times = np.atleast_1d(np.asarray(times, float))
-        key = _scene_key(scene, self.mount)
+        key = _scene_key(scene, self.mount, self.config)
         if (self._system is not None and self._prepared_active is not None and _same_key(key, self._prepare_key)
                 and self._prepared_times.issuperset(float(t) for t in times)):
             # The same scene (no object added, no joint motion, motion or mount replaced or pushed to)
@@ -462,24 +462,25 @@ class CapacitiveSensor:
         )
 
 
-def _scene_key(scene, mount: Mount) -> tuple:
+def _scene_key(scene, mount: Mount, config: CapacitiveConfig) -> tuple:
     """What a prepare's result depends on besides its times: the scene, its version (objects added),
     every object with its motion and, for a link of an articulated body, the body's joint motion and
-    its version (pushed setpoints change it), and the sensor's mount. Compared by identity
+    its version (pushed setpoints change it), the sensor's mount and config. Compared by identity
     (:func:`_same_key`): a replaced motion is another motion even if equal."""
     parts = []
     for obj in scene.objects:
         m = obj.motion
         jm = getattr(getattr(m, "body", None), "joint_motion", None)
         parts.append((obj, m, jm, getattr(jm if jm is not None else m, "version", None)))
-    return (scene, scene.version, mount, tuple(parts))
+    return (scene, scene.version, mount, config, tuple(parts))
 
 
 def _same_key(a: tuple, b: tuple | None) -> bool:
     """``a`` and ``b`` from :func:`_scene_key` name the same objects (``is``) at the same versions."""
-    if b is None or a[0] is not b[0] or a[1] != b[1] or a[2] is not b[2] or len(a[3]) != len(b[3]):
+    if (b is None or a[0] is not b[0] or a[1] != b[1] or a[2] is not b[2] or a[3] is not b[3]
+            or len(a[4]) != len(b[4])):
         return False
-    return all(x[0] is y[0] and x[1] is y[1] and x[2] is y[2] and x[3] == y[3] for x, y in zip(a[3], b[3], strict=True))
+    return all(x[0] is y[0] and x[1] is y[1] and x[2] is y[2] and x[3] == y[3] for x, y in zip(a[4], b[4], strict=True))
 
 
 def _center(layout: Layout) -> np.ndarray:
