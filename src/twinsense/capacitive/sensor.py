@@ -290,6 +290,12 @@ class CapacitiveSensor:
         other times stays exact: a frame that reaches a condensed cell makes
         it active and condenses again.
 
+        A prepare of the same scene (the same objects, motions, joint-motion
+        versions, mount and config) over times the last prepare covered keeps
+        that prepare's mesh and active cells (:attr:`prepare_builds` counts
+        the prepares that did the work); either way the next frame starts a
+        run afresh (no warm start), so its bytes do not depend on which.
+
         Parameters
         ----------
         scene : Scene
