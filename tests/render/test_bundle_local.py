@@ -17,7 +17,16 @@ import time
 import numpy as np
 import pytest
 import trimesh
-from test_render_bundle import brute_force, cell, cone_directions, random_rotation, soup  # noqa: F401
+from test_render_bundle import (  # noqa: F401
+    assert_same_hits,
+    brute_force,
+    camera_rays,
+    cell,
+    cone_directions,
+    random_rotation,
+    small_scene,
+    soup,
+)
 
 from twinsense import PinholeCamera, Pose
 from twinsense.demos.robot_cell import ROBOT
@@ -179,6 +188,41 @@ def test_rays_local_is_validated():
         with pytest.raises(ConfigError, match="Rays.local"):
             Rays(np.zeros(3), d, local=local)
             pytest.fail(what)
+
+
+def test_a_local_bundle_that_differs_from_the_world_rays_anywhere_is_refused():
+    # The rows checked one by one are few (nine); a checksum over every row (weights 1..3)
+    # catches a world ray that is NaN or infinite where its local ray is finite (the picker
+    # picks the local rays, so it would "hit" where Embree misses, with NaN fields) and rows
+    # taken from elsewhere, at rows the nine do not see.
+    dl = frozen(cone_directions(np.random.default_rng(4), 9600, (0, 0, 1), 40.0))
+    rot = random_rotation(np.random.default_rng(5))
+    d = dl @ rot.T
+    for what, rows, value in [("NaN", [5], np.nan), ("inf", [4000], np.inf),
+                              ("other rows", [1, 2, 3], d[[3000, 3001, 3002]])]:
+        wrong = np.array(d)
+        wrong[rows] = value
+        with pytest.raises(ConfigError, match="Rays.local"):
+            Rays(np.zeros(3), wrong, local=(dl, rot))
+            pytest.fail(what)
+
+
+def test_invalid_local_rays_stay_misses_as_on_embree():
+    # Local rays that are NaN, infinite or zero (so are their world rays): accepted, and
+    # the picks are Embree's (misses there, the same hits elsewhere).
+    s = small_scene()
+    rays = camera_rays()
+    dl = np.array(rays.directions)
+    dl[5] = np.nan
+    dl[17, 1] = np.inf
+    dl[40] = 0.0
+    dl = frozen(dl)
+    with np.errstate(invalid="ignore"):
+        d = frozen(dl @ np.eye(3).T)
+    got = SceneCaster(s, "tof", picker="bundle").cast(Rays(rays.origins, d, local=(dl, np.eye(3))), 0.2)
+    want = SceneCaster(s, "tof", picker="embree").cast(Rays(rays.origins, d), 0.2)
+    assert (got.object_id[[5, 17, 40]] == -1).all()
+    assert_same_hits(got, want)
 
 
 # --------------------------------------------------------------------------- the "auto" rule
