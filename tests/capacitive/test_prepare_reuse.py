@@ -1,8 +1,8 @@
-"""A prepare over times already prepared reuses the last one's work, and the frames keep their bytes.
+"""A prepare over the times already prepared reuses the last one's work, and the frames keep their bytes.
 
 ``CapacitiveSensor.prepare`` refines the mesh around the scene's objects and
-finds the cells they reach; a second prepare of the same scene over times the
-first covered keeps both, and the AMG hierarchy set aside at the run's start
+finds the cells they reach; a second prepare of the same scene over the same
+times keeps both (fewer times prepare anew: a fresh sensor's bytes), and the AMG hierarchy set aside at the run's start
 comes back when the first frame's base matrix is the same bit for bit. What
 is checked: no rebuild (counters and the kept objects' identity, never
 timing), the frames' bytes against the first run and against a fresh sensor,
@@ -16,10 +16,12 @@ import dataclasses
 import pickle
 
 import numpy as np
+import pytest
 from two_pad import two_pad_config
 
 from twinsense.capacitive.readout import ReadoutConfig
 from twinsense.capacitive.sensor import CapacitiveSensor
+from twinsense.capacitive.solver import SolverConfig
 from twinsense.scene import (
     ArticulatedBody,
     Box,
@@ -92,16 +94,36 @@ def test_a_second_prepare_over_the_same_times_rebuilds_nothing_and_keeps_the_byt
     assert _frames(fresh, scene, TIMES) == first
 
 
-def test_covered_times_reuse_and_new_times_prepare_anew():
+def test_the_same_times_reuse_and_other_times_prepare_anew():
     scene = Scene([_hand(Material("hand", conductor="grounded"))])
     s = _sensor()
     wide = s.prepare(scene, TIMES)
-    # A subset of the prepared times: the wider prepare's mesh resolves them and its active cells
-    # hold every cell they reach.
-    sub = s.prepare(scene, TIMES[2:4])
-    assert s.prepare_builds == 1 and np.array_equal(sub, wide)
+    assert np.array_equal(s.prepare(scene, list(reversed(TIMES))), wide)  # the same set of times
+    assert s.prepare_builds == 1
+    # A subset of the prepared times, the same window at half the frame rate, new times: each a
+    # prepare of its own (a fresh sensor's mesh and active cells, see the test below).
+    s.prepare(scene, TIMES[2:4])
+    s.prepare(scene, TIMES[::2])
     s.prepare(scene, [0.5])
-    assert s.prepare_builds == 2
+    assert s.prepare_builds == 4
+
+
+@pytest.mark.parametrize("condense", [False, True])
+def test_a_prepare_over_fewer_times_writes_a_fresh_sensors_bytes(condense):
+    # A run over fewer times than the last prepare (a shorter run, a lower frame rate over the same
+    # window) must not depend on what was prepared before: the wider prepare's mesh is refined around
+    # the hand at times this run never sees (object_cells 4: 24,288 against 22,080 cells, the first
+    # frame 100 x capacitance_atol away from a fresh sensor's), and its larger active set condenses
+    # another system (the same capacitances to rounding, other bytes).
+    mesh = dataclasses.replace(two_pad_config().mesh, object_cells=0.0 if condense else 4.0)
+    solver = SolverConfig(condense=condense)
+    scene = Scene([_hand(Material("hand", conductor="grounded"))])
+    s = _sensor(mesh=mesh, solver=solver)
+    s.prepare(scene, TIMES)
+    s.prepare(scene, TIMES[:1])
+    fresh = _sensor(mesh=mesh, solver=solver)
+    fresh.prepare(scene, TIMES[:1])
+    assert _frames(s, scene, TIMES[:1]) == _frames(fresh, scene, TIMES[:1])
 
 
 def test_every_change_of_the_scene_or_mount_prepares_anew():
@@ -189,13 +211,3 @@ def test_a_pickled_sensor_prepares_anew_and_writes_the_same_bytes():
     copy.prepare(scene, TIMES)
     assert copy.prepare_builds == 2
     assert _frames(copy, scene, TIMES[:3]) == first
-
-
-def test_the_mesh_settings_stay_those_of_the_wider_prepare():
-    # After a covered prepare the sensor reports the mesh it uses: the wider prepare's refinement.
-    scene = Scene([_hand(Material("hand", conductor="grounded"))])
-    s = _sensor(mesh=dataclasses.replace(two_pad_config().mesh, object_cells=4.0))
-    s.prepare(scene, TIMES)
-    settings = s.mesh_settings
-    s.prepare(scene, TIMES[:1])
-    assert s.mesh_settings is settings

@@ -291,8 +291,8 @@ class CapacitiveSensor:
         it active and condenses again.
 
         A prepare of the same scene (the same objects, motions, joint-motion
-        versions, mount and config) over times the last prepare covered keeps
-        that prepare's mesh and active cells (:attr:`prepare_builds` counts
+        versions, mount and config) over the same set of times as the last
+        prepare keeps that prepare's mesh and active cells (:attr:`prepare_builds` counts
         the prepares that did the work); either way the next frame starts a
         run afresh (no warm start), so its bytes do not depend on which.
 
@@ -308,11 +308,13 @@ class CapacitiveSensor:
         times = np.atleast_1d(np.asarray(times, float))
         key = _scene_key(scene, self.mount, self.config)
         if (self._system is not None and self._prepared_active is not None and _same_key(key, self._prepare_key)
-                and self._prepared_times.issuperset(float(t) for t in times)):
+                and self._prepared_times == frozenset(float(t) for t in times)):
             # The same scene (no object added, no joint motion, motion or mount replaced or pushed to)
-            # over times the last prepare covered: its mesh resolves these times and its active cells
-            # hold every cell they reach. Only the run's start is reset as a prepare always does (no
-            # warm start, no reused frame), so the run's frames are the bytes of the first such run.
+            # over the same times: the mesh and active cells a prepare would make again. Not over a
+            # subset: the wider prepare's mesh is refined where this run's objects never are and its
+            # active set condenses another system, so the frames would depend on what was prepared
+            # before. Only the run's start is reset as a prepare always does (no warm start, no reused
+            # frame), so the run's frames are the bytes of the first such run.
             self._solver.set_active_cells(self._prepared_active)
             self._last = None
             return self._prepared_active.copy()
