@@ -107,3 +107,30 @@ def test_untrusted_paths_fall_back_to_energy_tol_and_no_early_stop():
     assert pcg._rule(1e-9, False) == (1e-9, False)
     off = _sensor(SolverConfig(energy_tol=0.0))
     assert off.system and off._solver.pcg._rule(0.0, False) == (0.0, False)
+
+
+@pytest.mark.parametrize("path", ["frame solve", "kept hierarchy"])
+def test_a_floating_conductor_keeps_the_reduced_matrix_within_capacitance_atol(path):
+    # A floating plate 2.5-1 mm over both pads (one unknown potential, zero net charge) is eliminated
+    # from the Maxwell matrix by its Schur complement C_ee - C_ef C_ff^-1 C_fe (reduce_floating), so the
+    # full matrix's errors reach the reduced one amplified. The full matrix's error is E^T K E (E the
+    # potentials' error), positive semidefinite with diagonal <= atol per column; the reduced error at
+    # terminal i is then at most w^T (E^T K E) w with w = (e_i, r_i), r_i = -C_fi / C_ff in [0, 1] the
+    # plate's potential with terminal i at 1 V, i.e. at most (1 + r_i)^2 atol <= 4 atol. That bound is
+    # not what the contract promises: the test asks 1 x atol of the reduced matrix against a direct solve
+    # (SuperLU, ~1e-15 relative, no slack needed). Measured worst frame / atol: 0.17 frame solve,
+    # 0.08 kept hierarchy here; 0.13 / 0.21 with the plate 4 mm up. The plate's r is 0.40 for either pad
+    # (a bound of (1 + 0.4)^2 = 1.96 atol): the errors of the columns do not line up to reach it.
+    plate = SceneObject("plate", Box((0.036, 0.014, 0.002)), Material("plate", conductor="floating"),
+                        ConstantVelocity(Pose((0.0, 0.0, 0.0025)), velocity=(0.0, 0.0, -0.01)))
+    scene = Scene([plate])
+    s = _sensor(PATHS[path])
+    s.prepare(scene, TIMES)
+    atol = s.frame_solver_config.capacitance_atol
+    for t in TIMES:
+        frame = s.capture(scene, t)
+        assert len(s.system.floating) == 1
+        assert np.max(np.abs(frame.maxwell - _direct(s.system))) <= atol
+    # The Schur complement is exercised: the reduced mutual is 64 % of a pad's self-capacitance.
+    m = frame.maxwell
+    assert -m[0, 1] / m[0, 0] > 0.6
