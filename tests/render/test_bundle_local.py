@@ -193,13 +193,15 @@ def test_rays_local_is_validated():
 def test_a_local_bundle_that_differs_from_the_world_rays_anywhere_is_refused():
     # The rows checked one by one are few (nine); a checksum over every row (weights 1..3)
     # catches a world ray that is NaN or infinite where its local ray is finite (the picker
-    # picks the local rays, so it would "hit" where Embree misses, with NaN fields) and rows
-    # taken from elsewhere, at rows the nine do not see.
+    # picks the local rays, so it would "hit" where Embree misses, with NaN fields), rows
+    # taken from elsewhere and two rows swapped, at rows the nine do not see (weights that
+    # repeat, as with a period of 7, would miss that swap).
     dl = frozen(cone_directions(np.random.default_rng(4), 9600, (0, 0, 1), 40.0))
     rot = random_rotation(np.random.default_rng(5))
     d = dl @ rot.T
     for what, rows, value in [("NaN", [5], np.nan), ("inf", [4000], np.inf),
-                              ("other rows", [1, 2, 3], d[[3000, 3001, 3002]])]:
+                              ("other rows", [1, 2, 3], d[[3000, 3001, 3002]]),
+                              ("two rows swapped", [100, 7100], d[[7100, 100]])]:
         wrong = np.array(d)
         wrong[rows] = value
         with pytest.raises(ConfigError, match="Rays.local"):
