@@ -145,6 +145,29 @@ def test_a_binning_is_kept_by_identity_and_never_reused_for_another_array():
         assert len(picker._binnings) <= _BINNINGS  # bounded
 
 
+def test_a_local_array_made_writeable_again_and_changed_is_binned_anew():
+    # numpy lets an array's owner make it writeable again: the read-only check cannot stop
+    # a change in place, so a kept binning is taken only while the array's weighted row sum
+    # (Rays' checksum) has the same bits as when it was binned.
+    rng = np.random.default_rng(6)
+    tri = soup(rng, 60, (-2, -2, 2), (2, 2, 4), 0.6)
+    picker = BundlePicker(tri, [])
+    dl = frozen(cone_directions(rng, 3000, (0, 0, 1), 40.0))
+    rays, _ = local_rays(dl, np.eye(3), np.zeros(3))
+    picker.pick(np.zeros(3), rays.directions, *NO_MOVERS, local=rays.local)
+    dl.setflags(write=True)
+    dl[:] = cone_directions(rng, 3000, (0.2, 0.1, 1), 35.0)
+    dl.setflags(write=False)
+    rays, _ = local_rays(dl, np.eye(3), np.zeros(3))
+    got = picker.pick(np.zeros(3), rays.directions, *NO_MOVERS, local=rays.local)
+    want = brute_force(tri, [], *NO_MOVERS, np.zeros(3), rays.directions)
+    # The picks are the reference's exactly (the same float64 operations): no tolerance.
+    np.testing.assert_array_equal(got[0], want[0])
+    np.testing.assert_array_equal(got[1], want[1])
+    assert (want[0] >= 0).mean() > 0.2  # the soup is hit (the test tests something)
+    assert len(picker._binnings) == 1  # the stale binning replaced, not kept beside
+
+
 def test_many_frames_keep_the_caches_bounded(cell):  # noqa: F811
     scene, sensors = cell
     tof = sensors[2]

@@ -102,7 +102,7 @@ def _checked_local(local, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     with np.errstate(invalid="ignore", over="ignore"):
         flat = dl.reshape(-1)
         frob = float(np.sqrt(flat @ flat))
-        gap = np.abs(w @ d - (w @ dl) @ rot.T).max(initial=0.0)
+        gap = np.abs(w @ d - row_checksum(dl) @ rot.T).max(initial=0.0)
         tol = (1e-9 + 4.0 * (len(d) + 3) * 2.0**-53) * w_norm * frob + 1e-9 * w_sum
     if not gap <= tol:  # NaN or inf somewhere (then rows are compared one by one), or a wrong row
         bad = _bad_rows(dl, rot, d) if not (np.isfinite(gap) and np.isfinite(frob)) else np.ones(1, bool)
@@ -122,6 +122,14 @@ def _bad_rows(dl: np.ndarray, rot: np.ndarray, d: np.ndarray) -> np.ndarray:
         scale = 1.0 + np.abs(d).max(axis=1, initial=0.0)
         close = np.abs(want - d).max(axis=1, initial=0.0) <= 1e-9 * scale
     return (fin_w != fin_d) | (fin_w & ~close)
+
+
+def row_checksum(a: np.ndarray) -> np.ndarray:
+    """(3,) sum_i w_i a_i of the rows of a (n, 3), weights in [1, 3) all different
+    (:func:`_weights`): a swap or a change of any row changes it (almost surely its bits).
+    ~0.15 ms for 342,000 rows."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        return _weights(len(a))[0] @ a
 
 
 @functools.lru_cache(maxsize=8)
