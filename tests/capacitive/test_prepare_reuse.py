@@ -211,3 +211,29 @@ def test_a_pickled_sensor_prepares_anew_and_writes_the_same_bytes():
     copy.prepare(scene, TIMES)
     assert copy.prepare_builds == 2
     assert _frames(copy, scene, TIMES[:3]) == first
+
+
+def test_setpoints_pushed_to_the_mounts_frame_prepare_anew():
+    # The sensor rides on a link without geometry (a scene frame, not an object) over a static ball:
+    # pushing the link's setpoints moves the sensor, and so the cells the ball reaches and the mesh
+    # refined around it (object_cells 4), though no scene object changed.
+    tree = KinematicTree("slider", [Link("base"), Link("carriage")],
+                         [Joint("slide", "prismatic", "base", "carriage", axis=(1.0, 0.0, 0.0), lower=-0.05,
+                                upper=0.05)])
+    setpoints = JointSetpoints([0.0])
+    scene = Scene()
+    scene.add_articulated(ArticulatedBody("slider", tree, setpoints))
+    scene.add_object("ball", Sphere(0.004), Material("b", conductor="grounded"), pose=Pose((0.008, 0.0, 0.012)))
+    mesh = dataclasses.replace(two_pad_config().mesh, object_cells=4.0)
+
+    def sensor():
+        return CapacitiveSensor(two_pad_config(mesh, readout=RO), mount=Mount(Pose(), "slider/carriage"), name="skin")
+
+    s = sensor()
+    s.prepare(scene, TIMES[:1])
+    setpoints.set(0.0, [0.012])  # the carriage, and the sensor with it, 12 mm along x
+    s.prepare(scene, TIMES[:1])
+    assert s.prepare_builds == 2
+    fresh = sensor()
+    fresh.prepare(scene, TIMES[:1])
+    assert _frames(s, scene, TIMES[:1]) == _frames(fresh, scene, TIMES[:1])

@@ -472,11 +472,12 @@ class CapacitiveSensor:
 
 def _scene_key(scene, mount: Mount, config: CapacitiveConfig) -> tuple:
     """What a prepare's result depends on besides its times: the scene, its version (objects added),
-    every object with its motion and, for a link of an articulated body, the body's joint motion and
-    its version (pushed setpoints change it), the sensor's mount and config. Compared by identity
-    (:func:`_same_key`): a replaced motion is another motion even if equal."""
+    every object and every frame (a mount may ride on a link without geometry) with its motion and, for a
+    link of an articulated body, the body's joint motion and its version (pushed setpoints change it),
+    the sensor's mount and config. Compared by identity (:func:`_same_key`): a replaced motion is
+    another motion even if equal."""
     parts = []
-    for obj in scene.objects:
+    for obj in scene.objects + tuple(scene.mount_target(n) for n in scene.frame_names):
         m = obj.motion
         jm = getattr(getattr(m, "body", None), "joint_motion", None)
         parts.append((obj, m, jm, getattr(jm if jm is not None else m, "version", None)))
