@@ -250,6 +250,24 @@ def test_invalid_local_rays_stay_misses_as_on_embree():
     assert_same_hits(got, want)
 
 
+def test_a_spinning_lidar_ring_and_one_stray_ray_go_to_embree():
+    # A LiDAR's 360 deg ring (its unit directions sum to ~0: no mean direction, or an
+    # arbitrary one) and a camera bundle with one ray at 120 deg that the sample of every
+    # other ray does not see: all None (Embree casts them), and the caster's hits are Embree's.
+    picker = BundlePicker(soup(np.random.default_rng(8), 50, (-3, -3, -1), (3, 3, 1), 0.5), [])
+    a = np.linspace(0.0, 2.0 * np.pi, 8192, endpoint=False)
+    ring = np.column_stack([np.cos(a), np.sin(a), np.zeros_like(a)])
+    stray = cone_directions(np.random.default_rng(9), 9001, (1.0, 0, 0), 30.0)
+    stray[4321] = (-0.5, 0.0, np.sqrt(0.75))  # 120 deg from +x, at an odd index
+    for d in (ring, ring[::2], stray):
+        assert picker.pick(np.zeros(3), d, *NO_MOVERS) is None
+        assert picker.pick(np.zeros(3), d, *NO_MOVERS, auto=True) is None
+    s = small_scene()
+    lidar = Rays(np.array([0.0, 0.0, 0.5]), frozen(ring))
+    assert_same_hits(SceneCaster(s, "tof", picker="bundle").cast(lidar, 0.2),
+                     SceneCaster(s, "tof", picker="embree").cast(lidar, 0.2))
+
+
 # --------------------------------------------------------------------------- the "auto" rule
 
 
