@@ -19,9 +19,12 @@ import scipy.sparse.linalg as spla
 from two_pad import two_pad_config
 
 from twinsense.capacitive.fem import reduce_floating
+from twinsense.capacitive.mesh import MeshSettings
 from twinsense.capacitive.readout import ReadoutConfig
-from twinsense.capacitive.sensor import CapacitiveSensor
+from twinsense.capacitive.sensor import CapacitiveSensor, make_capacitive
 from twinsense.capacitive.solver import SolverConfig, split_system
+from twinsense.demos.capacitive import PATHS as TOOL_PATHS
+from twinsense.demos.capacitive import TOOL_CLEARANCE, TOOL_HEIGHT, printer_scene
 from twinsense.scene import Box, ConstantVelocity, Material, Pose, Scene, SceneObject
 
 # The FDC1004 at 20 frames/s: capacitance_atol = 0.1 x 0.21 fF = 21 aF on ~0.5 pF pads (4e-5 relative).
@@ -134,3 +137,28 @@ def test_a_floating_conductor_keeps_the_reduced_matrix_within_capacitance_atol(p
     # The Schur complement is exercised: the reduced mutual is 64 % of a pad's self-capacitance.
     m = frame.maxwell
     assert -m[0, 1] / m[0, 0] > 0.6
+
+
+def test_printer_bed_frames_on_the_tools_path_stay_within_capacitance_atol():
+    # A real problem on the default path (early stop on): the printer bed's six stripes at ~34k
+    # tetrahedra, the tool coming down over them at 30 frames/s, warm frames after a cold first one.
+    # Its frames 5 and 6 are the nearest to the contract measured on any problem (0.80 and 0.87 x
+    # atol, the 30k row of docs/capacitive-accuracy.md); the test asks 1 x against SuperLU (its own
+    # ~1e-15 relative error of ~1 pF entries is ~1e-27 F, 3e-11 of atol = 32 aF: no slack).
+    z_top = TOOL_CLEARANCE + TOOL_HEIGHT
+    mesh = MeshSettings(margin=0.02, height=0.06, depth=0.01, h_min=6.5e-3, h_max=0.025, growth=1.8,
+                        refine=((-0.1, 0.1, -0.1, 0.1, 0.0, z_top),), h_refine=0.016, use_cache=False,
+                        object_cells=0)
+    bed = make_capacitive("printer-bed")
+    s = type(bed)(dataclasses.replace(bed.config, mesh=mesh, solver=SolverConfig()), name="bed")
+    scene = printer_scene(TOOL_PATHS["T2"])
+    times = np.arange(8) / 30.0
+    s.prepare(scene, times)
+    atol = s.frame_solver_config.capacitance_atol
+    worst = 0.0
+    for t in times:
+        frame = s.capture(scene, t)
+        assert s._solver.pcg.trusted  # the loosened rule and the early stop ran
+        worst = max(worst, float(np.max(np.abs(frame.maxwell - _direct(s.system)))) / atol)
+    assert worst <= 1.0
+    assert worst > 0.5  # the frames that come nearest the contract are among these
