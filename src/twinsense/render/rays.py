@@ -10,6 +10,7 @@ image axes are (row, col) at the supersampled resolution, so sub-pixel
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,6 +18,7 @@ import numpy as np
 from twinsense import validation as V
 from twinsense.errors import ConfigError
 from twinsense.linalg import rotate_rows
+from twinsense.render.bundle_kernels import row_sums
 from twinsense.scene.pose import Pose
 
 
@@ -92,20 +94,22 @@ def _checked_local(local, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     # The picker picks the local rays and the fields come from the world rays: a world ray
     # that differs anywhere (NaN where the local one is finite, a row from elsewhere) would
     # be picked wrongly. The weighted sums sum_i w_i d_i and R sum_i w_i l_i (weights in [1, 3),
-    # the whole check ~0.8 ms for 342,000 rays; comparing every row ~11 ms) differ by at most the
+    # the whole check ~1.3 ms for 342,000 rays; comparing every row 11-90 ms) differ by at most the
     # rows' allowed 1e-9 (1 + |d_i|) plus both sums' rounding, n eps sum_i w_i |d_i| each
     # (Higham's bound), in all below (1e-9 + 4 (n + 3) eps) |w| |l|_F + 1e-9 sum_i w_i
     # (Cauchy-Schwarz, |d_i| = |l_i|). A row off by more than that / w_i shows (1.5e-3 for
     # the radar's 342,000 unit rays: a row from elsewhere in the bundle shows, a swap of two
     # neighbouring rays ~2e-3 apart may not); NaN or inf shows always.
     w, w_norm, w_sum = _weights(len(d))
+    sum_d, _ = row_sums(np.ascontiguousarray(d, dtype=float), w)
+    sum_l, ff = row_sums(np.ascontiguousarray(dl), w)
     with np.errstate(invalid="ignore", over="ignore"):
-        flat = dl.reshape(-1)
-        frob = float(np.sqrt(flat @ flat))
-        gap = np.abs(w @ d - row_checksum(dl) @ rot.T).max(initial=0.0)
+        frob = math.sqrt(ff) if ff >= 0.0 else math.nan
+        gap = np.abs(sum_d - rot @ sum_l).max(initial=0.0)
         tol = (1e-9 + 4.0 * (len(d) + 3) * 2.0**-53) * w_norm * frob + 1e-9 * w_sum
-    if not gap <= tol:  # NaN or inf somewhere (then rows are compared one by one), or a wrong row
-        bad = _bad_rows(dl, rot, d) if not (np.isfinite(gap) and np.isfinite(frob)) else np.ones(1, bool)
+    if not (gap <= tol and math.isfinite(tol)):  # a wrong row, or NaN, inf or overflow somewhere
+        # (then the rows are compared one by one: invalid rays are fine where both are invalid)
+        bad = _bad_rows(dl, rot, d) if not (np.isfinite(gap) and math.isfinite(tol)) else np.ones(1, bool)
         if bad.any():
             raise ConfigError("Rays.local", f"directions not rotation @ local (checksum off by {gap:.3g}, "
                               f"allowed {tol:.3g})", allowed)
@@ -126,10 +130,10 @@ def _bad_rows(dl: np.ndarray, rot: np.ndarray, d: np.ndarray) -> np.ndarray:
 
 def row_checksum(a: np.ndarray) -> np.ndarray:
     """(3,) sum_i w_i a_i of the rows of a (n, 3), weights in [1, 3) all different
-    (:func:`_weights`): a swap or a change of any row changes it (almost surely its bits).
-    ~0.15 ms for 342,000 rows."""
-    with np.errstate(invalid="ignore", over="ignore"):
-        return _weights(len(a))[0] @ a
+    (:func:`_weights`): a swap or a change of any row changes it (almost surely its
+    bits); the same array always gives the same bits (one compiled pass in a fixed
+    order: :func:`twinsense.render.bundle_kernels.row_sums`)."""
+    return row_sums(np.ascontiguousarray(a, dtype=float), _weights(len(a))[0])[0]
 
 
 @functools.lru_cache(maxsize=8)
