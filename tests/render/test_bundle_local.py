@@ -34,7 +34,7 @@ from twinsense.errors import ConfigError
 from twinsense.radar import FMCWRadar
 from twinsense.render.bundle import _BINNINGS, _RULES, CONE_DEG, BundlePicker
 from twinsense.render.caster import SceneCaster
-from twinsense.render.rays import Rays
+from twinsense.render.rays import Rays, row_checksum
 from twinsense.scene import Box, ConstantVelocity, Mount, Scene
 from twinsense.scene.motion import Motion, MotionState
 
@@ -211,6 +211,23 @@ def test_rays_local_is_validated():
         with pytest.raises(ConfigError, match="Rays.local"):
             Rays(np.zeros(3), d, local=local)
             pytest.fail(what)
+
+
+def test_row_checksum_is_the_weighted_row_sum_and_the_same_bits_every_time():
+    # Against NumPy's sum of the weighted rows: both round a sum of n terms of size <= 3 |a|,
+    # within n eps sum_i w_i |a_i| (Higham) each; 2 n eps * 3 * sum |a_i| bounds the gap.
+    a = cone_directions(np.random.default_rng(10), 20_000, (0.3, 0, 1), 50.0)
+    w = 1.0 + 2.0 * ((np.arange(len(a)) * 0.6180339887498949) % 1.0)
+    assert w.min() >= 1.0 and w.max() < 3.0 and len(np.unique(w)) == len(w)  # no two alike
+    got = row_checksum(a)
+    bound = 2 * len(a) * 2.0**-53 * 3.0 * np.abs(a).sum()
+    np.testing.assert_allclose(got, (w[:, None] * a).sum(axis=0), rtol=0, atol=bound)
+    assert row_checksum(a).tobytes() == got.tobytes()  # the same bits (a fixed order)
+    swapped = a.copy()
+    swapped[[10, 17]] = a[[17, 10]]
+    assert not np.array_equal(row_checksum(swapped), got)
+    a[123, 1] = np.nan
+    assert np.isnan(row_checksum(a)[1])
 
 
 def test_a_local_bundle_that_differs_from_the_world_rays_anywhere_is_refused():
