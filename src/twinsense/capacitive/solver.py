@@ -498,6 +498,12 @@ class MaxwellSolver:
         self.pcg.invalidate()
 
     def _energy_tol(self, energy: np.ndarray) -> float:
+        if self._X is None:
+            # A cold start (a run's first frame, after a reset): its decrements fall unlike a warm
+            # frame's, and the loosened rule's tail estimate fell short there (the robot-cell skin's
+            # run started at 3.35 s erred by 1.17 x capacitance_atol, early stop on or off);
+            # energy_tol keeps such frames within it (tests/capacitive/test_atol_contract.py).
+            return self.config.energy_tol
         return energy_tolerance(self.config, energy)
 
     def _base(self) -> sp.csr_matrix | None:
