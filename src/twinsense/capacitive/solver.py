@@ -71,7 +71,8 @@ class SolverConfig:
         The relative tolerance never gets looser than ``MAX_ENERGY_TOL``, and
         with ``energy_tol`` 0 the energy rule stays off. The looser tolerance
         applies where the rule's estimate was measured to hold (the compiled
-        cycle on a hierarchy that fits the frame's matrix); on the other paths
+        cycle on a hierarchy that fits the frame's matrix, from a warm start:
+        a cold start, a run's first frame, keeps ``energy_tol``); on the other paths
         (Jacobi preconditioner, the NumPy cycle, static condensation, coarse
         levels kept from another matrix) ``energy_tol`` stays, and every frame
         lies within ``capacitance_atol`` of a direct solve either way
