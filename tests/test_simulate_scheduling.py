@@ -5,6 +5,9 @@ the prepares beside the first captures. Real threads, real pipes and real forked
 
 import multiprocessing
 import os
+import subprocess
+import sys
+import textwrap
 import threading
 import time
 from dataclasses import dataclass
@@ -204,3 +207,27 @@ def test_capture_threads_prepare_beside_the_first_captures(tmp_path):
         simulate(plain_scene(), [WaitsInPrepare("a", done, fail=True), Signals("b", done)], 0.2, out / "run.h5",
                  workers=2)
     assert list(out.iterdir()) == []
+
+
+def test_the_sender_survives_a_reader_gone_when_sigpipe_has_its_default_action():
+    # A host program may restore SIGPIPE's default action (end the process); the sender's failed write
+    # must still be an error its process can report. Run in a fresh interpreter: without the sender's
+    # blocked signal the write kills that process (exit by signal 13), not this test run.
+    code = textwrap.dedent("""
+        import multiprocessing, signal, time
+        from twinsense.simulate import _Sender
+        signal.signal(signal.SIGPIPE, signal.SIG_DFL)
+        recv, send = multiprocessing.Pipe(duplex=False)
+        sender = _Sender(send, 2)
+        recv.close()
+        deadline = time.monotonic() + 10.0
+        try:
+            while time.monotonic() < deadline:
+                sender.send_bytes(b"x" * 100_000)
+        except BrokenPipeError:
+            print("broken pipe reported")
+        sender.close()
+    """)
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, (done.returncode, done.stderr[-2000:])
+    assert "broken pipe reported" in done.stdout

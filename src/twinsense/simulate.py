@@ -807,6 +807,12 @@ class _Sender:
         self._thread.start()
 
     def _run(self) -> None:
+        # A write to a pipe whose reader is gone raises SIGPIPE in the writing thread; Python ignores it,
+        # but a host program (or a library) may have restored its default action, which ends the whole
+        # process. Blocked in this thread, the write fails with EPIPE (an OSError, handled below) and the
+        # pending signal ends with the thread.
+        if hasattr(signal, "pthread_sigmask"):
+            signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGPIPE})
         while (piece := self._queue.get()) is not None:
             if self._broken:
                 continue  # drained, so that a put never blocks behind a failed write
