@@ -23,7 +23,9 @@ found by the inside test, as on the grid.
 
 from __future__ import annotations
 
+import ctypes
 import math
+import signal
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -68,6 +70,44 @@ def gmsh_version() -> str:
     return str(_import_gmsh().__version__)
 
 
+# Signals whose actions gmsh's initialize sets to their defaults (measured with gmsh 4.15, even with
+# interruptible=False): Python ignores SIGPIPE, so that a write to a closed pipe or socket is an error
+# and not the end of the process (capture processes, stream servers), and faulthandler's handlers of the
+# others report a crash. They are put back as they were.
+_GMSH_RESETS = ("SIGPIPE", "SIGSEGV", "SIGFPE", "SIGBUS", "SIGILL")
+_SIGACTION_BYTES = 512  # more than any platform's struct sigaction: kept and put back as opaque bytes
+
+
+def _sigaction():
+    """libc's ``sigaction`` (None where there is none, e.g. on Windows)."""
+    try:
+        fn = ctypes.CDLL(None, use_errno=True).sigaction
+    except (OSError, AttributeError, TypeError):
+        return None
+    fn.argtypes = [ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p]
+    fn.restype = ctypes.c_int
+    return fn
+
+
+@contextmanager
+def _signal_actions_kept() -> Iterator[None]:
+    """The actions of :data:`_GMSH_RESETS` as they are now, restored whole (handler, mask, flags) on exit,
+    from any thread (``sigaction`` is process-wide; Python's ``signal.signal`` works on the main thread only)."""
+    sigaction = _sigaction()
+    saved = []
+    if sigaction is not None:
+        for name in _GMSH_RESETS:
+            num = getattr(signal, name, None)
+            buf = ctypes.create_string_buffer(_SIGACTION_BYTES)
+            if num is not None and sigaction(int(num), None, buf) == 0:
+                saved.append((int(num), buf))
+    try:
+        yield
+    finally:
+        for num, buf in saved:
+            sigaction(num, buf, None)
+
+
 @contextmanager
 def _session(gmsh, options: dict[str, float]) -> Iterator[None]:
     """A private gmsh model with ``options`` set; always cleaned up."""
@@ -77,7 +117,8 @@ def _session(gmsh, options: dict[str, float]) -> Iterator[None]:
         if owner:
             # No signal handlers (they cannot be installed from a worker
             # thread) and no user configuration files (reproducible meshes).
-            gmsh.initialize(readConfigFiles=False, interruptible=False)
+            with _signal_actions_kept():
+                gmsh.initialize(readConfigFiles=False, interruptible=False)
         try:
             for key, value in options.items():
                 if not owner:
