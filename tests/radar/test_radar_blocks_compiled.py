@@ -305,20 +305,20 @@ def test_per_chirp_path_of_a_few_movers_against_the_exact_sum(eps):
     assert np.linalg.norm(cube - ref) / np.linalg.norm(ref) <= 2 * eps
 
 
-def test_compiled_majorant_series_is_the_dictionaries_bits(monkeypatch):
-    # The series' selection (orders up to 6, the dictionary form) from the compiled
-    # majorants: the same monomials, majorants (bits) and order, and the same skipped sum,
-    # on random rests (1-8 monomials of degrees up to 3, bounds 1e-9 to 1, tolerances
-    # 1e-8 to 1e-3).
-    rng = np.random.default_rng(5)
+def _series_selections_compared(monkeypatch, seed, trials, orders, top_exp):
+    """Compare the series' selection with COMPILED_SERIES on and off on random rests (1-8
+    monomials of degrees up to 3, bounds 1e-9 to 10^top_exp, orders in ``orders`` [lo, hi),
+    tolerances 1e-8 to 1e-3): the same kept monomials, majorants (bits) and order, and the
+    same skipped sum. Returns how many rests were compared."""
+    rng = np.random.default_rng(seed)
     compared = 0
-    for _ in range(400):
+    for _ in range(trials):
         keys = {(int(rng.integers(0, 4)), int(rng.integers(0, 4))) for _ in range(rng.integers(1, 9))}
         keys.discard((0, 0))
         if not keys:
             continue
-        bounds = {key: float(10 ** rng.uniform(-9, 0)) for key in keys}
-        order, tol = int(rng.integers(1, 7)), float(10 ** rng.uniform(-8, -3))
+        bounds = {key: float(10 ** rng.uniform(-9, top_exp)) for key in keys}
+        order, tol = int(rng.integers(*orders)), float(10 ** rng.uniform(-8, -3))
         monkeypatch.setattr(nufft, "COMPILED_SERIES", False)
         ref = nufft._exp_series_2d(bounds, order, tol)
         monkeypatch.setattr(nufft, "COMPILED_SERIES", True)
@@ -326,7 +326,13 @@ def test_compiled_majorant_series_is_the_dictionaries_bits(monkeypatch):
         assert list(got[0].items()) == list(ref[0].items())
         assert got[1] == ref[1]
         compared += 1
-    assert compared > 300
+    return compared
+
+
+def test_compiled_majorant_series_is_the_dictionaries_bits(monkeypatch):
+    # The series' selection (orders up to 6, the dictionary form) from the compiled
+    # majorants against the dictionaries themselves, on 400 random rests (bounds up to 1).
+    assert _series_selections_compared(monkeypatch, 5, 400, (1, 7), 0.0) > 300
 
 
 @pytest.mark.parametrize(("chirps", "degrees", "modes"), [(64, 3, 64), (16, 5, 512), (64, 1, 64), (7, 2, 127)])
@@ -345,21 +351,6 @@ def test_per_chirp_degree_sums_in_one_einsum_are_the_per_chirp_bits(chirps, degr
 
 def test_compiled_dense_majorants_are_the_numpy_bits(monkeypatch):
     # Long series (orders 7-15, the dense form): the compiled majorants and reach are the
-    # NumPy slices' bits, so the same kept monomials, majorants, order and skipped sum.
-    rng = np.random.default_rng(9)
-    compared = 0
-    for _ in range(150):
-        keys = {(int(rng.integers(0, 4)), int(rng.integers(0, 4))) for _ in range(rng.integers(1, 9))}
-        keys.discard((0, 0))
-        if not keys:
-            continue
-        bounds = {key: float(10 ** rng.uniform(-9, 0.2)) for key in keys}
-        order, tol = int(rng.integers(7, 16)), float(10 ** rng.uniform(-8, -3))
-        monkeypatch.setattr(nufft, "COMPILED_SERIES", False)
-        ref = nufft._exp_series_2d(bounds, order, tol)
-        monkeypatch.setattr(nufft, "COMPILED_SERIES", True)
-        got = nufft._exp_series_2d(bounds, order, tol)
-        assert list(got[0].items()) == list(ref[0].items())
-        assert got[1] == ref[1]
-        compared += 1
-    assert compared > 100
+    # NumPy slices' bits, so the same kept monomials, majorants, order and skipped sum
+    # (150 random rests, bounds up to 10^0.2).
+    assert _series_selections_compared(monkeypatch, 9, 150, (7, 16), 0.2) > 100
