@@ -10,7 +10,7 @@ import pytest
 from twinsense.constants import PLANCK as H_PLANCK
 from twinsense.constants import SPEED_OF_LIGHT as C_LIGHT
 from twinsense.render import cast
-from twinsense.render.caster import _frozen
+from twinsense.render.rays import frozen
 from twinsense.scene import Box, ConstantVelocity, Material, Pose, Scene
 from twinsense.tof import InvalidReason, ToFCamera
 from twinsense.tof.effects import crosstalk
@@ -393,7 +393,7 @@ def test_camera_rays_are_read_only_and_kept_per_pose(look_x):
     """Read-only rays let the shared caster keep the static hits of a fixed camera."""
     cam = ToFCamera.preset("generic", mount=look_x, width=8, height=6)
     rays = cam._renderer.rays(look_x.rotation, look_x.position)
-    assert _frozen(rays.directions) and _frozen(rays.origins)
+    assert frozen(rays.directions) and frozen(rays.origins)
     assert cam._renderer.rays(look_x.rotation, look_x.position.copy()) is rays
     ref = cam.pinhole.rays(look_x, cam.config.supersample)
     np.testing.assert_array_equal(rays.directions, ref.directions)

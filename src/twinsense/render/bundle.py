@@ -181,9 +181,9 @@ class BundlePicker:
         if local is None:
             # One memory layout for the compiled passes (each new layout is one more compile).
             b = _bin(np.ascontiguousarray(d, dtype=float), rays_per_cell, workers, ws)
-        inst, prim = np.full(n, -1, np.int32), np.full(n, -1, np.int32)
         if b is None:  # rays that cancel out or leave the cone: Embree
             return None
+        inst, prim = np.full(n, -1, np.int32), np.full(n, -1, np.int32)
         if b.m == 0 or self.n_triangles == 0:  # no valid ray, or nothing to hit
             return inst, prim
         basis = b.basis

@@ -49,7 +49,7 @@ from twinsense.render.kernels import (
     object_wins,
 )
 from twinsense.render.parallel import default_workers, pool
-from twinsense.render.rays import Rays
+from twinsense.render.rays import Rays, frozen
 from twinsense.scene.scene import SENSOR_KINDS, Scene
 
 
@@ -398,7 +398,7 @@ class SceneCaster:
 
     def _cones(self, d: np.ndarray) -> tuple:
         """:func:`block_cones` of ``d``; kept for the last few read-only bundles (fixed sensors)."""
-        if not _frozen(d):
+        if not frozen(d):
             return block_cones(d, CONE_BLOCK)
         for arr, cones in self._block_cones:
             if arr is d:
@@ -410,7 +410,7 @@ class SceneCaster:
     def _static_memo(self, o, d) -> tuple[tuple | None, bool]:
         """Arrays (distance, object, triangle, normal, normal . direction) for the static
         hits of these rays, and whether they are already filled; None if the rays may change."""
-        if self._static_bvh is None or not (_frozen(o) and _frozen(d)):
+        if self._static_bvh is None or not (frozen(o) and frozen(d)):
             return None, False
         for entry in self._memos:
             if entry[0] is o and entry[1] is d:
@@ -507,15 +507,6 @@ def _resolve(future: Future, fn) -> None:
         future.set_result(fn())
     except BaseException as exc:  # handed on, not swallowed: every chunk's result() raises it
         future.set_exception(exc)
-
-
-def _frozen(a: np.ndarray) -> bool:
-    """True if ``a`` and every array it views are read-only (nothing can change it in place)."""
-    while isinstance(a, np.ndarray):
-        if a.flags.writeable:
-            return False
-        a = a.base
-    return True
 
 
 def _dot_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:

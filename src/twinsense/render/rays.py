@@ -72,11 +72,8 @@ def _checked_local(local, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     dl, rot = local
     if not isinstance(dl, np.ndarray) or dl.dtype != np.float64 or dl.shape != d.shape:
         raise ConfigError("Rays.local", f"directions {getattr(dl, 'shape', type(dl).__name__)}", allowed)
-    a = dl
-    while isinstance(a, np.ndarray):  # identity keys a kept binning: nothing may change it in place
-        if a.flags.writeable:
-            raise ConfigError("Rays.local", "writeable directions", allowed)
-        a = a.base
+    if not frozen(dl):  # identity keys a kept binning: nothing may change it in place
+        raise ConfigError("Rays.local", "writeable directions", allowed)
     try:
         rot = np.array(rot, dtype=float)
     except (TypeError, ValueError):
@@ -114,6 +111,15 @@ def _checked_local(local, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             raise ConfigError("Rays.local", f"directions not rotation @ local (checksum off by {gap:.3g}, "
                               f"allowed {tol:.3g})", allowed)
     return dl, rot
+
+
+def frozen(a: np.ndarray) -> bool:
+    """True if ``a`` and every array it views are read-only (nothing can change it in place)."""
+    while isinstance(a, np.ndarray):
+        if a.flags.writeable:
+            return False
+        a = a.base
+    return True
 
 
 def _bad_rows(dl: np.ndarray, rot: np.ndarray, d: np.ndarray) -> np.ndarray:
