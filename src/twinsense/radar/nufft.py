@@ -1176,11 +1176,8 @@ def _run_block(blk: _Block2D, wt: np.ndarray, geo: Geometry, eps: float,
         strengths = np.empty((len(group), len(wt)), dtype=complex)
         for d, key in enumerate(group):
             strengths[d] = series[key]
-        if blk.w is None:  # 1-D along the samples; the chirps' dependence is in the monomials
-            if SPREAD_1D:
-                outs.append(kernel_for(n_samp, tol).transform(blk.x, strengths))
-            else:
-                outs.append(_thread_plans(n_samp, tol).rows(blk.x, strengths).reshape(len(group), n_samp))
+        if blk.w is None:  # 1-D along the samples (finufft: the spreader's blocks ran above)
+            outs.append(_thread_plans(n_samp, tol).rows(blk.x, strengths).reshape(len(group), n_samp))
             keys += group
             continue
         plan = finufft.Plan(1, (jb, n_samp), n_trans=len(group), eps=tol, isign=1, nthreads=1,
