@@ -28,7 +28,6 @@ the same in any band, so the frame does not depend on the number of threads.
 from __future__ import annotations
 
 import functools
-import itertools
 import math
 import threading
 
@@ -38,12 +37,12 @@ from scipy import ndimage
 from twinsense.compiled import jit
 from twinsense.constants import SPEED_OF_LIGHT
 from twinsense.errors import ConfigError
-from twinsense.render.parallel import pool
 from twinsense.tof.config import PHASE_STEPS, ToFConfig, _gcd_hz
 from twinsense.tof.demodulation import TWO_PI, unwrap_weights
 from twinsense.tof.effects import CROSSTALK_TRUNCATE
 from twinsense.tof.filters import noise_factor
 from twinsense.tof.frame import FrameProducts, InvalidReason
+from twinsense.tof.kernels import in_bands_of
 from twinsense.tof.pipeline import check_slabs
 
 _SATURATED = int(InvalidReason.SATURATED)
@@ -600,7 +599,7 @@ class ChainRows:
                 runs1 = [(0, h)]
             else:
                 runs1 = self._take(self._final, self._radius, self._taken1, 0, h)
-        _in_bands_of(runs1, self._pixel_rows, workers)
+        in_bands_of(runs1, self._pixel_rows, workers)
         with self._lock:
             for a, b in runs1:
                 self._done1[a:b] = b"\x01" * (b - a)
@@ -611,35 +610,5 @@ class ChainRows:
                 runs2 = [(0, h)]
             else:
                 runs2 = self._take(self._done1, 1, self._taken2, 0, h)
-        _in_bands_of(runs2, self._geometry_rows, workers)
+        in_bands_of(runs2, self._geometry_rows, workers)
         return self.out
-
-
-def _in_bands_of(runs: list[tuple[int, int]], fn, workers: int) -> None:
-    """fn(r0, r1) over the rows of ``runs``, cut into ``workers`` bands of about equal rows (at least one
-    row each), each band's rows as contiguous runs; all bands but the last on the shared worker threads,
-    the last on this thread (which would otherwise only wait)."""
-    rows = [r for a, b in runs for r in range(a, b)]
-    if not rows:
-        return
-    edges = np.linspace(0, len(rows), max(1, min(workers, len(rows))) + 1).astype(int).tolist()
-    groups = []
-    for i, j in itertools.pairwise(edges):
-        group: list[tuple[int, int]] = []
-        for r in rows[i:j]:
-            if group and group[-1][1] == r:
-                group[-1] = (group[-1][0], r + 1)
-            else:
-                group.append((r, r + 1))
-        groups.append(group)
-
-    def run(group):
-        for a, b in group:
-            fn(a, b)
-
-    tasks = [pool(workers).submit(run, g) for g in groups[:-1]]
-    try:
-        run(groups[-1])
-    finally:
-        for task in tasks:
-            task.result()

@@ -264,11 +264,34 @@ def in_bands(fn, height: int, workers: int) -> None:
     """fn(r0, r1) over ``workers`` bands of image rows [0, height): all but the last on
     the shared worker threads, the last on this thread (which would otherwise only
     wait); returns when every band is done."""
-    edges = np.linspace(0, height, max(1, min(workers, height)) + 1).astype(int).tolist()
-    bands = list(itertools.pairwise(edges))
-    tasks = [pool(workers).submit(fn, *b) for b in bands[:-1]]
+    in_bands_of([(0, height)], fn, workers)
+
+
+def in_bands_of(runs: list[tuple[int, int]], fn, workers: int) -> None:
+    """fn(r0, r1) over the rows of ``runs``, cut into ``workers`` bands of about equal rows (at least one
+    row each), each band's rows as contiguous runs; all bands but the last on the shared worker threads,
+    the last on this thread (which would otherwise only wait)."""
+    rows = [r for a, b in runs for r in range(a, b)]
+    if not rows:
+        return
+    edges = np.linspace(0, len(rows), max(1, min(workers, len(rows))) + 1).astype(int).tolist()
+    groups = []
+    for i, j in itertools.pairwise(edges):
+        group: list[tuple[int, int]] = []
+        for r in rows[i:j]:
+            if group and group[-1][1] == r:
+                group[-1] = (group[-1][0], r + 1)
+            else:
+                group.append((r, r + 1))
+        groups.append(group)
+
+    def run(group):
+        for a, b in group:
+            fn(a, b)
+
+    tasks = [pool(workers).submit(run, g) for g in groups[:-1]]
     try:
-        fn(*bands[-1])
+        run(groups[-1])
     finally:
         for task in tasks:
             task.result()
