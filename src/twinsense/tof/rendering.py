@@ -64,8 +64,7 @@ class ToFRenderer:
         self.pinhole = pinhole_for(config)
         n = config.supersample
         sub = self.pinhole.directions(n)  # (H*N, W*N, 3) float64, read-only
-        self._sub_rows = sub.reshape(-1, 3).copy()
-        self._sub_rows.setflags(write=False)  # read-only: the rays' local bundle (binned once)
+        self._sub_rows = sub.reshape(-1, 3)  # a view of read-only arrays: the rays' local bundle (binned once)
         self.sub_dirs = sub.astype(np.float32)
         self.pixel_dirs = self.pinhole.directions(1).astype(np.float32)
         self.radiometry = Radiometry(config, self.sub_dirs)
