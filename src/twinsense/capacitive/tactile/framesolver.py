@@ -132,7 +132,16 @@ class FrameSolver:
         self._ml = None
 
     def _energy_tol(self, energy: np.ndarray) -> float:
-        """The energy rule's relative tolerance, as :class:`MaxwellSolver` sets it."""
+        """The energy rule's relative tolerance, as :class:`MaxwellSolver` sets it: loosened by
+        ``capacitance_atol`` from a warm start only.
+
+        A cold start (the skin's empty baseline, the first solve after :meth:`reset`) keeps
+        ``energy_tol``: its decrements fall unlike a warm frame's and the loosened rule's tail
+        estimate fell short there (the 4 x 4 skin's baseline erred by 1.17 x ``capacitance_atol``;
+        tests/capacitive/test_tactile_atol_contract.py).
+        """
+        if self._X is None:
+            return self.config.energy_tol
         return energy_tolerance(self.config, energy)
 
     def _preconditioner(self, A, free: np.ndarray):
