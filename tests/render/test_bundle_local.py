@@ -10,13 +10,12 @@ from __future__ import annotations
 
 import gc
 import math
-import os
 import threading
-import time
 
 import numpy as np
 import pytest
 import trimesh
+from test_forksafe import held_by_another_thread, in_forked_child
 from test_render_bundle import (  # noqa: F401
     assert_same_hits,
     brute_force,
@@ -349,28 +348,10 @@ def test_a_forked_child_picks_even_if_a_lock_was_held_at_the_fork():
     dl = frozen(cone_directions(rng, 400, (0, 0, 1), 30.0))
     picker = BundlePicker(tri, [])
     want = picker.pick(np.zeros(3), dl, *NO_MOVERS, local=(dl, np.eye(3)))[1]
-    picker._lock.acquire()  # another thread taking a workspace at the fork
-    try:
-        pid = os.fork()
-        if pid == 0:  # the child: a fresh lock, the kept binning, the same picks
-            code = 1
-            try:
-                got = picker.pick(np.zeros(3), dl, *NO_MOVERS, local=(dl, np.eye(3)))[1]
-                code = 0 if np.array_equal(got, want) else 2
-            finally:
-                os._exit(code)
-    finally:
-        picker._lock.release()
-    for _ in range(600):  # up to 60 s; a deadlocked child is killed and fails the test
-        done, status = os.waitpid(pid, os.WNOHANG)
-        if done:
-            break
-        time.sleep(0.1)
-    else:
-        os.kill(pid, 9)
-        os.waitpid(pid, 0)
-        pytest.fail("the forked child hung on an inherited lock")
-    assert os.waitstatus_to_exitcode(status) == 0
+    with held_by_another_thread(picker._lock):  # another thread taking a workspace at the fork
+        # The child: a fresh lock, the kept binning, the same picks.
+        got = in_forked_child(lambda: picker.pick(np.zeros(3), dl, *NO_MOVERS, local=(dl, np.eye(3)))[1])
+    np.testing.assert_array_equal(got, want)
 
 
 # --------------------------------------------------------------------------- extreme geometry

@@ -16,6 +16,7 @@ import weakref
 import numpy as np
 import pytest
 import trimesh
+from test_forksafe import held_by_another_thread
 
 from twinsense import Pose, Rays
 from twinsense.errors import ConfigError, UnknownNameError
@@ -532,9 +533,9 @@ def test_forked_and_spawned_processes_cast_alike():
     ctx = mp.get_context("fork")
     q = ctx.Queue()
     p = ctx.Process(target=_child_casts, args=(q, caster, rays))
-    # Forked while other threads hold the device's and the caster's locks (a cast taking
+    # Forked while another thread holds the device's and the caster's locks (a cast taking
     # its top level, a first device() call): the child must not inherit them held.
-    with embree4._DEVICE_LOCK, caster._instanced._lock:
+    with held_by_another_thread(embree4._DEVICE_LOCK, caster._instanced._lock):
         p.start()
     res = q.get(timeout=120)  # a guard against a hang, not a timing assertion
     p.join()

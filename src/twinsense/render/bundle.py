@@ -32,14 +32,13 @@ from __future__ import annotations
 
 import itertools
 import math
-import os
-import threading
 import weakref
 from concurrent.futures import wait
 
 import numpy as np
 
 from twinsense.render import bundle_kernels as bk
+from twinsense.render.forksafe import ForkSafeLock
 from twinsense.render.parallel import pool
 from twinsense.render.rays import row_checksum
 
@@ -61,19 +60,6 @@ AUTO_TRIANGLES_PER_RAY = 2.0
 _BINNINGS = 4  # local directions arrays whose binning a picker keeps
 _RULES = 16  # bundle sizes whose "auto" state a picker keeps
 
-
-# Every BundlePicker, for the fork hook below.
-_LIVE: weakref.WeakSet = weakref.WeakSet()
-
-
-def _after_fork_in_child() -> None:
-    """A forked child (a capture process) inherits each picker's lock, held forever if another
-    thread held it at the fork (a cast taking a workspace): new locks."""
-    for picker in list(_LIVE):
-        picker._lock = threading.Lock()
-
-
-os.register_at_fork(after_in_child=_after_fork_in_child)
 
 
 class BundlePicker:
@@ -123,8 +109,9 @@ class BundlePicker:
         self.last_tests_per_ray = 0.0
         #: Bundles picked so far (the ones handed back to Embree not counted).
         self.picks = 0
-        _LIVE.add(self)
-        self._lock = threading.Lock()
+        # Free in a forked capture process even if a cast of another thread took a
+        # workspace at the fork; the child keeps the parent's binnings.
+        self._lock = ForkSafeLock()
 
     def _workspace(self) -> _Workspace:
         with self._lock:

@@ -22,13 +22,13 @@ import ctypes
 import glob
 import importlib.util
 import os
-import threading
 import weakref
 from functools import lru_cache
 
 import numpy as np
 
 from twinsense.errors import ConfigError
+from twinsense.render.forksafe import ForkSafeLock, cleared_in_child
 
 # Enumerations of embree4/rtcore_common.h, rtcore_device.h, rtcore_geometry.h.
 RTC_GEOMETRY_TYPE_TRIANGLE = 0
@@ -161,20 +161,12 @@ class Device:
             raise RuntimeError(f"Embree 4: {what} failed (error {code}: {msg.decode(errors='replace')})")
 
 
-_DEVICE: list[Device] = []
-_DEVICE_LOCK = threading.Lock()
-
-
-def _after_fork_in_child() -> None:
-    """A forked child inherits the device but not its task threads: a scene it builds gets
-    a device of its own (scenes inherited from the parent keep theirs). It inherits the
-    lock too, held forever if another thread held it at the fork: a new one."""
-    global _DEVICE_LOCK
-    _DEVICE_LOCK = threading.Lock()
-    _DEVICE.clear()
-
-
-os.register_at_fork(after_in_child=_after_fork_in_child)
+# A forked child inherits the device but not its task threads: a scene it builds gets a
+# device of its own (the list starts empty there; scenes inherited from the parent keep
+# theirs, which hold their device). The lock is free there even if another thread was
+# making the device at the fork.
+_DEVICE: list[Device] = cleared_in_child([])
+_DEVICE_LOCK = ForkSafeLock()
 
 
 def device() -> Device | None:

@@ -24,9 +24,6 @@ every field is then computed from its pick the same way.
 
 from __future__ import annotations
 
-import os
-import threading
-import weakref
 from concurrent.futures import wait
 
 import numpy as np
@@ -34,21 +31,10 @@ import numpy as np
 from twinsense.render.bundle import BundlePicker
 from twinsense.render.embree4 import InstanceScene
 from twinsense.render.embree4_kernels import instanced_hits, trace
+from twinsense.render.forksafe import ForkSafeLock
 from twinsense.render.parallel import pool
 
 _EMPTY1 = np.zeros(0)
-# Every InstancedScene, for the fork hook below.
-_LIVE: weakref.WeakSet = weakref.WeakSet()
-
-
-def _after_fork_in_child() -> None:
-    """A forked child inherits each scene's lock, held forever if another thread held it
-    at the fork (a cast taking its top level): new locks."""
-    for scene in list(_LIVE):
-        scene._lock = threading.Lock()
-
-
-os.register_at_fork(after_in_child=_after_fork_in_child)
 _EMPTY1I = np.zeros(0, np.int32)
 _EMPTY3 = np.zeros((0, 3))
 
@@ -90,8 +76,9 @@ class InstancedScene:
         # Top levels posed for the last casts: one per cast under way (sensors captured at
         # once cast at different times); a free one already posed alike is taken first.
         self._free: list[InstanceScene] = []
-        self._lock = threading.Lock()
-        _LIVE.add(self)
+        # Free in a forked capture process even if a cast of another thread was taking
+        # its top level at the fork.
+        self._lock = ForkSafeLock()
 
     def _acquire(self, transforms: np.ndarray) -> InstanceScene:
         key = transforms.tobytes()

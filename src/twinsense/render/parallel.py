@@ -13,13 +13,14 @@ from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
 from typing import TypeVar
 
+from twinsense.render.forksafe import cleared_in_child
+
 T = TypeVar("T")
 R = TypeVar("R")
 
-_POOLS: dict[int, ThreadPoolExecutor] = {}
 # A forked child (e.g. a process-pool worker) inherits the pools but not their
-# threads: it must start its own, or its tasks would wait forever.
-os.register_at_fork(after_in_child=_POOLS.clear)
+# threads: it starts its own, or its tasks would wait forever.
+_POOLS: dict[int, ThreadPoolExecutor] = cleared_in_child({})
 
 
 def pool(workers: int) -> ThreadPoolExecutor:

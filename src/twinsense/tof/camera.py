@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 import threading
 from collections.abc import Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -12,6 +11,7 @@ import numpy as np
 from twinsense.errors import ConfigError
 from twinsense.linalg import rotate_rows
 from twinsense.render import Rays, cast
+from twinsense.render.forksafe import cleared_in_child
 from twinsense.render.parallel import default_workers
 from twinsense.scene.pose import Pose
 from twinsense.scene.scene import Mount, Scene
@@ -278,9 +278,8 @@ class _FedChain:
         chain.feed(r0, r1)
 
 
-_BACKGROUND: list[ThreadPoolExecutor] = []
-# A forked child inherits the pool but not its thread: it must start its own.
-os.register_at_fork(after_in_child=_BACKGROUND.clear)
+# A forked child inherits the pool but not its thread: it starts its own.
+_BACKGROUND: list[ThreadPoolExecutor] = cleared_in_child([])
 
 
 def _background() -> ThreadPoolExecutor:
