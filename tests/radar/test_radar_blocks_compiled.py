@@ -103,33 +103,29 @@ def _check_floor(p, v, geo, centres, eps, slow=None):
     compared, splits = 0, 1
     while max(len(g) for g in groups) // splits >= 2 or splits == 1:
         total_cost, planned_all = 0.0, True
-        for g in groups:
-            for part in np.array_split(g, min(splits, len(g))):
-                jb = len(part)
-                t_mid = float(centres[part[jb // 2]])
-                a_step = float(centres[part[1]] - centres[part[0]]) if jb > 1 else 0.0
-                tx = geo.tx_per_chirp[part[0]]
-                for a in range(len(geo.rx)):
-                    one = _split_floor(p, v, p, v, [part], 1, geo, centres, eps, slow, sample)
-                    blk = _plan_block(p, v, p, v, tx, geo.rx[a], part, t_mid, a_step, geo, eps, slow=slow)
-                    if blk is None:
-                        planned_all = False
-                        continue
-                    # Per receiver: _split_floor over one part sums all receivers; the floor
-                    # of this receiver's block alone is recomputed below.
-                    half = nufft.slow_rest_floor(p, v, p, v, sample, t_mid, tx, geo.rx_array[a],
-                                                 1.0 / SPEED_OF_LIGHT, 2 * np.pi * geo.fc,
-                                                 np.pi * geo.slope, a_step)
-                    b = max(0.0, half * (jb // 2) * (1.0 - 1e-9) - 1e-12) if jb > 1 else 0.0
-                    floor = m * nufft._NS_2D_PLAN + _block_floor(m, b, jb, n_samp, eps, slow)
-                    cost = m * nufft._NS_2D_PLAN + blk.cost
-                    assert floor <= cost, (splits, a, floor, cost)
-                    assert one >= floor  # the part's floor includes this receiver's
-                    total_cost += cost
-                    compared += 1
+        for part, t_mid, a_step, tx in nufft._split_blocks(groups, splits, geo, centres):
+            jb = len(part)
+            for a in range(len(geo.rx)):
+                one = _split_floor(p, v, p, v, [part], 1, geo, centres, eps, slow, sample)
+                blk = _plan_block(p, v, p, v, tx, geo.rx[a], part, t_mid, a_step, geo, eps, slow=slow)
+                if blk is None:
+                    planned_all = False
+                    continue
+                # Per receiver: _split_floor over one part sums all receivers; the floor
+                # of this receiver's block alone is recomputed below.
+                half = nufft.slow_rest_floor(p, v, p, v, sample, t_mid, tx, geo.rx_array[a],
+                                             1.0 / SPEED_OF_LIGHT, 2 * np.pi * geo.fc,
+                                             np.pi * geo.slope, a_step)
+                b = max(0.0, half * (jb // 2) * (1.0 - 1e-9) - 1e-12) if jb > 1 else 0.0
+                floor = m * nufft._NS_2D_PLAN + _block_floor(m, b, jb, n_samp, eps, slow)
+                cost = m * nufft._NS_2D_PLAN + blk.cost
+                assert floor <= cost, (splits, a, floor, cost)
+                assert one >= floor  # the part's floor includes this receiver's
+                total_cost += cost
+                compared += 1
         floor = _split_floor(p, v, p, v, groups, splits, geo, centres, eps, slow, sample)
         # The ceiling that decides whether the floor's passes run bounds the floor from above.
-        assert floor <= _split_ceiling(m, groups, splits, len(geo.rx), n_samp, slow)
+        assert floor <= _split_ceiling(m, groups, splits, geo, centres, slow)
         if planned_all:
             assert floor <= total_cost
         splits *= 2

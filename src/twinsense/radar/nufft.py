@@ -1357,7 +1357,21 @@ def _block_floor(m: int, b_slow: float, jb: int, n_samp: int, eps: float,
     return best
 
 
-def _split_ceiling(m: int, groups: list, splits: int, n_rx: int, n_samp: int,
+def _split_blocks(groups: list, splits: int, geo: Geometry, chirp_centre: np.ndarray):
+    """The blocks of a split, in order: each group of chirps (one position of the transmit
+    sequence, evenly spaced) cut into ``min(splits, len(group))`` runs of consecutive chirps.
+    Yields per block its chirps (J,) int, ``t_mid`` [s] (the centre chirp's centre time),
+    ``a_step`` [s] (the spacing of its chirps; 0 for a single chirp) and ``tx`` (3,) [m]
+    (its transmitter's position)."""
+    for g in groups:
+        for part in np.array_split(g, min(splits, len(g))):
+            jb = len(part)
+            t_mid = float(chirp_centre[part[jb // 2]])
+            a_step = float(chirp_centre[part[1]] - chirp_centre[part[0]]) if jb > 1 else 0.0
+            yield part, t_mid, a_step, geo.tx_per_chirp[part[0]]
+
+
+def _split_ceiling(m: int, groups: list, splits: int, geo: Geometry, chirp_centre: np.ndarray,
                    slow: bool | None) -> float:
     """The largest value :func:`_split_floor` can return for the split, whatever the movers
     [ns]: per block the plan's share and one 2-D vector (the floor of a block is at most
@@ -1366,9 +1380,9 @@ def _split_ceiling(m: int, groups: list, splits: int, n_rx: int, n_samp: int,
     if slow is True:
         return math.inf
     total = 0.0
-    for g in groups:
-        for part in np.array_split(g, min(splits, len(g))):
-            total += n_rx * (m * _NS_2D_PLAN + _block_cost(m, 1, len(part), n_samp, slow=False))
+    for part, _, _, _ in _split_blocks(groups, splits, geo, chirp_centre):
+        total += len(geo.rx) * (m * _NS_2D_PLAN + _block_cost(m, 1, len(part), geo.n_samp,
+                                                              slow=False))
     return total
 
 
@@ -1385,19 +1399,15 @@ def _split_floor(p, v, pr, vr, groups: list, splits: int, geo: Geometry,
     m, n_samp = len(p), geo.n_samp
     inv_c, two_pi_fc, pi_s = 1.0 / SPEED_OF_LIGHT, _TWO_PI * geo.fc, math.pi * geo.slope
     total = 0.0
-    for g in groups:
-        for part in np.array_split(g, min(splits, len(g))):
-            jb = len(part)
-            t_mid = float(chirp_centre[part[jb // 2]])
-            a_step = float(chirp_centre[part[1]] - chirp_centre[part[0]]) if jb > 1 else 0.0
-            tx = geo.tx_per_chirp[part[0]]
-            for a in range(len(geo.rx)):
-                b = 0.0
-                if jb > 1:
-                    half = slow_rest_floor(p, v, pr, vr, sample, t_mid, tx, geo.rx_array[a], inv_c,
-                                           two_pi_fc, pi_s, a_step)
-                    b = max(0.0, half * (jb // 2) * (1.0 - 1e-9) - 1e-12)
-                total += m * _NS_2D_PLAN + _block_floor(m, b, jb, n_samp, eps, slow)
+    for part, t_mid, a_step, tx in _split_blocks(groups, splits, geo, chirp_centre):
+        jb = len(part)
+        for a in range(len(geo.rx)):
+            b = 0.0
+            if jb > 1:
+                half = slow_rest_floor(p, v, pr, vr, sample, t_mid, tx, geo.rx_array[a], inv_c,
+                                       two_pi_fc, pi_s, a_step)
+                b = max(0.0, half * (jb // 2) * (1.0 - 1e-9) - 1e-12)
+            total += m * _NS_2D_PLAN + _block_floor(m, b, jb, n_samp, eps, slow)
     return total
 
 
@@ -1435,30 +1445,27 @@ def moving_chunk_2d(p, v, pr, vr, w, geo: Geometry, chirp_centre: np.ndarray,
         # A split whose cost surely exceeds the per-chirp path's is skipped before any plan.
         # (Its passes only where the floor can reach that cost: not for the wrist radar's
         # thousands of movers, whose first split always can afford its blocks' grids.)
-        if (sample is not None and _split_ceiling(m, groups, splits, n_rx, n_samp, slow) > one_d
+        if (sample is not None
+                and _split_ceiling(m, groups, splits, geo, chirp_centre, slow) > one_d
                 and _split_floor(p, v, pr, vr, groups, splits, geo, chirp_centre, eps, slow,
                                  sample) > one_d):
             cost = math.inf
             groups_to_plan = []
         else:
             groups_to_plan = groups
-        for g in groups_to_plan:
-            for part in np.array_split(g, min(splits, len(g))):
-                t_mid = float(chirp_centre[part[len(part) // 2]])
-                a_step = float(chirp_centre[part[1]] - chirp_centre[part[0]]) if len(part) > 1 else 0.0
-                tx = geo.tx_per_chirp[part[0]]
-                t_span = a_step * (len(part) // 2) + (n_samp // 2) / geo.fs
-                tx_leg = _Leg(p, v, t_mid, tx, t_span)  # shared by the receivers
-                for a in range(n_rx):
-                    blk = _plan_block(p, v, pr, vr, tx, geo.rx[a], part, t_mid, a_step, geo, eps,
-                                      tx_leg, slow=slow, budget=one_d - cost - m * _NS_2D_PLAN)
-                    if blk is None:
-                        cost = math.inf
-                        break
-                    cost += m * _NS_2D_PLAN + blk.cost
-                    blocks.append((a, blk))
-                if cost == math.inf:
+        for part, t_mid, a_step, tx in _split_blocks(groups_to_plan, splits, geo, chirp_centre):
+            t_span = a_step * (len(part) // 2) + (n_samp // 2) / geo.fs
+            tx_leg = _Leg(p, v, t_mid, tx, t_span)  # shared by the receivers
+            for a in range(n_rx):
+                blk = _plan_block(p, v, pr, vr, tx, geo.rx[a], part, t_mid, a_step, geo, eps,
+                                  tx_leg, slow=slow, budget=one_d - cost - m * _NS_2D_PLAN)
+                if blk is None:
+                    cost = math.inf
                     break
+                cost += m * _NS_2D_PLAN + blk.cost
+                blocks.append((a, blk))
+            # Past the per-chirp path's cost the split is lost: no further block is planned
+            # (the blocks of a split that is taken, and so the cube, are the same).
             if cost == math.inf or cost > one_d:
                 break
         if cost < math.inf and cost <= one_d:
