@@ -19,7 +19,10 @@ from twinsense import validation as V
 from twinsense.errors import ConfigError
 from twinsense.linalg import rotate_rows
 from twinsense.render.bundle_kernels import row_sums
-from twinsense.scene.pose import Pose
+from twinsense.scene.pose import Pose, is_rotation
+
+#: How far from orthonormal the rotation of ``Rays.local`` may be (every entry of R R^T - I).
+LOCAL_ROTATION_TOL = 1e-9
 
 
 @dataclass(frozen=True, eq=False)
@@ -78,9 +81,11 @@ def _checked_local(local, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         rot = np.array(rot, dtype=float)
     except (TypeError, ValueError):
         raise ConfigError("Rays.local", f"rotation {rot!r}", allowed) from None
-    if (rot.shape != (3, 3) or not np.isfinite(rot).all()
-            or not np.abs(rot.T @ rot - np.eye(3)).max() <= 1e-9 or not np.linalg.det(rot) > 0):
-        raise ConfigError("Rays.local", f"rotation {rot.tolist()}", allowed + " (a proper rotation)")
+    # Tighter than a Pose's rule: the rotation is kept as given (not re-orthonormalised) and
+    # the picker moves triangles into the sensor's frame with its transpose.
+    if rot.shape != (3, 3) or not is_rotation(rot, LOCAL_ROTATION_TOL):
+        raise ConfigError("Rays.local", f"rotation {rot.tolist()}",
+                          allowed + f" (a proper rotation: R R^T = I within {LOCAL_ROTATION_TOL:g})")
     rot.setflags(write=False)
     # Nine rows spread over the bundle checked one by one (names the row of a transposed
     # rotation or another array), then every row at once through a weighted checksum.

@@ -17,17 +17,31 @@ from twinsense import validation as V
 from twinsense.errors import ConfigError
 from twinsense.linalg import rotate_rows
 
+#: How far from orthonormal a rotation given to a Pose may be: every entry of R R^T - I
+#: within this (float32 input, a matrix printed to 7 digits); it is re-orthonormalised after.
+POSE_ROTATION_TOL = 1e-6
+
+
+def is_rotation(r: np.ndarray, tol: float) -> bool:
+    """Whether ``r`` (3, 3) float is a proper rotation to ``tol``: every entry of R R^T - I
+    within ``tol`` and det R > 0 (not a scaled or mirrored matrix). False for NaN or inf.
+
+    One rule, two tolerances: a :class:`Pose` takes slightly noisy input
+    (:data:`POSE_ROTATION_TOL`) and re-orthonormalises it; ``Rays.local``
+    (:mod:`twinsense.render.rays`) keeps its rotation as given, and the bundle picker
+    inverts it as R^T, so it asks for 1e-9 there.
+    """
+    # A rotation's entries lie in [-1, 1]: tested first, so that R R^T of a huge matrix
+    # never overflows (NaN compares False throughout).
+    return bool(np.abs(r).max() <= 1.0 + tol and np.abs(r @ r.T - np.eye(3)).max() <= tol
+                and np.linalg.det(r) > 0.0)
+
 
 def _as_rotation_matrix(field_name: str, value: Any) -> np.ndarray:
     r = V.array(field_name, value, (3, 3))
-    # Entries of a rotation lie in [-1, 1]; test that first so that R R^T of a
-    # huge matrix never overflows.
-    if np.max(np.abs(r)) > 1 + 1e-6:
-        raise ConfigError(field_name, r.tolist(), "a proper rotation (R R^T = I, det = +1; entries in [-1, 1])")
-    # A rotation matrix must be orthonormal with det +1; accept small float
-    # noise (1e-6) but not a scaled or mirrored matrix.
-    if not np.allclose(r @ r.T, np.eye(3), atol=1e-6) or np.linalg.det(r) < 0:
-        raise ConfigError(field_name, r.tolist(), "a proper rotation (R R^T = I, det = +1)")
+    if not is_rotation(r, POSE_ROTATION_TOL):
+        raise ConfigError(field_name, r.tolist(),
+                          f"a proper rotation (R R^T = I within {POSE_ROTATION_TOL:g}, det = +1)")
     # Re-orthonormalise so errors do not accumulate under composition.
     u, _, vt = np.linalg.svd(r)
     return u @ vt
