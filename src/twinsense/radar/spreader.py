@@ -239,27 +239,22 @@ def _spread_tile(a, n, ker, first, grid):  # pragma: no cover
 
 
 @jit
-def spread_1d(x, strengths, coef, nf, grid):  # pragma: no cover
-    """Spread ``strengths`` (D, m) complex at points ``x`` (m,) onto the padded, shifted fine
-    grid of :class:`Kernel`: ``grid`` (nf + 2 w, 2 D) float, row l + w holding fine point
-    l, real and imaginary parts interleaved (a complex (nf + 2 w, D) array's view).
-    ``coef`` (deg + 1, w): the kernel's Horner table, highest power first. A tile of
-    points' weights first (vectorised over the tile), then each point's strengths times
-    its w weights."""
+def _spread_points(x, strengths, coef, nf, grid, ker, u, first, a):  # pragma: no cover
+    """The tile loop of :func:`spread_1d` and :func:`spread_rows_1d`: ``strengths`` (D, m)
+    complex (any strides) at points ``x`` (m,) onto ``grid`` (nf + 2 w, 2 D) float; ``ker``
+    (w, tile), ``u`` (tile,), ``first`` (tile,) and ``a`` (tile, 2 D) are the caller's work
+    arrays. A tile of points' weights first (vectorised over the tile), then each point's
+    strengths times its w weights."""
     w = coef.shape[1]
     n_vec, m = strengths.shape
-    ker = np.empty((w, _TILE))
-    u = np.empty(_TILE)
-    first = np.empty(_TILE, np.int64)
-    a = np.empty((_TILE, 2 * n_vec))
     for lo in range(0, m, _TILE):
         n = min(_TILE, m - lo)
         _tile_weights(x, lo, n, coef, nf, ker, u, first)
         if n_vec == 1:
-            # One vector (static rows, the noise estimate): its real and imaginary parts
-            # straight into the grid, without the copy and the inner loop of two (the same
-            # products added in the same order: the same bits; 0.36 against 0.58 ms for a
-            # chunk of 16,285 points at width 4).
+            # One vector (static rows, the noise estimate, the per-chirp rows without a
+            # series): its real and imaginary parts straight into the grid, without the copy
+            # and the inner loop of two (the same products added in the same order: the
+            # same bits; 0.36 against 0.58 ms for a chunk of 16,285 points at width 4).
             s0 = strengths[0]
             for i in range(n):
                 b = first[i]
@@ -280,27 +275,31 @@ def spread_1d(x, strengths, coef, nf, grid):  # pragma: no cover
 
 
 @jit
+def spread_1d(x, strengths, coef, nf, grid):  # pragma: no cover
+    """Spread ``strengths`` (D, m) complex at points ``x`` (m,) onto the padded, shifted fine
+    grid of :class:`Kernel`: ``grid`` (nf + 2 w, 2 D) float, row l + w holding fine point
+    l, real and imaginary parts interleaved (a complex (nf + 2 w, D) array's view).
+    ``coef`` (deg + 1, w): the kernel's Horner table, highest power first
+    (:func:`_spread_points`)."""
+    w = coef.shape[1]
+    n_vec = strengths.shape[0]
+    _spread_points(x, strengths, coef, nf, grid, np.empty((w, _TILE)), np.empty(_TILE),
+                   np.empty(_TILE, np.int64), np.empty((_TILE, 2 * n_vec)))
+
+
+@jit
 def spread_rows_1d(x, strengths, coef, nf, grid):  # pragma: no cover
     """:func:`spread_1d` of each row r: ``x[r]`` (M, m), ``strengths[:, r]`` (D, M, m) complex
-    onto ``grid[r]`` (M, nf + 2 w, 2 D) float, with the same operations in the same order."""
+    onto ``grid[r]`` (M, nf + 2 w, 2 D) float, by the same tile loop
+    (:func:`_spread_points`), so the same operations in the same order."""
     w = coef.shape[1]
-    n_vec, n_rows, m = strengths.shape
+    n_vec, n_rows, _ = strengths.shape
     ker = np.empty((w, _TILE))
     u = np.empty(_TILE)
     first = np.empty(_TILE, np.int64)
     a = np.empty((_TILE, 2 * n_vec))
     for r in range(n_rows):
-        xr = x[r]
-        g = grid[r]
-        for lo in range(0, m, _TILE):
-            n = min(_TILE, m - lo)
-            _tile_weights(xr, lo, n, coef, nf, ker, u, first)
-            for i in range(n):
-                for d in range(n_vec):
-                    v = strengths[d, r, lo + i]
-                    a[i, 2 * d] = v.real
-                    a[i, 2 * d + 1] = v.imag
-            _spread_tile(a, n, ker, first, g)
+        _spread_points(x[r], strengths[:, r], coef, nf, grid[r], ker, u, first, a)
 
 
 @jit
