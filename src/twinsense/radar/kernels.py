@@ -116,6 +116,24 @@ def moving_phases(p, v, pr, vr, tx_per_chirp, rx, centres, fc, slope, fs, half, 
 
 
 @jit
+def _offset(pos, vel, i, t, element):  # pragma: no cover
+    """Scatterer i's offset d = pos[i] + vel[i] t - element (3 floats) [m]: one leg of a
+    2-D block at its centre time ``t`` (nufft._Leg)."""
+    return (pos[i, 0] + vel[i, 0] * t - element[0], pos[i, 1] + vel[i, 1] * t - element[1],
+            pos[i, 2] + vel[i, 2] * t - element[2])
+
+
+@jit
+def _first_terms(d0, d1, d2, w0, w1, w2):  # pragma: no cover
+    """A leg's first two Taylor terms of |d + w t| (nufft._leg_series): r0 = |d| [m], 0.5 / r0
+    and r1 = (2 d.w) (0.5 / r0) [m/s] (its recursion's first step), in that order of
+    operations. The one form :func:`block_coefficients` and :func:`slow_rest_floor` use."""
+    r0 = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    h = 0.5 / r0
+    return r0, h, (2.0 * (d0 * w0 + d1 * w1 + d2 * w2)) * h
+
+
+@jit
 def leg_offsets(pos, vel, t_mid, element, t_span, d, r0, y):  # pragma: no cover
     """One leg of the 2-D path's block (nufft._Leg): offsets d = pos + vel t_mid - element
     (m, 3) [m], their lengths r0 (m,) [m] and y = t_span |vel| / r0 (m,), in one pass.
@@ -124,9 +142,7 @@ def leg_offsets(pos, vel, t_mid, element, t_span, d, r0, y):  # pragma: no cover
     caller's check rejects.
     """
     for i in range(pos.shape[0]):
-        d0 = pos[i, 0] + vel[i, 0] * t_mid - element[0]
-        d1 = pos[i, 1] + vel[i, 1] * t_mid - element[1]
-        d2 = pos[i, 2] + vel[i, 2] * t_mid - element[2]
+        d0, d1, d2 = _offset(pos, vel, i, t_mid, element)
         d[i, 0], d[i, 1], d[i, 2] = d0, d1, d2
         r = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
         r0[i] = r
@@ -176,14 +192,9 @@ def block_coefficients(d_tx, v_tx, d_rx, v_rx, order, inv_c, two_pi_fc, pi_s, tw
             ser = r_tx if leg == 0 else r_rx
             for i in range(n):
                 s = start + i
-                d0, d1, d2 = d[s, 0], d[s, 1], d[s, 2]
                 w0, w1, w2 = vel[s, 0], vel[s, 1], vel[s, 2]
-                r0 = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-                h = 0.5 / r0
-                half[i] = h
+                ser[0, i], half[i], ser[1, i] = _first_terms(d[s, 0], d[s, 1], d[s, 2], w0, w1, w2)
                 q2[i] = w0 * w0 + w1 * w1 + w2 * w2
-                ser[0, i] = r0
-                ser[1, i] = (2.0 * (d0 * w0 + d1 * w1 + d2 * w2)) * h
             for k in range(2, k1):
                 if k == 2:
                     for i in range(n):
@@ -671,13 +682,8 @@ def slow_rest_floor(p, v, pr, vr, sample, t_mid, tx, rx, inv_c, two_pi_fc, pi_s,
         for leg in range(2):
             pos = p if leg == 0 else pr
             vel = v if leg == 0 else vr
-            el = tx if leg == 0 else rx
-            d0 = pos[i, 0] + vel[i, 0] * t_mid - el[0]
-            d1 = pos[i, 1] + vel[i, 1] * t_mid - el[1]
-            d2 = pos[i, 2] + vel[i, 2] * t_mid - el[2]
-            r = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-            r0[leg] = r
-            r1[leg] = (2.0 * (d0 * vel[i, 0] + d1 * vel[i, 1] + d2 * vel[i, 2])) * (0.5 / r)
+            d0, d1, d2 = _offset(pos, vel, i, t_mid, tx if leg == 0 else rx)
+            r0[leg], _, r1[leg] = _first_terms(d0, d1, d2, vel[i, 0], vel[i, 1], vel[i, 2])
         t0 = (r0[0] + r0[1]) * inv_c
         t1 = (r1[0] + r1[1]) * inv_c
         c10[q] = (two_pi_fc * t1 - pi_s * (t0 * t1 + t1 * t0)) * a_step
