@@ -409,6 +409,7 @@ def synthesize(points: np.ndarray, velocities: np.ndarray | None, weights: np.nd
     # The split depends only on the input, and the parts are summed in task
     # order, so the cube does not depend on ``workers``.
     tasks = []
+    sorted_rate = None  # the movers' range rates in chunk order, when sorted by them
     if len(mv) < n:
         w_static = np.where(moving, 0.0, w) if len(mv) else w
         tasks += [("static", lo, min(lo + CHUNK, n)) for lo in range(0, n, CHUNK)]
@@ -440,13 +441,8 @@ def synthesize(points: np.ndarray, velocities: np.ndarray | None, weights: np.nd
             mv = mv[order]
             sorted_rate = rate[order]
             bounds = rate_bounds(sorted_rate, rate_floor(config))
-            # A chunk's largest |range rate| (at one of its ends): its series' orders, and so
-            # its cost, grow with it (the wrist frames' chunks of 16,286 movers: 7 -> 17 ms).
-            reach = [max(abs(float(sorted_rate[lo])), abs(float(sorted_rate[hi - 1])))
-                     for lo, hi in bounds]
         else:
             bounds = moving_bounds(len(mv))
-            reach = [0.0] * len(bounds)
         # The compiled sort gathers each chunk's movers in its task (a compiled pass without
         # the GIL, on the workers: the rows are scattered over the frame's arrays, a cache
         # miss each, ~18 ms for the wrist frame's 342,000 on one thread).
@@ -459,9 +455,11 @@ def synthesize(points: np.ndarray, velocities: np.ndarray | None, weights: np.nd
         # Movers first: their chunks are the longest, so the threads then
         # share the short static chunks evenly at the end.
         tasks = [("moving", lo, hi) for lo, hi in bounds] + tasks
-        reach += [0.0] * (len(tasks) - len(bounds))
-    else:
-        reach = [0.0] * len(tasks)
+    # A sorted chunk's largest |range rate| (at one of its ends; 0 for the others): its
+    # series' orders, and so its cost, grow with it (the wrist frames' chunks of 16,286
+    # movers: 7 -> 17 ms).
+    reach = [max(abs(float(sorted_rate[lo])), abs(float(sorted_rate[hi - 1])))
+             if kind == "moving" and sorted_rate is not None else 0.0 for kind, lo, hi in tasks]
 
     def run(task):
         kind, lo, hi = task
