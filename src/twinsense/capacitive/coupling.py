@@ -46,11 +46,13 @@ __all__ = [
     "MaterialMap",
     "bounds_in_mesh_frame",
     "electrically_relevant",
+    "held_weakly",
     "inclusions_from_scene",
     "map_inclusions",
     "meets_domain",
     "object_box_at_pose",
     "object_box_in_mesh_frame",
+    "refers_to",
     "resolution_boxes",
     "resolving_cell_sizes",
 ]
@@ -104,6 +106,31 @@ class Inclusion:
             object.__setattr__(self, "local_bounds", np.asarray(self.local_bounds, float))
 
 
+def held_weakly(obj):
+    """What an identity-keyed cache keeps of ``obj``: a weak reference (None for None).
+
+    A sensor's caches compare scene objects, shapes and motions by identity
+    (``is``); a strong reference would keep the last scene and its meshes
+    alive for as long as the sensor lives. An object that takes no weak
+    reference (``__slots__`` without ``__weakref__``) is kept as it is.
+    Compare with :func:`refers_to`.
+    """
+    if obj is None:
+        return None
+    try:
+        return weakref.ref(obj)
+    except TypeError:
+        return obj
+
+
+def refers_to(held, obj) -> bool:
+    """Whether ``held`` (from :func:`held_weakly`) is ``obj`` itself: never for a collected object
+    (its dead reference gives None, and None is only ever held as None)."""
+    if held is None or obj is None:
+        return held is None and obj is None
+    return held is obj or (type(held) is weakref.ref and held() is obj)
+
+
 class InclusionCache:
     """Inside cells of each object, kept with the object's pose relative to the mesh.
 
@@ -120,14 +147,20 @@ class InclusionCache:
 
     def lookup(self, name: str, shape, rel: np.ndarray) -> np.ndarray | None:
         e = self._entries.get(name)
-        if e is None or e[0] is not shape or np.max(np.abs(e[1] - rel)) > POSE_TOLERANCE:
+        if e is None or not refers_to(e[0], shape) or np.max(np.abs(e[1] - rel)) > POSE_TOLERANCE:
             self.misses += 1
             return None
         self.hits += 1
         return e[2]
 
+    def __getstate__(self) -> dict:
+        # Weak references do not pickle, and a copy in another process never sees these shapes
+        # (an unpickled scene's are new objects): the copy starts empty and maps anew, the same cells.
+        return {**self.__dict__, "_entries": {}}
+
     def store(self, name: str, shape, rel: np.ndarray, inside: np.ndarray) -> None:
-        self._entries[name] = (shape, rel.copy(), inside)
+        # The shape held weakly: the cache outlives scenes, and must not keep their meshes alive.
+        self._entries[name] = (held_weakly(shape), rel.copy(), inside)
 
 
 @dataclass(frozen=True, eq=False)

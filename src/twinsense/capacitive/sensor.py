@@ -22,10 +22,12 @@ from twinsense.capacitive.coupling import (
     InclusionCache,
     bounds_in_mesh_frame,
     electrically_relevant,
+    held_weakly,
     inclusions_from_scene,
     map_inclusions,
     meets_domain,
     object_box_at_pose,
+    refers_to,
     resolution_boxes,
     resolving_cell_sizes,
 )
@@ -335,15 +337,18 @@ class CapacitiveSensor:
         _ = self.system
         self._solver.set_active_cells(active)
         self._last = None
-        self._prepare_key, self._prepared_active = key, active.copy()
+        self._prepare_key, self._prepared_active = _held_key(key), active.copy()
         self.prepare_builds += 1
         return active
 
     def __getstate__(self) -> dict:
-        # The prepare's key holds the scene itself (identity): not sent along with a pickled sensor,
-        # whose copy then prepares anew.
+        # The prepare's key refers to the scene (weakly, by identity): not sent along with a pickled
+        # sensor, whose copy then prepares anew.
+        # The resolution checks' shapes are held weakly as well: the copy checks anew (warning at most
+        # once per object all the same: the warned names go along).
         state = dict(self.__dict__)
         state["_prepare_key"] = None
+        state["_resolution_checked"] = {}
         return state
 
     def _inclusions(self, scene, t: float):
@@ -421,9 +426,10 @@ class CapacitiveSensor:
             # an object checked at this relative pose before is not checked again.
             key = np.column_stack([rot, b[0]])
             seen = self._resolution_checked.get(obj.name)
-            if seen is not None and seen[0] is obj.geometry and np.max(np.abs(seen[1] - key)) <= POSE_TOLERANCE:
+            if (seen is not None and refers_to(seen[0], obj.geometry)
+                    and np.max(np.abs(seen[1] - key)) <= POSE_TOLERANCE):
                 continue
-            self._resolution_checked[obj.name] = (obj.geometry, key)
+            self._resolution_checked[obj.name] = (held_weakly(obj.geometry), key)
             h = np.minimum(resolving_cell_sizes(extent, rot, cells), self._settings.h_max)
             meet = mesh.cells_meeting_box(b)
             if len(meet) == 0:
@@ -484,12 +490,23 @@ def _scene_key(scene, mount: Mount, config: CapacitiveConfig) -> tuple:
     return (scene, scene.version, mount, config, tuple(parts))
 
 
+def _held_key(key: tuple) -> tuple:
+    """A :func:`_scene_key` as the sensor keeps it: every object in it held weakly
+    (:func:`~twinsense.capacitive.coupling.held_weakly`), so that the last prepared scene, its
+    objects and their meshes are collected once the user drops them; the versions as they are."""
+    scene, version, mount, config, parts = key
+    return (held_weakly(scene), version, held_weakly(mount), held_weakly(config),
+            tuple((held_weakly(o), held_weakly(m), held_weakly(j), v) for o, m, j, v in parts))
+
+
 def _same_key(a: tuple, b: tuple | None) -> bool:
-    """``a`` and ``b`` from :func:`_scene_key` name the same objects (``is``) at the same versions."""
-    if (b is None or a[0] is not b[0] or a[1] != b[1] or a[2] is not b[2] or a[3] is not b[3]
-            or len(a[4]) != len(b[4])):
+    """``a`` from :func:`_scene_key` and ``b`` from :func:`_held_key` name the same objects (``is``; a
+    collected one is never the same) at the same versions."""
+    if (b is None or not refers_to(b[0], a[0]) or a[1] != b[1] or not refers_to(b[2], a[2])
+            or not refers_to(b[3], a[3]) or len(a[4]) != len(b[4])):
         return False
-    return all(x[0] is y[0] and x[1] is y[1] and x[2] is y[2] and x[3] == y[3] for x, y in zip(a[4], b[4], strict=True))
+    return all(refers_to(y[0], x[0]) and refers_to(y[1], x[1]) and refers_to(y[2], x[2]) and x[3] == y[3]
+               for x, y in zip(a[4], b[4], strict=True))
 
 
 def _center(layout: Layout) -> np.ndarray:
