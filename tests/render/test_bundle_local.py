@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import gc
 import math
+import pickle
 import threading
 
 import numpy as np
@@ -33,7 +34,7 @@ from twinsense.errors import ConfigError
 from twinsense.radar import FMCWRadar
 from twinsense.render.bundle import _BINNINGS, _RULES, CONE_DEG, BundlePicker
 from twinsense.render.caster import SceneCaster
-from twinsense.render.rays import Rays, row_checksum
+from twinsense.render.rays import LocalBundle, Rays, row_checksum
 from twinsense.scene import Box, ConstantVelocity, Mount, Scene
 from twinsense.scene.motion import Motion, MotionState
 
@@ -165,6 +166,77 @@ def test_a_local_array_made_writeable_again_and_changed_is_binned_anew():
     np.testing.assert_array_equal(got[1], want[1])
     assert (want[0] >= 0).mean() > 0.2  # the soup is hit (the test tests something)
     assert len(picker._binnings) == 1  # the stale binning replaced, not kept beside
+
+
+def test_rays_local_carries_the_checksum_it_was_checked_with_and_picks_take_it():
+    # Rays.local keeps row_checksum(dl) as Rays computed it (the same bits: one compiled
+    # pass in a fixed order); it unpacks and pickles as the pair it was given.
+    rng = np.random.default_rng(8)
+    dl = frozen(cone_directions(rng, 2000, (0, 0, 1), 40.0))
+    rays, _ = local_rays(dl, random_rotation(rng), np.zeros(3))
+    assert isinstance(rays.local, LocalBundle) and rays.local.checksum.tobytes() == row_checksum(dl).tobytes()
+    directions, rotation = rays.local
+    assert directions is dl and rotation is rays.local[1]
+    again = pickle.loads(pickle.dumps(rays.local))
+    assert isinstance(again, LocalBundle) and again.checksum.tobytes() == rays.local.checksum.tobytes()
+    np.testing.assert_array_equal(again[0], dl)
+
+
+def test_rows_changed_in_place_after_rays_checked_them_never_reach_a_pick():
+    # The pick finds its binning by the checksum Rays took, not by summing the rows again.
+    # Rows changed in place after that check (numpy lets the owner make them writeable)
+    # no longer match the world rays the fields come from: binned at the first pick, they
+    # are not kept (None: Embree casts the world rays); a binning made before the change
+    # keeps serving the rays checked against it (its picks are the world rays' reference
+    # picks); rays checked after the change get a binning of their own.
+    rng = np.random.default_rng(9)
+    tri = soup(rng, 80, (-2, -2, 2), (2, 2, 4), 0.6)
+    a = cone_directions(rng, 3000, (0, 0, 1), 40.0)
+    b = cone_directions(rng, 3000, (0.2, 0.1, 1), 35.0)
+
+    def change(dl, rows):
+        dl.setflags(write=True)
+        dl[:] = rows
+        dl.setflags(write=False)
+
+    def reference(rays):
+        return brute_force(tri, [], *NO_MOVERS, np.zeros(3), rays.directions)
+
+    picker = BundlePicker(tri, [])
+    dl = frozen(a)
+    rays_a, _ = local_rays(dl, np.eye(3), np.zeros(3))
+    change(dl, b)  # before the first pick
+    assert picker.pick(np.zeros(3), rays_a.directions, *NO_MOVERS, local=rays_a.local) is None
+    assert picker._binnings == []
+    change(dl, a)  # back: checked anew, binned, the reference's picks (exact: no tolerance)
+    rays_a, _ = local_rays(dl, np.eye(3), np.zeros(3))
+    want_a = reference(rays_a)
+    assert (want_a[0] >= 0).mean() > 0.2  # the soup is hit (the test tests something)
+    np.testing.assert_array_equal(picker.pick(np.zeros(3), rays_a.directions, *NO_MOVERS, local=rays_a.local)[1],
+                                  want_a[1])
+    change(dl, b)  # after the binning: rays_a still picks its own world rays
+    np.testing.assert_array_equal(picker.pick(np.zeros(3), rays_a.directions, *NO_MOVERS, local=rays_a.local)[1],
+                                  want_a[1])
+    rays_b, _ = local_rays(dl, np.eye(3), np.zeros(3))
+    np.testing.assert_array_equal(picker.pick(np.zeros(3), rays_b.directions, *NO_MOVERS, local=rays_b.local)[1],
+                                  reference(rays_b)[1])
+    # Through the caster (a moving object: the instanced path, where the picker works):
+    # rows changed before the first cast go to Embree, the same distances as Embree's own
+    # cast of the world rays; rays checked after the change are picked.
+    scene = Scene()
+    scene.add_object("wall", Box((6.0, 6.0, 0.1)), pose=Pose((0.0, 0.0, 3.0)))
+    scene.add_object("cube", Box((0.5, 0.5, 0.5)), motion=ConstantVelocity(Pose((0.2, 0.0, 2.0)), (0.1, 0, 0)))
+    dl2 = frozen(a)
+    rays, _ = local_rays(dl2, np.eye(3), np.zeros(3))
+    change(dl2, b)
+    caster = SceneCaster(scene, picker="bundle")
+    got = caster.cast(rays, 0.0, ("distance",))
+    want = SceneCaster(scene, picker="embree").cast(rays, 0.0, ("distance",))
+    assert np.isfinite(want.distance).mean() > 0.9
+    assert got.distance.tobytes() == want.distance.tobytes()
+    assert caster._instanced.bundle_picker().picks == 0
+    caster.cast(local_rays(dl2, np.eye(3), np.zeros(3))[0], 0.0, ("distance",))
+    assert caster._instanced.bundle_picker().picks == 1
 
 
 def test_many_frames_keep_the_caches_bounded(cell):  # noqa: F811

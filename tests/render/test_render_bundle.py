@@ -481,3 +481,40 @@ def test_auto_keeps_embree_for_dense_cells_and_looks_again_later():
     small = BundlePicker(wall, [(np.array(coarse.vertices), np.array(coarse.faces))])
     assert small.pick(np.zeros(3), d, *pose, auto=True) is not None
     assert small.last_tests_per_ray < 30.0
+
+
+def test_one_origin_is_the_full_row_comparison_with_two_rows_first():
+    # Reference: every row compared with the first (the check it replaces), on origins that
+    # are one point (broadcast or full), or differ only at the first, a middle or the last
+    # row, by -0.0 against 0.0 (equal), or hold NaN (never equal).
+    from twinsense.render.instanced import one_origin
+
+    rng = np.random.default_rng(12)
+    p = rng.normal(size=3)
+    cases = [np.broadcast_to(p, (1000, 3)), np.tile(p, (1000, 1)), np.tile(p, (1, 1)), np.tile(p, (2, 1)),
+             np.zeros((7, 3)), np.where(np.arange(21)[:, None] % 2 == 0, 0.0, -0.0) * np.ones((21, 3))]
+    for row in (0, 1, 499, 500, 998, 999):
+        o = np.tile(p, (1000, 1))
+        o[row, row % 3] = np.nextafter(o[row, row % 3], np.inf)  # one ulp off
+        cases.append(o)
+        nan = np.tile(p, (1000, 1))
+        nan[row, 2] = np.nan
+        cases.append(nan)
+    cases.append(rng.normal(size=(1000, 3)))  # a spread aperture
+    cases.append(np.tile(p, (1000, 1))[::2])  # a strided view
+    for o in cases:
+        assert one_origin(o) == bool((o == o[0]).all()), o
+
+
+def test_rays_from_one_origin_given_row_by_row_are_picked_and_from_two_are_not():
+    scene = Scene()
+    scene.add_object("wall", Box((6.0, 6.0, 0.1)), pose=Pose((0.0, 0.0, 3.0)))
+    scene.add_object("cube", Box((0.5, 0.5, 0.5)), motion=ConstantVelocity(Pose((0.2, 0.0, 2.0)), (0.1, 0, 0)))
+    d = cone_directions(np.random.default_rng(13), 5000, (0, 0, 1), 30.0)
+    caster = SceneCaster(scene, picker="bundle")
+    caster.cast(Rays(np.zeros((5000, 3)), d), 0.0, ("distance",))  # full rows, all alike
+    assert caster._instanced.bundle_picker().picks == 1
+    o = np.zeros((5000, 3))
+    o[-1, 0] = 1e-3  # the last ray from elsewhere: Embree casts the bundle
+    caster.cast(Rays(o, d), 0.0, ("distance",))
+    assert caster._instanced.bundle_picker().picks == 1

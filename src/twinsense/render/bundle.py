@@ -40,7 +40,7 @@ import numpy as np
 from twinsense.render import bundle_kernels as bk
 from twinsense.render.forksafe import ForkSafeLock
 from twinsense.render.parallel import pool
-from twinsense.render.rays import row_checksum
+from twinsense.render.rays import LocalBundle, row_checksum
 
 #: The widest angle [deg] between a ray and the bundle's mean direction; beyond it Embree casts.
 CONE_DEG = 80.0
@@ -155,7 +155,10 @@ class BundlePicker:
             return None
         # The "auto" rule's state belongs to the bundle (a local bundle's binning, else
         # the bundles of n rays): a dense bundle must not send another sensor's to Embree.
-        b = self._local_binning(local[0], rays_per_cell, workers) if local is not None else None
+        b = None
+        if local is not None:
+            b = self._local_binning(local[0], rays_per_cell, workers,
+                                    local.checksum if isinstance(local, LocalBundle) else None)
         rule = b.rule if b is not None else None
         if rule is None:
             with self._lock:
@@ -209,17 +212,22 @@ class BundlePicker:
         self.picks += 1
         return inst, prim
 
-    def _local_binning(self, dl, rays_per_cell, workers) -> _Binning | None:
+    def _local_binning(self, dl, rays_per_cell, workers, checked=None) -> _Binning | None:
         """The binning of a fixed local directions array (None: not for this picker),
         made at its first pick and kept, by identity, while the array lives and its rows
         are unchanged.
 
         Read-only is no guarantee (numpy lets an array's owner make it writeable again),
-        so each pick compares the array's :func:`~twinsense.render.rays.row_checksum`
-        (~0.4 ms for 342,000 rays) with its bits at the binning: other bits, binned anew
-        (a checksum that rounds differently only costs a binning, never a wrong pick)."""
+        so a kept binning is taken only for the same :func:`~twinsense.render.rays.row_checksum`
+        bits as the rows it binned (other bits: binned anew; a checksum that rounds
+        differently only costs a binning, never a wrong pick). ``checked``: the checksum
+        :class:`~twinsense.render.rays.Rays` took when it checked these rows against the
+        world rays (:class:`~twinsense.render.rays.LocalBundle`), or None: computed here
+        (~0.4 ms for 342,000 rays). With ``checked`` the rows are summed again only when
+        binned: a binning of rows that changed since the check is not kept (None: Embree
+        casts the world rays), so a binning is always kept under its own rows' bits."""
         key = int(rays_per_cell)
-        check = row_checksum(dl)
+        check = row_checksum(dl) if checked is None else checked
 
         def same(entry) -> bool:
             return entry[0]() is dl and entry[1] == key and np.array_equal(entry[2], check, equal_nan=True)
@@ -229,6 +237,8 @@ class BundlePicker:
                 if same(entry):
                     return entry[3]
         b = _bin(np.ascontiguousarray(dl, dtype=float), rays_per_cell, workers, None)
+        if checked is not None and not np.array_equal(row_checksum(dl), check, equal_nan=True):
+            return None  # changed in place since Rays checked it: its world rays no longer match
         if b is None:
             b = _Binning.refused()
         with self._lock:

@@ -39,6 +39,21 @@ _EMPTY1I = np.zeros(0, np.int32)
 _EMPTY3 = np.zeros((0, 3))
 
 
+def one_origin(o: np.ndarray) -> bool:
+    """Whether every row of ``o`` (n, 3), n >= 1, equals ``o[0]`` exactly (NaN never does).
+
+    A stride-0 broadcast of one origin (the cameras' and the radars' rays) is known at no
+    cost; otherwise two rows (the middle and the last) first, where origins that move
+    during a scan or spread over an aperture differ, and the full pass only if they agree.
+    """
+    if o.strides[0] == 0:
+        return True
+    n = len(o)
+    if not (o[[n // 2, n - 1]] == o[0]).all():
+        return False
+    return bool((o == o[0]).all())
+
+
 class InstancedScene:
     """The static objects' and every moving object's Embree 4 scene as instances of a top level.
 
@@ -137,7 +152,7 @@ class InstancedScene:
         tr[first:, :, 3] = poss
         n = len(d)
         picks = None
-        if picker != "embree" and n and (o.strides[0] == 0 or bool((o == o[0]).all())):
+        if picker != "embree" and n and one_origin(o):
             picks = self.bundle_picker().pick(o[0], d, rots, poss, workers, auto=picker == "auto",
                                               local=local)
         top = self._acquire(tr) if picks is None else None

@@ -104,7 +104,7 @@ def _checked_local(local, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     # neighbouring rays ~2e-3 apart may not); NaN or inf shows always.
     w, w_norm, w_sum = _weights(len(d))
     sum_d, _ = row_sums(np.ascontiguousarray(d, dtype=float), w)
-    sum_l, ff = row_sums(np.ascontiguousarray(dl), w)
+    sum_l, ff = row_sums(np.ascontiguousarray(dl), w)  # the bits of row_checksum(dl)
     with np.errstate(invalid="ignore", over="ignore"):
         frob = math.sqrt(ff) if ff >= 0.0 else math.nan
         gap = np.abs(sum_d - rot @ sum_l).max(initial=0.0)
@@ -115,7 +115,23 @@ def _checked_local(local, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if bad.any():
             raise ConfigError("Rays.local", f"directions not rotation @ local (checksum off by {gap:.3g}, "
                               f"allowed {tol:.3g})", allowed)
-    return dl, rot
+    sum_l.setflags(write=False)
+    return LocalBundle(dl, rot, sum_l)
+
+
+class LocalBundle(tuple):
+    """``Rays.local`` once validated: the pair (directions (n, 3), rotation (3, 3)), and
+    ``checksum`` (3,): :func:`row_checksum` of the directions as they were when checked
+    against the world rays (the bundle picker finds its kept binning with it, instead of
+    a second pass over the rows at every pick)."""
+
+    def __new__(cls, directions: np.ndarray, rotation: np.ndarray, checksum: np.ndarray) -> LocalBundle:
+        self = super().__new__(cls, (directions, rotation))
+        self.checksum = checksum
+        return self
+
+    def __getnewargs__(self):  # pickled with its checksum (a tuple's would give the pair only)
+        return self[0], self[1], self.checksum
 
 
 def frozen(a: np.ndarray) -> bool:
