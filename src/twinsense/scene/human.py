@@ -32,7 +32,7 @@ the joint trajectory, each with exact time derivatives:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import FrozenInstanceError, dataclass
 
 import numpy as np
 from scipy.interpolate import CubicHermiteSpline
@@ -423,8 +423,53 @@ class _Plan:
         return _Plan(p, v, yaw, yaw_d, roll, roll_d, q, qd)
 
 
-class PersonMotion:
+def _refuse(owner: object, name: str, value, verb: str = "assign") -> FrozenInstanceError:
+    """The error of a change to a read-only person: names the attribute, the value and the way out."""
+    cls = type(owner).__name__
+    what = f" = {value!r}" if verb == "assign" else ""
+    return FrozenInstanceError(
+        f"cannot {verb} {cls}.{name}{what}: a person's motion is read-only once built (the caches of its "
+        "states, of its body's forward kinematics and of the sensors' prepares key on it); build a new "
+        "person instead (person_body, add_person, Walker)")
+
+
+class _ReadOnly:
+    """Attributes set in ``__init__`` only: later assignments and deletions raise FrozenInstanceError,
+    except the names in ``_CACHES`` (what the object memoises about itself)."""
+
+    _CACHES: frozenset = frozenset()
+
+    def _seal(self) -> None:
+        object.__setattr__(self, "_sealed", True)
+
+    def __setattr__(self, name: str, value) -> None:
+        if name not in self._CACHES and self.__dict__.get("_sealed", False):
+            raise _refuse(self, name, value)
+        object.__setattr__(self, name, value)
+
+    def __delattr__(self, name: str) -> None:
+        if name not in self._CACHES and self.__dict__.get("_sealed", False):
+            raise _refuse(self, name, None, "delete")
+        object.__delattr__(self, name)
+
+    def __setstate__(self, state: dict) -> None:
+        # A copy (pickle, deepcopy) is as read-only as its original: its arrays come back writable.
+        self.__dict__.update(state)
+        for name, value in state.items():
+            if isinstance(value, np.ndarray) and name not in self._CACHES:
+                value.setflags(write=False)
+
+
+class PersonMotion(_ReadOnly):
     """Everything one person does, as exact functions of time.
+
+    Read-only once built: an assignment to any attribute (``sway``,
+    ``walk``, ``reach``, ...) raises ``dataclasses.FrozenInstanceError``,
+    as a frozen dataclass does, and ``start_xy`` is a read-only array. The
+    states are cached by time (here, in the body's forward kinematics and
+    in a capacitive sensor's prepare), so a changed motion would be served
+    stale; a new person (:func:`person_body`, :func:`add_person`) is the
+    way to another motion.
 
     Parameters
     ----------
@@ -488,6 +533,11 @@ class PersonMotion:
         self._last = None
         if walk is not None:
             self._check_gait_limits()
+        self.start_xy.setflags(write=False)
+        self._q_rest.setflags(write=False)
+        self._seal()
+
+    _CACHES = frozenset({"_last", "_reach_q"})  # the state at the last time; the reach's arm angles
 
     def _check_gait_limits(self) -> None:
         """Refuse, at set-up, a walk whose joint curves would leave the joint limits (the swing
@@ -689,13 +739,15 @@ class PersonMotion:
                 "reach": spec(self.reach), "sway": self.sway}
 
 
-class PersonJoints(JointMotion):
-    """The joint trajectory of a :class:`PersonMotion` (every joint of its tree)."""
+class PersonJoints(_ReadOnly, JointMotion):
+    """The joint trajectory of a :class:`PersonMotion` (every joint of its tree); its ``person`` is
+    read-only (its ``version`` stays 0: nothing is pushed to a person)."""
 
     def __init__(self, person: PersonMotion):
         if not isinstance(person, PersonMotion):
             raise ConfigError("person.joints", person, "a PersonMotion")
         self.person = person
+        self._seal()
 
     @property
     def n_columns(self) -> int:
