@@ -876,7 +876,9 @@ def _plan_block(p, v, pr, vr, tx, rx, chirps, t_mid, a_step, geo: Geometry,
     leg_tx = _Leg(p, v, t_mid, tx, t_span, compiled) if tx_leg is None else tx_leg
     leg_rx = _Leg(pr, vr, t_mid, rx, t_span, compiled)
     r0_tx, r0_rx, y_tx, y_rx = leg_tx.r0, leg_rx.r0, leg_tx.y, leg_rx.y
-    if not max(float(y_tx.max()), float(y_rx.max())) <= _Y_MAX:
+    # Each leg on its own: a leg of length 0 has y inf (moving) or NaN (still), and Python's
+    # max(a, nan) is a, so a NaN of the receive leg would pass a max of the two.
+    if not (float(y_tx.max()) <= _Y_MAX and float(y_rx.max()) <= _Y_MAX):
         return None
     # |d Phi / d tau| <= 2 pi (|fc| + |S| (N/2 / fs + tau)): the tail of the delay moves
     # the phase by at most that times the tail.

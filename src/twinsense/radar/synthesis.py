@@ -389,7 +389,8 @@ def synthesize(points: np.ndarray, velocities: np.ndarray | None, weights: np.nd
     series for motion within a chirp. ``workers`` > 1 runs chunks of
     scatterers on that many threads (finufft and NumPy release the GIL);
     the chunks are summed in a fixed order, so the cube does not depend on
-    ``workers``.
+    ``workers``. Raises ConfigError (``synthesize.points``) for a moving scatterer on an
+    antenna element at a chirp centre: a path leg of length 0 has no phase expansion.
     """
     # The accuracy bounds of the chunks' series hold up to the loosest tolerance the noise gives.
     eps = V.number("synthesize.eps", eps, lo=1e-14, hi=LOOSEST_EPS)
@@ -495,4 +496,12 @@ def synthesize(points: np.ndarray, velocities: np.ndarray | None, weights: np.nd
     if static_rows is not None:
         for j, (k, a) in enumerate(geo.pairs):
             cube[a, geo.tx_of == geo.txs[k]] += static_rows[j]
+    # The inputs are finite, so only a leg of length 0 makes NaN: a mover on an antenna
+    # element at a chirp centre, where |v s| has no Taylor series in s (the 2-D blocks
+    # reject such a chunk, the per-chirp expansion divides by the length). A static one there
+    # is fine (its phase is linear in L). One sum of the cube finds it (NaN propagates).
+    if not np.isfinite(cube.sum()):
+        raise ConfigError("synthesize.points", "a mover on an antenna element",
+                          "moving scatterers off the antenna elements at every chirp centre "
+                          "(the phase expansion needs every path leg longer than 0)")
     return _output(cube, config)
