@@ -21,6 +21,7 @@ from __future__ import annotations
 import os
 import threading
 import weakref
+from threading import get_ident
 from typing import TypeVar
 
 C = TypeVar("C")
@@ -48,7 +49,7 @@ class ForkSafeLock:
     def acquire(self, blocking: bool = True, timeout: float = -1) -> bool:
         """As ``threading.Lock.acquire``: True when taken."""
         if self._lock.acquire(blocking, timeout):
-            self._owner = threading.get_ident()
+            self._owner = get_ident()
             return True
         return False
 
@@ -61,16 +62,18 @@ class ForkSafeLock:
         """Whether some thread holds the lock."""
         return self._lock.locked()
 
-    def __enter__(self) -> ForkSafeLock:
-        self.acquire()
+    def __enter__(self) -> ForkSafeLock:  # acquire() inlined: one call fewer per with-block
+        self._lock.acquire()
+        self._owner = get_ident()
         return self
 
     def __exit__(self, *exc) -> None:
-        self.release()
+        self._owner = None
+        self._lock.release()
 
 
 def _renew_in_child() -> None:
-    me = threading.get_ident()  # the forking thread: the same ident in the child
+    me = get_ident()  # the forking thread: the same ident in the child
     for lock in list(_LOCKS):
         if lock._owner != me:  # free, or held by a thread the child does not have
             lock._lock = threading.Lock()
