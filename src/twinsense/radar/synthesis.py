@@ -92,6 +92,7 @@ from twinsense.errors import ConfigError
 from twinsense.radar import effects
 from twinsense.radar.config import RadarConfig
 from twinsense.radar.kernels import (
+    faster_than,
     gather_movers,
     merge_orders,
     range_rates,
@@ -129,19 +130,28 @@ def _array(field: str, value, dtype, shape_text: str, shape_ok) -> np.ndarray:
 
 
 def _check_inputs(points, velocities, weights, points_rx=None, velocities_rx=None,
-                  where: str = "synthesize"):
+                  where: str = "synthesize", still: bool = False):
+    """(p, v, w, pr, vr) checked; ``still``: positions only (v and vr None, without the
+    (n, 3) zeros of a missing velocity: 8 MB for a wrist frame, page-faulted anew each time)."""
     p = _array(f"{where}.points", points, float, "(n, 3)", lambda s: len(s) == 2 and s[1] == 3)
     n3 = f"({len(p)}, 3)"
     same = lambda s: s == p.shape  # noqa: E731
-    v = np.zeros_like(p) if velocities is None else _array(f"{where}.velocities", velocities, float, n3, same)
+    if still:
+        v = None
+    else:
+        v = (np.zeros_like(p) if velocities is None
+             else _array(f"{where}.velocities", velocities, float, n3, same))
     w = _array(f"{where}.weights", weights, complex, f"({len(p)},)", lambda s: s == (len(p),))
     if points_rx is None:
         if velocities_rx is not None:
             raise ConfigError(f"{where}.velocities_rx", "an array", "None when points_rx is None")
         return p, v, w, p, v
     pr = _array(f"{where}.points_rx", points_rx, float, n3, same)
-    vr = (np.zeros_like(pr) if velocities_rx is None
-          else _array(f"{where}.velocities_rx", velocities_rx, float, n3, same))
+    if still:
+        vr = None
+    else:
+        vr = (np.zeros_like(pr) if velocities_rx is None
+              else _array(f"{where}.velocities_rx", velocities_rx, float, n3, same))
     return p, v, w, pr, vr
 
 
@@ -242,7 +252,8 @@ def noise_tolerance(points: np.ndarray, weights: np.ndarray, config: RadarConfig
         noise_power = effects.noise_power(config)
     noise_power = V.number("noise_tolerance.noise_power", noise_power, lo=0.0)
     # The compiled pass reads three coordinates per row: shapes and finiteness first.
-    p, _, w, pr, _ = _check_inputs(points, None, weights, points_rx, where="noise_tolerance")
+    p, _, w, pr, _ = _check_inputs(points, None, weights, points_rx, where="noise_tolerance",
+                                   still=True)
     if noise_power <= 0.0 or len(w) == 0:
         return float(eps)
     geo = Geometry(config, config.chirp.num_chirps)
@@ -268,21 +279,24 @@ def _norm2(a: np.ndarray) -> np.ndarray:
     return out
 
 
-def _moving_rows(v: np.ndarray, vr: np.ndarray, config: RadarConfig, eps: float) -> np.ndarray:
-    """(n,) bool: scatterers whose legs move faster together than :func:`still_speed`."""
+def _moving_rows(v: np.ndarray, vr: np.ndarray, config: RadarConfig,
+                 eps: float) -> tuple[np.ndarray, int]:
+    """(n,) bool: scatterers whose legs move faster together than :func:`still_speed`, and
+    their count."""
     still = still_speed(config, eps)
     if vr is v:
         # Monostatic: the same leg twice, 2 |v| > still <=> |v|^2 > (still / 2)^2 (a zero
-        # velocity is never above it).
-        return _norm2(v) > (0.5 * still) ** 2
+        # velocity is never above it); one compiled pass (_norm2's sums, so its bits).
+        moving = np.empty(len(v), dtype=bool)
+        return moving, int(faster_than(v, (0.5 * still) ** 2, moving))
     moving = _nonzero_rows(v) | _nonzero_rows(vr)
     if not moving.any():
-        return moving
+        return moving, 0
     rows = np.flatnonzero(moving)
     speed = np.sqrt(_norm2(np.take(v, rows, axis=0)))
     speed += np.sqrt(_norm2(np.take(vr, rows, axis=0)))
     moving[rows[speed <= still]] = False
-    return moving
+    return moving, int(np.count_nonzero(moving))
 
 
 def _range_rate(p: np.ndarray, v: np.ndarray, rows: np.ndarray) -> np.ndarray:
@@ -401,9 +415,10 @@ def synthesize(points: np.ndarray, velocities: np.ndarray | None, weights: np.nd
     geo = Geometry(config, n_chirps)
     cube = np.zeros((n_rx, n_chirps, n_samp), dtype=complex)
 
-    moving = _moving_rows(v, vr, config, eps)
-    mv = np.flatnonzero(moving)
+    moving, n_moving = _moving_rows(v, vr, config, eps)
     n = len(p)
+    every = n_moving == n  # a moving radar's frame: every scatterer moves
+    mv = np.arange(n) if every else np.flatnonzero(moving)
     # One list of tasks: chunks of static scatterers (one NUFFT per (tx, rx)
     # pair, copied to that transmitter's chirps; movers ride along with zero
     # weight, cheaper than copying the static ones out) and chunks of movers.
@@ -439,7 +454,7 @@ def synthesize(points: np.ndarray, velocities: np.ndarray | None, weights: np.nd
                     order = stable_argsort(keys)
                 else:
                     order = np.argsort(rate, kind="stable")
-            mv = mv[order]
+            mv = order if every else mv[order]  # (mv[order] is order when mv is 0..n-1)
             sorted_rate = rate[order]
             bounds = rate_bounds(sorted_rate, rate_floor(config))
         else:
