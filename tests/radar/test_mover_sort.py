@@ -1,4 +1,5 @@
-"""The movers' compiled sort by range rate and gather, against NumPy's stable argsort and take."""
+"""The movers' compiled sort by range rate and gather, against NumPy's stable argsort and take;
+the compiled test of which scatterers move, against its NumPy form."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import numpy as np
 import pytest
 
 import twinsense.radar.synthesis as synthesis
-from twinsense.radar.kernels import gather_movers, rate_keys, stable_argsort
+from twinsense.radar.kernels import faster_than, gather_movers, rate_keys, stable_argsort
 from twinsense.radar.presets import paper_bgt60tr13c_config
 
 
@@ -34,6 +35,25 @@ def test_stable_radix_argsort_is_numpys_order(case):
         # runs out and the full radix sort takes over.
         rate = 1.0 + rng.uniform(0.0, 1e-9, n)
     np.testing.assert_array_equal(_argsort(rate), np.argsort(rate, kind="stable"))
+
+
+def test_faster_than_is_the_numpy_comparison():
+    # |v|^2 > limit as synthesis._norm2 sums it: the same bits, so the same rows, also for
+    # speeds a rounding away from the limit (v = sqrt(limit) along x, one ulp either side).
+    rng = np.random.default_rng(5)
+    limit2 = (0.5 * 3e-7) ** 2
+    v = rng.normal(size=(5000, 3)) * 10.0 ** rng.uniform(-9, 0, (5000, 1))
+    v[::11] = 0.0
+    edge = np.sqrt(limit2)
+    v[1:40:3] = [np.nextafter(edge, 0.0), 0.0, 0.0]
+    v[2:40:3] = [edge, 0.0, 0.0]
+    v[3:40:3] = [np.nextafter(edge, 1.0), 0.0, 0.0]
+    moving = np.empty(len(v), bool)
+    count = faster_than(v, limit2, moving)
+    ref = synthesis._norm2(v) > limit2
+    np.testing.assert_array_equal(moving, ref)
+    assert count == int(np.count_nonzero(ref))
+    assert 0 < count < len(v)
 
 
 def test_gather_is_numpys_take():
