@@ -341,6 +341,28 @@ def rotate_rows(v, m):  # pragma: no cover
 
 
 @jit
+def rotate_rows_summed(v, m, w):  # pragma: no cover
+    """:func:`rotate_rows` of v (n, 3) by m (3, 3), and in the same pass over v the sums of
+    :func:`twinsense.render.bundle_kernels.row_sums` (sum_i w_i v_i (3,), sum_i |v_i|^2) with
+    weights w (n,): each in its own order, so the bits of both (a moving sensor's bundle is
+    rotated and its checksum taken in one read of the rows instead of three)."""
+    out = np.empty((v.shape[0], 3))
+    s0 = s1 = s2 = ff = 0.0
+    for i in range(v.shape[0]):
+        x, y, z = v[i, 0], v[i, 1], v[i, 2]
+        for k in range(3):
+            c = x * m[0, k]
+            c += y * m[1, k]
+            c += z * m[2, k]
+            out[i, k] = c
+        s0 += w[i] * x
+        s1 += w[i] * y
+        s2 += w[i] * z
+        ff += x * x + y * y + z * z
+    return out, np.array([s0, s1, s2]), ff
+
+
+@jit
 def _grown(sel, ol, dl, k, cap):  # pragma: no cover
     """Copies of the first k rows of sel (n,) and ol, dl (n, 3) in buffers of ``cap`` rows."""
     sel2 = np.empty(cap, np.int64)

@@ -19,6 +19,7 @@ from twinsense import validation as V
 from twinsense.errors import ConfigError
 from twinsense.linalg import rotate_rows
 from twinsense.render.bundle_kernels import row_sums
+from twinsense.render.kernels import rotate_rows_summed
 from twinsense.scene.pose import Pose, is_rotation
 
 #: How far from orthonormal the rotation of ``Rays.local`` may be (every entry of R R^T - I).
@@ -65,6 +66,52 @@ class Rays:
     def __len__(self) -> int:
         return len(self.directions)
 
+    @classmethod
+    def rotated(cls, origin, local: np.ndarray, rotation) -> Rays:
+        """The rays of a fixed sensor-frame bundle at a pose: one origin (3,) [m] and
+        directions ``rotation @ local[i]`` (rotation: sensor -> world), with ``local`` set.
+
+        What a moving camera or radar makes every frame. The world rows are computed here
+        (:func:`twinsense.render.kernels.rotate_rows_summed`), so they need no check against
+        the local ones, and the local rows' checksum comes from the same pass: one read of
+        the rows where ``Rays(..., local=...)`` reads both arrays twice more (0.45 against
+        1.3 ms for 153,216 rays). ``local`` (n, 3) float64 must be read-only with everything
+        it views, as for ``Rays.local``. The origins and directions are read-only.
+        """
+        allowed = "(n, 3) float64 directions, read-only with everything it views"
+        if not isinstance(local, np.ndarray) or local.dtype != np.float64 or local.ndim != 2 \
+                or local.shape[1] != 3:
+            raise ConfigError("Rays.rotated.local", f"{getattr(local, 'dtype', type(local).__name__)} "
+                              f"{getattr(local, 'shape', '')}", allowed)
+        if not frozen(local):  # identity keys a kept binning: nothing may change it in place
+            raise ConfigError("Rays.rotated.local", "writeable directions", allowed)
+        rot = _local_rotation("Rays.rotated.rotation", rotation)
+        o = np.array(V.vector("Rays.rotated.origin", origin, 3, "m"), dtype=float)
+        o.setflags(write=False)
+        d, checksum, _ = rotate_rows_summed(np.ascontiguousarray(local), np.ascontiguousarray(rot.T),
+                                            _weights(len(local))[0])
+        d.setflags(write=False)
+        checksum.setflags(write=False)
+        rays = cls(np.broadcast_to(o, d.shape), d)
+        object.__setattr__(rays, "local", LocalBundle(local, rot, checksum))
+        return rays
+
+
+def _local_rotation(field_name: str, rotation) -> np.ndarray:
+    """A read-only copy of a local bundle's rotation (3, 3) sensor -> world, checked to be a
+    proper rotation within :data:`LOCAL_ROTATION_TOL`."""
+    allowed = f"a proper rotation (3, 3) sensor -> world: R R^T = I within {LOCAL_ROTATION_TOL:g}, det +1"
+    try:
+        rot = np.array(rotation, dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigError(field_name, f"{rotation!r}", allowed) from None
+    # Tighter than a Pose's rule: the rotation is kept as given (not re-orthonormalised) and
+    # the picker moves triangles into the sensor's frame with its transpose.
+    if rot.shape != (3, 3) or not is_rotation(rot, LOCAL_ROTATION_TOL):
+        raise ConfigError(field_name, f"{rot.tolist()}", allowed)
+    rot.setflags(write=False)
+    return rot
+
 
 def _checked_local(local, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``Rays.local`` validated: (read-only float64 (n, 3) directions, (3, 3) rotation)."""
@@ -77,16 +124,7 @@ def _checked_local(local, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         raise ConfigError("Rays.local", f"directions {getattr(dl, 'shape', type(dl).__name__)}", allowed)
     if not frozen(dl):  # identity keys a kept binning: nothing may change it in place
         raise ConfigError("Rays.local", "writeable directions", allowed)
-    try:
-        rot = np.array(rot, dtype=float)
-    except (TypeError, ValueError):
-        raise ConfigError("Rays.local", f"rotation {rot!r}", allowed) from None
-    # Tighter than a Pose's rule: the rotation is kept as given (not re-orthonormalised) and
-    # the picker moves triangles into the sensor's frame with its transpose.
-    if rot.shape != (3, 3) or not is_rotation(rot, LOCAL_ROTATION_TOL):
-        raise ConfigError("Rays.local", f"rotation {rot.tolist()}",
-                          allowed + f" (a proper rotation: R R^T = I within {LOCAL_ROTATION_TOL:g})")
-    rot.setflags(write=False)
+    rot = _local_rotation("Rays.local", rot)
     # Nine rows spread over the bundle checked one by one (names the row of a transposed
     # rotation or another array), then every row at once through a weighted checksum.
     rows = np.unique(np.linspace(0, len(d) - 1, min(len(d), 9)).astype(int))

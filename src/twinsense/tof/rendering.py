@@ -22,7 +22,6 @@ import numpy as np
 
 from twinsense.linalg import rotate_rows
 from twinsense.render import Hits, PinholeCamera, Rays, caster_for
-from twinsense.render.kernels import rotate_rows as rotate_rows_once
 from twinsense.scene.scene import Scene
 from twinsense.tof.config import ToFConfig
 from twinsense.tof.kernels import phasor_bands
@@ -85,12 +84,9 @@ class ToFRenderer:
         key = rotation.tobytes() + position.tobytes()
         r = self._rays.get(key)
         if r is None:
-            # One compiled pass (the bits of linalg.rotate_rows): a moving camera pays it every frame.
-            d = rotate_rows_once(self._sub_rows, np.ascontiguousarray(rotation.T, dtype=float))
-            d.setflags(write=False)
-            o = np.array(position, dtype=float)
-            o.setflags(write=False)
-            r = Rays(np.broadcast_to(o, d.shape), d, local=(self._sub_rows, rotation))
+            # One compiled pass (the bits of linalg.rotate_rows, and the local rows' checksum):
+            # a moving camera pays it every frame.
+            r = Rays.rotated(position, self._sub_rows, rotation)
             if len(self._rays) >= _RAY_BUNDLES:  # a moving camera: keep only the newest poses
                 self._rays.pop(next(iter(self._rays)))
             self._rays[key] = r
