@@ -894,12 +894,27 @@ class ArticulatedBody:
         if not isinstance(tree, KinematicTree):
             raise ConfigError(f"{name}.tree", tree, "a KinematicTree")
         self.tree = tree
+        # The forward kinematics are cached by time and the joint motion's version; a new
+        # joint motion or base (the setters below) empties the cache.
+        self._cache: OrderedDict = OrderedDict()
+        self._last: tuple | None = None  # (t, motion version, state) of the newest state asked for
+        self._lock = threading.Lock()
+        self.joint_motion = joint_motion
+        self.base = base
+
+    @property
+    def joint_motion(self) -> JointMotion:
+        """The joint trajectory; may be replaced (checked against the tree, the kept states dropped)."""
+        return self._joint_motion
+
+    @joint_motion.setter
+    def joint_motion(self, joint_motion: JointMotion | None) -> None:
+        name, tree = self.name, self.tree
         if joint_motion is None:
             joint_motion = JointConstantVelocity(tree.home, np.zeros(tree.n_joints))
         if not isinstance(joint_motion, JointMotion):
             raise ConfigError(f"{name}.joints", joint_motion,
                               "a JointKeyframes, JointConstantVelocity or JointSetpoints (or None)")
-        self.joint_motion = joint_motion
         names = joint_motion.joint_names
         if names is None:
             if joint_motion.n_columns != tree.n_joints:
@@ -916,19 +931,45 @@ class ArticulatedBody:
                     raise UnknownNameError(f"{name}.joints.joint_names", n, list(tree.joint_names))
                 cols.append(tree.joint_index(n))
             cols = np.array(cols, dtype=np.intp)
-        self._cols = cols
-        # Joints the motion does not drive stay at their home value.
-        self._q_fixed = tree.home.copy()
         joint_motion.check(tree, cols, f"{name}.joints")
+        with self._lock:
+            self._joint_motion = joint_motion
+            self._cols = cols
+            # Joints the motion does not drive stay at their home value.
+            self._q_fixed = tree.home.copy()
+            self._forget()
+
+    @property
+    def base(self) -> Motion:
+        """Root link -> world; may be replaced by a Pose or a Motion (the kept states dropped)."""
+        return self._base
+
+    @base.setter
+    def base(self, base: Pose | Motion | None) -> None:
         if base is None:
             base = Static(Pose())
         elif isinstance(base, Pose):
             base = Static(base)
         if not isinstance(base, Motion):
-            raise ConfigError(f"{name}.base", base, "a Pose or a Motion (root link -> world)")
-        self.base = base
-        self._cache: OrderedDict = OrderedDict()
-        self._last: tuple | None = None  # (t, motion version, state) of the newest state asked for
+            raise ConfigError(f"{self.name}.base", base, "a Pose or a Motion (root link -> world)")
+        with self._lock:
+            self._base = base
+            self._forget()
+
+    def _forget(self) -> None:
+        """Drop the kept states (under the lock): they belong to the replaced motion or base."""
+        self._cache = OrderedDict()
+        self._last = None
+
+    def __getstate__(self) -> dict:
+        # A copy (pickle, deepcopy) gets a lock and kept states of its own.
+        state = self.__dict__.copy()
+        del state["_lock"]
+        state["_cache"], state["_last"] = OrderedDict(), None
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
         self._lock = threading.Lock()
 
     @property
@@ -966,13 +1007,15 @@ class ArticulatedBody:
                 self._cache.move_to_end(key)
                 self._last = (t, key[1], hit)
                 return hit
+            cache = self._cache
         q, qd = self.joint_state(t)
         st = self.tree.forward(q, qd, self.base.state(t))
         with self._lock:
-            self._cache[key] = st
-            while len(self._cache) > FK_CACHE_SIZE:
-                self._cache.popitem(last=False)
-            self._last = (t, key[1], st)
+            if self._cache is cache:  # not if the motion or base was replaced meanwhile
+                cache[key] = st
+                while len(cache) > FK_CACHE_SIZE:
+                    cache.popitem(last=False)
+                self._last = (t, key[1], st)
         return st
 
     def object_name(self, link: str) -> str:
