@@ -8,6 +8,9 @@
   (``(o == o[0]).all()``, the check it replaces) for origins given row by row: all
   alike (both pass over every row) and spread (a LiDAR's, an aperture's: two rows decide).
 - ``ForkSafeLock`` against ``threading.Lock``: one ``with`` block.
+- A moving sensor's rays each frame: ``Rays.rotated(origin, local, rotation)`` (world rows and
+  the local rows' checksum in one compiled pass) against the compiled rotation followed by
+  ``Rays(..., local=...)`` (which checks the given world rows), in turn.
 
 Same-run anchor: one single-thread NumPy pass over the same rows (``einsum("ij,ij->", d, d)``).
 
@@ -28,6 +31,7 @@ from twinsense import Pose
 from twinsense.render.bundle import BundlePicker
 from twinsense.render.forksafe import ForkSafeLock
 from twinsense.render.instanced import one_origin
+from twinsense.render.kernels import rotate_rows
 from twinsense.render.rays import Rays, row_checksum
 
 NO_MOVERS = (np.zeros((0, 3, 3)), np.zeros((0, 3)))
@@ -74,6 +78,18 @@ def main() -> None:
             print(f"  origins row by row, {label:6s}: (o == o[0]).all() {old[1] * 1e3:7.3f} ms median, "
                   f"one_origin {new[1] * 1e3:7.3f} ms median (best {new[0] * 1e3:.3f})")
         print_anchor("einsum pass over the rows", anchor[1], res["LocalBundle"][1])
+
+        def checked(dl=dl):
+            w = rotate_rows(dl, np.ascontiguousarray(rot.T))
+            w.setflags(write=False)
+            return Rays(o, w, local=(dl, rot))
+
+        made = alternating({"Rays.rotated": lambda: Rays.rotated(o, dl, rot),  # noqa: B023
+                            "rotate + Rays(local=)": checked}, args.repeats)
+        for label, (best, med, cpu) in made.items():
+            print(f"  rays at a new pose, {label:22s} {med * 1e3:7.3f} ms median (best {best * 1e3:.3f}, "
+                  f"CPU {cpu * 1e3:.3f})")
+        print_anchor("einsum pass over the rows", anchor[1], made["Rays.rotated"][1])
     n = 200_000
     for label, lock in (("threading.Lock", threading.Lock()), ("ForkSafeLock", ForkSafeLock())):
         def hold(lock=lock):
