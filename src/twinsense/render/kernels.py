@@ -331,13 +331,19 @@ def rotate_rows(v, m):  # pragma: no cover
     """
     out = np.empty((v.shape[0], 3))
     for i in range(v.shape[0]):
-        x, y, z = v[i, 0], v[i, 1], v[i, 2]
-        for k in range(3):
-            c = x * m[0, k]
-            c += y * m[1, k]
-            c += z * m[2, k]
-            out[i, k] = c
+        _rotate_row(v, m, out, i)
     return out
+
+
+@jit
+def _rotate_row(v, m, out, i):  # pragma: no cover
+    """out[i] = v[i] @ m, each column x m[0, k] + y m[1, k] + z m[2, k] in that order."""
+    x, y, z = v[i, 0], v[i, 1], v[i, 2]
+    for k in range(3):
+        c = x * m[0, k]
+        c += y * m[1, k]
+        c += z * m[2, k]
+        out[i, k] = c
 
 
 @jit
@@ -349,12 +355,8 @@ def rotate_rows_summed(v, m, w):  # pragma: no cover
     out = np.empty((v.shape[0], 3))
     s0 = s1 = s2 = ff = 0.0
     for i in range(v.shape[0]):
+        _rotate_row(v, m, out, i)
         x, y, z = v[i, 0], v[i, 1], v[i, 2]
-        for k in range(3):
-            c = x * m[0, k]
-            c += y * m[1, k]
-            c += z * m[2, k]
-            out[i, k] = c
         s0 += w[i] * x
         s1 += w[i] * y
         s2 += w[i] * z
