@@ -15,14 +15,13 @@ import dataclasses
 
 import numpy as np
 import pytest
-import scipy.sparse.linalg as spla
+from direct_solve import direct_maxwell
 from two_pad import two_pad_config
 
-from twinsense.capacitive.fem import reduce_floating
 from twinsense.capacitive.mesh import MeshSettings
 from twinsense.capacitive.readout import ReadoutConfig
 from twinsense.capacitive.sensor import CapacitiveSensor, make_capacitive
-from twinsense.capacitive.solver import SolverConfig, split_system
+from twinsense.capacitive.solver import SolverConfig
 from twinsense.demos.capacitive import PATHS as TOOL_PATHS
 from twinsense.demos.capacitive import TOOL_CLEARANCE, TOOL_HEIGHT, printer_scene
 from twinsense.scene import Box, ConstantVelocity, Material, Pose, Scene, SceneObject
@@ -46,15 +45,6 @@ def _scene() -> Scene:
     return Scene([hand])
 
 
-def _direct(system) -> np.ndarray:
-    """The frame's exact discrete Maxwell matrix: LU of the free block, then X^T K X."""
-    A, K, B, fixed, X = split_system(system)
-    free = ~fixed
-    X[free] = spla.splu(A[free][:, free].tocsc()).solve(B[free])
-    full = X.T @ (K @ X)
-    return reduce_floating(0.5 * (full + full.T), len(system.terminals))
-
-
 def _sensor(solver: SolverConfig) -> CapacitiveSensor:
     mesh = dataclasses.replace(two_pad_config().mesh, object_cells=0.0)
     return CapacitiveSensor(two_pad_config(mesh, readout=RO, solver=solver), name="skin")
@@ -73,7 +63,7 @@ def test_every_frame_within_capacitance_atol_of_a_direct_solve(path):
         # 5e-4 aF) is 2e-5 of atol: no slack for it is needed. Measured worst frame / atol: frame solve
         # 0.31, kept hierarchy 0.33, condensed 0.05, NumPy cycle 0.04, Jacobi 0.04; before the
         # untrusted paths fell back to energy_tol: 0.91, 0.72, 1.65 (over the contract) and 0.61.
-        assert np.max(np.abs(frame.maxwell - _direct(s.system))) <= atol
+        assert np.max(np.abs(frame.maxwell - direct_maxwell(s.system))) <= atol
         if s._solver.pcg is not None:
             trusted.append(s._solver.pcg.trusted)
     if path == "frame solve":
@@ -97,7 +87,7 @@ def test_cold_frames_from_the_first_step_stay_within_capacitance_atol():
     for t in TIMES:
         s.prepare(scene, TIMES)  # resets the start, as at a run's start
         frame = s.capture(scene, t)
-        assert np.max(np.abs(frame.maxwell - _direct(s.system))) <= atol
+        assert np.max(np.abs(frame.maxwell - direct_maxwell(s.system))) <= atol
 
 
 def test_untrusted_paths_fall_back_to_energy_tol_and_no_early_stop():
@@ -133,7 +123,7 @@ def test_a_floating_conductor_keeps_the_reduced_matrix_within_capacitance_atol(p
     for t in TIMES:
         frame = s.capture(scene, t)
         assert len(s.system.floating) == 1
-        assert np.max(np.abs(frame.maxwell - _direct(s.system))) <= atol
+        assert np.max(np.abs(frame.maxwell - direct_maxwell(s.system))) <= atol
     # The Schur complement is exercised: the reduced mutual is 64 % of a pad's self-capacitance.
     m = frame.maxwell
     assert -m[0, 1] / m[0, 0] > 0.6
@@ -159,7 +149,7 @@ def test_printer_bed_frames_on_the_tools_path_stay_within_capacitance_atol():
     for t in times:
         frame = s.capture(scene, t)
         assert s._solver.pcg.trusted  # the loosened rule and the early stop ran
-        worst = max(worst, float(np.max(np.abs(frame.maxwell - _direct(s.system)))) / atol)
+        worst = max(worst, float(np.max(np.abs(frame.maxwell - direct_maxwell(s.system)))) / atol)
     assert worst <= 1.0
     assert worst > 0.5  # the frames that come nearest the contract are among these
 
@@ -178,4 +168,4 @@ def test_robot_cell_skin_run_started_in_the_reach_stays_within_capacitance_atol(
     skin.prepare(scene, [3.35])
     atol = skin.frame_solver_config.capacitance_atol
     frame = skin.capture(scene, 3.35, None)
-    assert np.max(np.abs(frame.maxwell - _direct(skin.system))) <= atol
+    assert np.max(np.abs(frame.maxwell - direct_maxwell(skin.system))) <= atol

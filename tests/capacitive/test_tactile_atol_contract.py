@@ -18,11 +18,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import scipy.sparse.linalg as spla
+from direct_solve import direct_maxwell
 
-from twinsense.capacitive.fem import reduce_floating
 from twinsense.capacitive.readout import ReadoutConfig
-from twinsense.capacitive.solver import SolverConfig, energy_tolerance, split_system
+from twinsense.capacitive.solver import SolverConfig, energy_tolerance
 from twinsense.capacitive.tactile import StackLayer, StackMeshSettings, TactileConfig, TactileLayout, TactileSensor
 from twinsense.capacitive.tactile.readout import AD7147_READOUT
 from twinsense.scene import Pose, Scene, Sphere
@@ -62,15 +61,6 @@ def _scene(k: int, top: float) -> Scene:
     return sc
 
 
-def _direct(system) -> np.ndarray:
-    """The exact discrete Maxwell matrix of ``system`` as assembled now: LU of the free block, X^T K X."""
-    A, K, B, fixed, X = split_system(system)
-    free = ~fixed
-    X[free] = spla.splu(A[free][:, free].tocsc()).solve(B[free])
-    full = X.T @ (K @ X)
-    return reduce_floating(0.5 * (full + full.T), len(system.terminals))
-
-
 @pytest.mark.parametrize("compiled", [True, False], ids=["frame solver", "maxwell solver"])
 def test_every_tactile_frame_within_capacitance_atol_of_a_direct_solve(compiled):
     skin = _skin(compiled)
@@ -78,7 +68,7 @@ def test_every_tactile_frame_within_capacitance_atol_of_a_direct_solve(compiled)
     es = skin.electrostatics
     # The empty skin's solve (cold: no warm start yet) is the reference of every frame's deltas.
     base = skin.baseline()
-    worst = [float(np.max(np.abs(base.matrix - _direct(es.system)))) / ATOL]
+    worst = [float(np.max(np.abs(base.matrix - direct_maxwell(es.system)))) / ATOL]
     # The calibrations next (they leave the electrostatics in their own state): each frame then
     # compares against the system it assembled itself.
     _ = skin.calibration, skin.force_gain
@@ -86,7 +76,7 @@ def test_every_tactile_frame_within_capacitance_atol_of_a_direct_solve(compiled)
     for k in range(len(GAPS)):
         frame = skin.capture(_scene(k, top), 0.0)
         touching.append(len(frame.contact_names))
-        exact = _direct(es.system)
+        exact = direct_maxwell(es.system)
         # The contract: every entry within 1 x atol. SuperLU's own error (~1e-15 relative of the 9 pF
         # Tx rows, ~1e-26 F) is 2e-10 of atol = 52 aF: no slack for it is needed.
         worst.append(float(np.max(np.abs(frame.maxwell - exact))) / ATOL)
