@@ -355,10 +355,11 @@ def rate_keys(rate, keys):  # pragma: no cover
 
 
 @jit
-def _radix_top32(packed):  # pragma: no cover
+def _radix_top32(packed, spare):  # pragma: no cover
     """packed (n,) uint64 (a key's top 32 bits above a 32-bit index) sorted stably by the
     top 32 bits: four LSD passes of 8 bits, a pass whose digit every entry shares
-    skipped. Returns the sorted array (``packed`` or a new one)."""
+    skipped; ``spare`` (n,) uint64 the other buffer of the passes. Returns True when the
+    sorted entries end in ``spare`` (an odd number of passes), False: in ``packed``."""
     n = packed.shape[0]
     hist = np.zeros((4, _BINS), np.int64)
     mask = np.uint64(_BINS - 1)
@@ -366,8 +367,9 @@ def _radix_top32(packed):  # pragma: no cover
         k = packed[i]
         for d in range(4):
             hist[d, np.int64((k >> np.uint64(32 + _DIGIT * d)) & mask)] += 1
-    out = np.empty(n, np.uint64)
+    out = spare
     offset = np.empty(_BINS, np.int64)
+    passes = 0
     for d in range(4):
         h = hist[d]
         if h.max() == n:
@@ -384,31 +386,45 @@ def _radix_top32(packed):  # pragma: no cover
             offset[b] = at + 1
             out[at] = k
         packed, out = out, packed
-    return packed
+        passes += 1
+    return passes % 2 == 1
 
 
 @jit
-def _full_radix(keys):  # pragma: no cover
-    """Stable argsort of keys (n,) uint64: by the low 32 bits, then stably by the top 32."""
+def _full_radix(keys, packed, spare, idx):  # pragma: no cover
+    """Stable argsort of keys (n,) uint64 into idx (n,) int64: by the low 32 bits, then
+    stably by the top 32 (``packed`` and ``spare`` (n,) uint64: work buffers)."""
     n = keys.shape[0]
-    packed = np.empty(n, np.uint64)
     for i in range(n):
         packed[i] = (keys[i] << np.uint64(32)) | np.uint64(i)
-    packed = _radix_top32(packed)
+    if _radix_top32(packed, spare):
+        packed, spare = spare, packed
     for m in range(n):
         i = np.int64(packed[m] & _LOW)
         packed[m] = (keys[i] & ~_LOW) | np.uint64(i)
-    packed = _radix_top32(packed)
-    idx = np.empty(n, np.int64)
+    if _radix_top32(packed, spare):
+        packed, spare = spare, packed
     for i in range(n):
         idx[i] = np.int64(packed[i] & _LOW)
-    return idx
 
 
 @jit
 def stable_argsort(keys):  # pragma: no cover
     """(n,) int64 indices that sort keys (n,) uint64 ascending, equal keys in index order
-    (``np.argsort(kind="stable")``'s result; n < 2^32).
+    (``np.argsort(kind="stable")``'s result; n < 2^32): :func:`stable_argsort_into` with
+    new work arrays."""
+    n = keys.shape[0]
+    idx = np.empty(n, np.int64)
+    stable_argsort_into(keys, np.empty(n, np.uint64), np.empty(n, np.uint64), idx)
+    return idx
+
+
+@jit
+def stable_argsort_into(keys, packed, spare, idx):  # pragma: no cover
+    """idx (n,) int64: the indices that sort keys (n,) uint64 ascending, equal keys in index
+    order (``np.argsort(kind="stable")``'s result; n < 2^32). ``packed`` and ``spare`` (n,)
+    uint64: work buffers (their contents are not read), so a caller can keep all three
+    between frames (arrays of a frame's size allocated anew are page-faulted anew).
 
     Radix passes over the keys' top 32 bits (each packed with its index: 8 bytes an
     entry), then each run of entries sharing them sorted by the full keys by insertion
@@ -416,11 +432,10 @@ def stable_argsort(keys):  # pragma: no cover
     key in the insertions, a radix sort of the full keys instead.
     """
     n = keys.shape[0]
-    packed = np.empty(n, np.uint64)
     for i in range(n):
         packed[i] = (keys[i] & ~_LOW) | np.uint64(i)
-    packed = _radix_top32(packed)
-    idx = np.empty(n, np.int64)
+    if _radix_top32(packed, spare):
+        packed, spare = spare, packed
     for i in range(n):
         idx[i] = np.int64(packed[i] & _LOW)
     budget = 16 * n
@@ -441,9 +456,9 @@ def stable_argsort(keys):  # pragma: no cover
                 moves += 1
             idx[at] = j
             if moves > budget:
-                return _full_radix(keys)
+                _full_radix(keys, packed, spare, idx)
+                return
         a = b
-    return idx
 
 
 @jit
