@@ -878,7 +878,8 @@ def _plan_block(p, v, pr, vr, tx, rx, chirps, t_mid, a_step, geo: Geometry,
     r0_tx, r0_rx, y_tx, y_rx = leg_tx.r0, leg_rx.r0, leg_tx.y, leg_rx.y
     # Each leg on its own: a leg of length 0 has y inf (moving) or NaN (still), and Python's
     # max(a, nan) is a, so a NaN of the receive leg would pass a max of the two.
-    if not (float(y_tx.max()) <= _Y_MAX and float(y_rx.max()) <= _Y_MAX):
+    y_big = np.array([y_tx.max(), y_rx.max()])  # each leg's largest y (NaN if any is)
+    if not (y_big[0] <= _Y_MAX and y_big[1] <= _Y_MAX):
         return None
     # |d Phi / d tau| <= 2 pi (|fc| + |S| (N/2 / fs + tau)): the tail of the delay moves
     # the phase by at most that times the tail.
@@ -888,7 +889,6 @@ def _plan_block(p, v, pr, vr, tx, rx, chirps, t_mid, a_step, geo: Geometry,
     # The tail grows with y (< 1) and r0, so the largest of each bounds every
     # scatterer's: a scalar search for the order.
     r_big = np.array([r0_tx.max(), r0_rx.max()])
-    y_big = np.array([y_tx.max(), y_rx.max()])
     order = 1
     while True:
         tail = float(np.sum(_leg_tail(r_big, y_big, order)))
