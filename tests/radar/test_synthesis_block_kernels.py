@@ -14,8 +14,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import twinsense.radar.nufft as nufft
 from twinsense.constants import SPEED_OF_LIGHT
 from twinsense.radar import AntennaArray, ChirpConfig, IFChain, RadarConfig, ula_positions
+from twinsense.radar.kernels import block_coefficients
 from twinsense.radar.nufft import (
     Geometry,
     _block_strengths,
@@ -111,6 +113,34 @@ def test_block_coefficients_are_the_numpy_bits(order):
     for k in range(2, order + 1):
         acc += np.abs(tau[k]) * span[k]
     assert dmax == float(acc.max())
+
+
+@pytest.mark.parametrize("order", [1, 3, 5])
+def test_shared_transmit_series_are_the_numpy_bits(order):
+    # The receivers of a block share their transmit leg's series (kernels.leg_series, kept
+    # per order by the leg): _leg_series' bits, and block_coefficients given them or
+    # forming them itself (any other first dimension, here (0, 0)) the same bits. 300
+    # movers: two full tiles of 128 and a short one.
+    cfg = _config()
+    geo, _, t_mid, a_step, t_span = _block_setup(cfg)
+    rng = np.random.default_rng(10 + order)
+    p, v, _ = _movers(rng, 300, 3.0)
+    leg_tx = _Leg(p, v, t_mid, geo.tx[0], t_span)
+    leg_rx = _Leg(p, v, t_mid, geo.rx[0], t_span)
+    series = leg_tx.compiled_series(order)
+    np.testing.assert_array_equal(series, _leg_series(leg_tx.d, v, order)[0])
+    assert leg_tx.compiled_series(order) is series  # kept for the other receiver
+    outs = []
+    for tx_series in (series, np.zeros((0, 0))):
+        keys, (row, src, first, factor) = nufft._coefficient_sources(order, a_step, 1.0 / geo.fs)
+        coeffs, acc = np.empty((len(keys), len(p))), np.empty(len(p))
+        hi, lo = np.empty(len(keys)), np.empty(len(keys))
+        block_coefficients(leg_tx.d, v, leg_rx.d, v, order, 1.0 / SPEED_OF_LIGHT, 2 * np.pi * geo.fc,
+                           np.pi * geo.slope, 2 * np.pi * geo.slope, t_span ** np.arange(order + 1),
+                           row, src, first, factor, coeffs, acc, hi, lo, tx_series)
+        outs.append((coeffs, acc, hi, lo))
+    for a, b in zip(*outs):
+        assert a.tobytes() == b.tobytes()
 
 
 @pytest.mark.parametrize("speed", [0.5, 1.5])

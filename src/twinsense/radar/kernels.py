@@ -154,8 +154,53 @@ _CTILE = 128  # scatterers per tile of block_coefficients: its series rows stay 
 
 
 @jit
+def _leg_tile(d, vel, start, n, k1, ser, half, q2, work):  # pragma: no cover
+    """One leg's Taylor series of |d + vel t| (nufft._leg_series) for the ``n`` scatterers from
+    ``start``: ser (k1, >= n) rows 0..k1-1, from 2 r0 r_k = Q_k - sum_{i=1}^{k-1} r_i r_{k-i}
+    (Q_1 = 2 d.vel, Q_2 = |vel|^2), scatterers innermost; ``half``, ``q2``, ``work`` (>= n)
+    work rows. The one form of :func:`block_coefficients` and :func:`leg_series`."""
+    for i in range(n):
+        s = start + i
+        w0, w1, w2 = vel[s, 0], vel[s, 1], vel[s, 2]
+        ser[0, i], half[i], ser[1, i] = _first_terms(d[s, 0], d[s, 1], d[s, 2], w0, w1, w2)
+        q2[i] = w0 * w0 + w1 * w1 + w2 * w2
+    for k in range(2, k1):
+        if k == 2:
+            for i in range(n):
+                work[i] = q2[i]
+        else:
+            for i in range(n):
+                work[i] = 0.0
+        for j in range(1, k):
+            for i in range(n):
+                work[i] -= ser[j, i] * ser[k - j, i]
+        for i in range(n):
+            ser[k, i] = work[i] * half[i]
+
+
+@jit
+def leg_series(d, vel, order, out):  # pragma: no cover
+    """out (order + 1, m): one leg's Taylor series of |d + vel t| for the rows of d, vel (m, 3)
+    (:func:`_leg_tile`, tile by tile as :func:`block_coefficients` forms them: the same bits),
+    so that a block's receivers share their transmit leg's (``tx_series`` there)."""
+    m = d.shape[0]
+    k1 = order + 1
+    ser = np.empty((k1, _CTILE))
+    half = np.empty(_CTILE)
+    q2 = np.empty(_CTILE)
+    work = np.empty(_CTILE)
+    for start in range(0, m, _CTILE):
+        n = min(_CTILE, m - start)
+        _leg_tile(d, vel, start, n, k1, ser, half, q2, work)
+        for k in range(k1):
+            for i in range(n):
+                out[k, start + i] = ser[k, i]
+
+
+@jit
 def block_coefficients(d_tx, v_tx, d_rx, v_rx, order, inv_c, two_pi_fc, pi_s, two_pi_s, span,
-                       c_row, c_src, c_first, factor, coeffs, acc, hi, lo):  # pragma: no cover
+                       c_row, c_src, c_first, factor, coeffs, acc, hi, lo,
+                       tx_series):  # pragma: no cover
     """Per scatterer of a 2-D block, for any delay order K >= 1: both legs' Taylor series of
     |d + vel t| (nufft._leg_series), the delay tau = (tx + rx) / c, the bound
     acc = sum_{k>=1} |tau_k| span[k] (m,), the phase coefficients of nufft._monomial_coeffs,
@@ -166,7 +211,9 @@ def block_coefficients(d_tx, v_tx, d_rx, v_rx, order, inv_c, two_pi_fc, pi_s, tw
     The contributions (nufft._coefficient_sources) in their order: ``c_row`` (C,) the
     monomial's row, ``c_src`` (C,) 2 k for g_k and 2 k + 1 for h_k, ``c_first`` (C,) 1 where
     the contribution is its monomial's first (set, else added), ``factor`` (C,).
-    Tiles of scatterers with the scatterers innermost in every step (independent
+    ``tx_series`` (K + 1, m): the transmit leg's series from :func:`leg_series` (the
+    receivers of a block share it), or any array with another first dimension (e.g.
+    (0, 0)): formed here. Tiles of scatterers with the scatterers innermost in every step (independent
     operations the compiler pipelines and vectorises; a sum over the orders per scatterer
     innermost waits on each addition), so one generic loop over the orders costs about
     what their arithmetic costs.
@@ -186,27 +233,14 @@ def block_coefficients(d_tx, v_tx, d_rx, v_rx, order, inv_c, two_pi_fc, pi_s, tw
         lo[r] = np.inf
     for start in range(0, m, _CTILE):
         n = min(_CTILE, m - start)
-        for leg in range(2):
-            d = d_tx if leg == 0 else d_rx
-            vel = v_tx if leg == 0 else v_rx
-            ser = r_tx if leg == 0 else r_rx
-            for i in range(n):
-                s = start + i
-                w0, w1, w2 = vel[s, 0], vel[s, 1], vel[s, 2]
-                ser[0, i], half[i], ser[1, i] = _first_terms(d[s, 0], d[s, 1], d[s, 2], w0, w1, w2)
-                q2[i] = w0 * w0 + w1 * w1 + w2 * w2
-            for k in range(2, k1):
-                if k == 2:
-                    for i in range(n):
-                        work[i] = q2[i]
-                else:
-                    for i in range(n):
-                        work[i] = 0.0
-                for j in range(1, k):
-                    for i in range(n):
-                        work[i] -= ser[j, i] * ser[k - j, i]
+        if tx_series.shape[0] == k1:
+            # The transmit leg's series, formed once for the receivers (leg_series).
+            for k in range(k1):
                 for i in range(n):
-                    ser[k, i] = work[i] * half[i]
+                    r_tx[k, i] = tx_series[k, start + i]
+        else:
+            _leg_tile(d_tx, v_tx, start, n, k1, r_tx, half, q2, work)
+        _leg_tile(d_rx, v_rx, start, n, k1, r_rx, half, q2, work)
         for k in range(k1):
             for i in range(n):
                 tau[k, i] = (r_tx[k, i] + r_rx[k, i]) * inv_c

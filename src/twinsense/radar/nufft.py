@@ -41,6 +41,7 @@ from twinsense.radar.kernels import (
     block_series,
     dense_majorants,
     leg_offsets,
+    leg_series,
     moving_phases,
     rest_rows,
     series_majorants,
@@ -792,11 +793,22 @@ class _Leg:
             with np.errstate(divide="ignore", invalid="ignore"):  # a point on an element: not 2-D
                 self.y = t_span * np.sqrt(_dot3(vel, vel)) / self.r0
         self._series: dict[int, np.ndarray] = {}
+        self._compiled_series: dict[int, np.ndarray] = {}
 
     def series(self, order: int) -> np.ndarray:
         if order not in self._series:
             self._series[order] = _leg_series(self.d, self.vel, order)[0]
         return self._series[order]
+
+    def compiled_series(self, order: int) -> np.ndarray:
+        """(order + 1, m) the series from :func:`twinsense.radar.kernels.leg_series` (the bits
+        of the compiled block pass), kept per order: a block's receivers share their
+        transmit leg (its series was formed once per receiver)."""
+        if order not in self._compiled_series:
+            out = np.empty((order + 1, len(self.r0)))
+            leg_series(self.d, self.vel, order, out)
+            self._compiled_series[order] = out
+        return self._compiled_series[order]
 
 
 @functools.lru_cache(maxsize=64)
@@ -845,7 +857,7 @@ def _coeffs_array(leg_tx: _Leg, leg_rx: _Leg, order: int, geo: Geometry, a_step:
     hi, lo = np.empty(len(keys)), np.empty(len(keys))
     block_coefficients(leg_tx.d, leg_tx.vel, leg_rx.d, leg_rx.vel, order, 1.0 / SPEED_OF_LIGHT,
                        _TWO_PI * geo.fc, math.pi * geo.slope, _TWO_PI * geo.slope, span, row, src,
-                       first, factor, coeffs, acc, hi, lo)
+                       first, factor, coeffs, acc, hi, lo, leg_tx.compiled_series(order))
     extremes = {key: (float(a), float(b)) for key, a, b in zip(keys, hi, lo)}
     return dict(zip(keys, coeffs)), float(np.max(acc)), extremes, (coeffs, dict(zip(keys, range(len(keys)))))
 
