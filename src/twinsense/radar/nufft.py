@@ -843,6 +843,14 @@ def _coeffs_compiled(leg_tx: _Leg, leg_rx: _Leg, order: int, geo: Geometry, a_st
     return _coeffs_array(leg_tx, leg_rx, order, geo, a_step, span)[:3]
 
 
+# The transmit leg's series formed once for a block's receivers from this many movers on
+# (the wrist radar's chunks of ~16,000: the phase coefficients 47 -> 40 ms per frame); below,
+# each block forms it (a few movers of the wall radar's many small plans: the extra call and
+# array cost more than the series, ~1.3 ms per frame measured). The same bits either way.
+_SHARED_SERIES_MIN = 2048
+_NO_SERIES = np.zeros((0, 0))
+
+
 def _coeffs_array(leg_tx: _Leg, leg_rx: _Leg, order: int, geo: Geometry, a_step: float,
                   span: np.ndarray) -> tuple[dict, float, dict, tuple]:
     """:func:`_monomial_coeffs` of the two legs' delay series, the bound dmax and each
@@ -857,7 +865,8 @@ def _coeffs_array(leg_tx: _Leg, leg_rx: _Leg, order: int, geo: Geometry, a_step:
     hi, lo = np.empty(len(keys)), np.empty(len(keys))
     block_coefficients(leg_tx.d, leg_tx.vel, leg_rx.d, leg_rx.vel, order, 1.0 / SPEED_OF_LIGHT,
                        _TWO_PI * geo.fc, math.pi * geo.slope, _TWO_PI * geo.slope, span, row, src,
-                       first, factor, coeffs, acc, hi, lo, leg_tx.compiled_series(order))
+                       first, factor, coeffs, acc, hi, lo,
+                       leg_tx.compiled_series(order) if m >= _SHARED_SERIES_MIN else _NO_SERIES)
     extremes = {key: (float(a), float(b)) for key, a, b in zip(keys, hi, lo)}
     return dict(zip(keys, coeffs)), float(np.max(acc)), extremes, (coeffs, dict(zip(keys, range(len(keys)))))
 
