@@ -18,18 +18,21 @@ sin stay NumPy's (vectorised float32 loops; ``tests/radar/test_static_phases.py`
 
 The 2-D mover path (``nufft.moving_chunk_2d``) has its per-block passes
 here too: :func:`leg_offsets`, :func:`block_coefficients` (the delay
-series, the phase coefficients per monomial and their extremes, any delay order),
+series, the phase coefficients per monomial and their extremes, any delay order;
+:func:`leg_series` forms a transmit leg's series once for a block's receivers),
 :func:`slow_rest` and :func:`rest_rows` (the per-scatterer rests),
 :func:`series_majorants` (the majorant series that selects the kept monomials),
 :func:`block_series` (the exp series of the rests) and :func:`block_rows_1d`
 (a 1-D block's monomial sums and chunk-wide phase), each with the bits of
 its NumPy form; and :func:`slow_rest_floor`, a lower bound on a block's
 slow-time rest before its plan (``nufft._split_floor``) (``tests/radar/test_synthesis_block_kernels.py``,
-``tests/radar/test_block_rows_kernel.py``). Before the chunks, the movers'
-range rates (:func:`range_rates`), their stable sort (:func:`stable_argsort`
-on :func:`rate_keys`: NumPy's stable order; with two workers each sorts half the
-movers and :func:`merge_orders` joins them) and each chunk's gather
-(:func:`gather_movers`; ``tests/radar/test_mover_sort.py``).
+``tests/radar/test_block_rows_kernel.py``). Before the chunks, which
+scatterers move (:func:`faster_than`), the movers' range rates
+(:func:`range_rates`), their stable sort (:func:`stable_argsort` on
+:func:`rate_keys`: NumPy's stable order; :func:`stable_argsort_into` in the
+caller's kept buffers; with two workers each sorts half the movers and
+:func:`merge_orders` joins them) and each chunk's gather (:func:`gather_movers`;
+``tests/radar/test_mover_sort.py``).
 """
 
 from __future__ import annotations
