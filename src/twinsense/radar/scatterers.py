@@ -270,7 +270,13 @@ class ScatterRenderer:
         """World rays of the render from ``pose`` (kept while the pose does not change)."""
         key = np.concatenate([pose.position, pose.rotation.ravel()]).tobytes()
         kept = self._rays
-        if kept is None or key != kept[0]:
+        if kept is not None and key == kept[0]:
+            return kept[1]
+        if self._compiled and self.reuse_static_hits:
+            # World rows and the local rows' checksum in one compiled pass, read-only (the
+            # caster may keep a fixed radar's static hits): the bits of world_directions.
+            kept = self._rays = (key, Rays.rotated(pose.position, self._dirs, pose.rotation))
+        else:
             world = np.empty_like(self._dirs)
             rot = pose.rotation
             if self._compiled:
