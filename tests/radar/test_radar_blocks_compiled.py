@@ -66,6 +66,20 @@ def _weights(rng, n):
     return rng.lognormal(0, 1, n) * np.exp(1j * rng.uniform(0, 2 * np.pi, n))
 
 
+def coefficients_as_numpy(leg_tx, leg_rx, v, vr, order, geo, a_step, span):
+    """The compiled block coefficients of two legs (velocities v, vr (m, 3) [m/s]), checked to
+    be the NumPy forms' bits (the delay series, then its monomials); returns (coeffs, dmax,
+    extremes) as compiled and (tau, ref), the NumPy series and monomials."""
+    coeffs, dmax, extremes = _coeffs_compiled(leg_tx, leg_rx, order, geo, a_step, span)
+    tau = (_leg_series(leg_tx.d, v, order)[0] + _leg_series(leg_rx.d, vr, order)[0]) * (
+        1.0 / SPEED_OF_LIGHT)
+    ref = _monomial_coeffs(tau, geo, a_step)
+    assert list(coeffs) == list(ref)
+    for key in ref:
+        np.testing.assert_array_equal(coeffs[key], ref[key])
+    return coeffs, dmax, extremes, tau, ref
+
+
 @pytest.mark.parametrize("order", [4, 5, 6, 9])
 def test_block_coefficients_at_high_orders_are_the_numpy_bits(order):
     # 333 movers: five tiles of 64 and a partial one (the tile's tail loop).
@@ -78,13 +92,8 @@ def test_block_coefficients_at_high_orders_are_the_numpy_bits(order):
     v = rng.uniform(-4.0, 4.0, (333, 3))
     leg_tx, leg_rx = _Leg(p, v, t_mid, geo.tx[0], t_span), _Leg(p, v, t_mid, geo.rx[1], t_span)
     span = t_span ** np.arange(order + 1)
-    coeffs, dmax, extremes = _coeffs_compiled(leg_tx, leg_rx, order, geo, a_step, span)
-    tau = (_leg_series(leg_tx.d, v, order)[0] + _leg_series(leg_rx.d, v, order)[0]) * (
-        1.0 / SPEED_OF_LIGHT)
-    ref = _monomial_coeffs(tau, geo, a_step)
-    assert list(coeffs) == list(ref)
+    _, dmax, extremes, tau, ref = coefficients_as_numpy(leg_tx, leg_rx, v, v, order, geo, a_step, span)
     for key in ref:
-        np.testing.assert_array_equal(coeffs[key], ref[key])
         assert extremes[key] == (ref[key].max(), ref[key].min())
     acc = np.abs(tau[1]) * span[1]
     for k in range(2, order + 1):
