@@ -85,13 +85,28 @@ class BundlePicker:
             prim.append(np.arange(len(f), dtype=np.int32))
             base += len(v)
             first = 1
+        # Each mover's faces (a span of the faces below) and a ball holding its vertices (its
+        # frame): a pick skips the faces of a mover whose ball lies outside the rays' frustum.
+        n_static = sum(len(f) for f in faces)
+        spans, centres, radii = [], [], []
         for j, (v, f) in enumerate(movers):
-            verts.append(np.asarray(v, float))
+            v = np.asarray(v, float)
+            verts.append(v)
             faces.append(np.asarray(f, np.int64) + base)
             owner.append(np.full(len(v), j, np.int64))
             inst.append(np.full(len(f), first + j, np.int32))
             prim.append(np.arange(len(f), dtype=np.int32))
             base += len(v)
+            spans.append((n_static, n_static + len(f)))
+            n_static += len(f)
+            used = v[np.unique(np.asarray(f, np.int64))] if len(f) else np.zeros((0, 3))
+            c = 0.5 * (used.min(axis=0) + used.max(axis=0)) if len(used) else np.zeros(3)
+            centres.append(c)
+            radii.append(float(np.sqrt(((used - c) ** 2).sum(axis=1)).max()) if len(used) else 0.0)
+        self._spans = np.array(spans, np.int64).reshape(-1, 2)
+        self._centres = np.array(centres, float).reshape(-1, 3)
+        self._radii = np.array(radii, float)
+        self._first_mover_face = int(self._spans[0, 0]) if len(spans) else n_static
         self._verts = np.ascontiguousarray(np.concatenate(verts) if verts else np.zeros((0, 3)))
         self._faces = np.ascontiguousarray(np.concatenate(faces) if faces else np.zeros((0, 3), np.int64))
         self._owner = np.concatenate(owner) if owner else np.zeros(0, np.int64)
@@ -107,6 +122,8 @@ class BundlePicker:
         # row_checksum at the binning, _Binning).
         self._binnings: list[tuple] = []
         self.last_tests_per_ray = 0.0
+        #: Movers whose faces the last pick skipped (their ball outside the rays' frustum).
+        self.last_movers_skipped = 0
         #: Bundles picked so far (the ones handed back to Embree not counted).
         self.picks = 0
         # Free in a forked capture process even if a cast of another thread took a
@@ -188,9 +205,12 @@ class BundlePicker:
         nt = self.n_triangles
         box, zmin = ws.get("box", (nt, 4), np.int64), ws.get("zmin", nt)
         data = ws.get("data", (nt, bk.TRI_WORDS))
-        _ranges(workers, nt, lambda a, c: bk.triangles(
-            a, c, self._faces, self._verts, self._owner, rots, poss, o, basis, b.grid, b.extent, gu, gv,
-            b.reach, box, zmin, data))
+        spans = self._visible_spans(o, basis, b.extent, rots, poss)
+        if self.last_movers_skipped:
+            box[:, 0] = -1  # the skipped movers' faces: dropped
+        _each(workers, _span_cuts(spans, workers), lambda s: bk.triangles(
+            s[0], s[1], self._faces, self._verts, self._owner, rots, poss, o, basis, b.grid, b.extent,
+            gu, gv, b.reach, box, zmin, data))
         kept = np.flatnonzero(box[:, 0] >= 0)
         # Nearest first (a stable sort: equal depths keep the triangles' order).
         kept = kept[np.argsort(zmin[kept], kind="stable")]
@@ -211,6 +231,38 @@ class BundlePicker:
             self._tri_inst, self._tri_prim, inst, prim))
         self.picks += 1
         return inst, prim
+
+    def _visible_spans(self, o, basis, extent, rots, poss) -> list[tuple[int, int]]:
+        """Ranges of faces to move and bin: the static faces and every mover's unless its
+        ball lies outside the rays' frustum (the planes through o bounding the rays:
+        depth >= 0 and u, v within ``extent``). A face of such a mover lies outside that
+        plane too, so no ray can hit it (the pick is the same; triangles() would also drop
+        all or most of them). Its margin is 1e-9 of the distances involved, far above
+        the rounding of the vertices' moves (~1e-16 relative). Returns at least one range.
+        """
+        m = len(self._radii)
+        spans = [(0, self._first_mover_face)] if self._first_mover_face else []
+        self.last_movers_skipped = 0
+        if m == 0 or len(rots) != m:
+            return spans + [(int(a), int(c)) for a, c in self._spans] or [(0, 0)]
+        e0, e1, e2, e3 = extent
+        planes = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, -e0], [-1.0, 0.0, e1], [0.0, 1.0, -e2], [0.0, -1.0, e3]])
+        normals = planes @ basis  # (5, 3): a e1 + b e2 + c e3, the functional triangles() evaluates
+        size = np.sqrt((normals * normals).sum(axis=1))
+        centres = np.einsum("mij,mj->mi", rots, self._centres) + poss - o  # (m, 3), origin-relative
+        reach = np.sqrt((centres * centres).sum(axis=1)) + self._radii
+        reach += np.sqrt((poss * poss).sum(axis=1)) + float(np.sqrt(o @ o))
+        with np.errstate(invalid="ignore", over="ignore"):
+            far = (centres @ normals.T + (self._radii * (1.0 + 1e-9) + 1e-9 * reach)[:, None] * size) < 0.0
+        outside = far.any(axis=1)  # NaN poses compare False: their faces go on as before
+        self.last_movers_skipped = int(outside.sum())
+        for j in np.flatnonzero(~outside):
+            lo, hi = int(self._spans[j, 0]), int(self._spans[j, 1])
+            if spans and spans[-1][1] == lo:
+                spans[-1] = (spans[-1][0], hi)
+            else:
+                spans.append((lo, hi))
+        return spans or [(0, 0)]
 
     def _local_binning(self, dl, rays_per_cell, workers, checked=None) -> _Binning | None:
         """The binning of a fixed local directions array (None: not for this picker),
@@ -400,6 +452,26 @@ def _cuts(workers: int, n: int) -> list[int]:
 def _ranges(workers: int, n: int, fn) -> list:
     """[fn(a, b) for each range [a, b) of :func:`_cuts` over [0, n)]."""
     return _each(workers, list(itertools.pairwise(_cuts(workers, n))), lambda s: fn(*s))
+
+
+def _span_cuts(spans: list[tuple[int, int]], workers: int) -> list[tuple[int, int]]:
+    """``spans`` (ranges of faces) cut as :func:`_cuts` cuts one range of their total length."""
+    lengths = [hi - lo for lo, hi in spans]
+    total = sum(lengths)
+    out = []
+    cuts = _cuts(workers, total)
+    starts = np.cumsum([0, *lengths])
+    for a, c in itertools.pairwise(cuts):
+        # The cut [a, c) of the concatenated spans, split where a span ends.
+        i = int(np.searchsorted(starts, a, side="right")) - 1
+        while a < c and i < len(spans):
+            lo = spans[i][0] + (a - int(starts[i]))
+            take = min(c, int(starts[i + 1])) - a
+            if take > 0:
+                out.append((lo, lo + take))
+            a += take
+            i += 1
+    return out or [(0, 0)]
 
 
 def _each(workers: int, items, fn) -> list:
