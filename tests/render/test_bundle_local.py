@@ -18,11 +18,13 @@ import pytest
 import trimesh
 from test_forksafe import held_by_another_thread, in_forked_child
 from test_render_bundle import (  # noqa: F401
+    INVALID_ROWS,
     assert_same_hits,
     brute_force,
     camera_rays,
     cell,
     cone_directions,
+    invalid_rows,
     random_rotation,
     small_scene,
     soup,
@@ -325,16 +327,12 @@ def test_invalid_local_rays_stay_misses_as_on_embree():
     # the picks are Embree's (misses there, the same hits elsewhere).
     s = small_scene()
     rays = camera_rays()
-    dl = np.array(rays.directions)
-    dl[5] = np.nan
-    dl[17, 1] = np.inf
-    dl[40] = 0.0
-    dl = frozen(dl)
+    dl = frozen(invalid_rows(rays.directions))
     with np.errstate(invalid="ignore"):
         d = frozen(dl @ np.eye(3).T)
     got = SceneCaster(s, "tof", picker="bundle").cast(Rays(rays.origins, d, local=(dl, np.eye(3))), 0.2)
     want = SceneCaster(s, "tof", picker="embree").cast(Rays(rays.origins, d), 0.2)
-    assert (got.object_id[[5, 17, 40]] == -1).all()
+    assert (got.object_id[INVALID_ROWS] == -1).all()
     assert_same_hits(got, want)
 
 

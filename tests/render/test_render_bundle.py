@@ -402,13 +402,23 @@ def test_rays_not_from_one_origin_or_outside_the_cone_are_cast_by_embree():
     assert_same_hits(bundle.cast(wide, 0.2), embree.cast(wide, 0.2))
 
 
-def test_nan_inf_and_zero_directions_are_misses_as_on_embree():
-    s = small_scene()
-    rays = camera_rays()
-    d = np.array(rays.directions)
+INVALID_ROWS = [5, 17, 40]  # the rows invalid_rows() spoils
+
+
+def invalid_rows(d: np.ndarray) -> np.ndarray:
+    """A copy of directions d (n, 3) with row 5 NaN, row 17 infinite in y and row 40 zero:
+    rays every ray caster must take as misses."""
+    d = np.array(d)
     d[5] = np.nan
     d[17, 1] = np.inf
     d[40] = 0.0
+    return d
+
+
+def test_nan_inf_and_zero_directions_are_misses_as_on_embree():
+    s = small_scene()
+    rays = camera_rays()
+    d = invalid_rows(rays.directions)
     d[41, 2] = 1e39  # not a finite float32: a miss for Embree
     bad = Rays(rays.origins, d)
     got = SceneCaster(s, "tof", picker="bundle").cast(bad, 0.2)

@@ -74,9 +74,11 @@ class Rays:
         What a moving camera or radar makes every frame. The world rows are computed here
         (:func:`twinsense.render.kernels.rotate_rows_summed`), so they need no check against
         the local ones, and the local rows' checksum comes from the same pass: one read of
-        the rows where ``Rays(..., local=...)`` reads both arrays twice more (0.45 against
-        1.3 ms for 153,216 rays). ``local`` (n, 3) float64 must be read-only with everything
-        it views, as for ``Rays.local``. The origins and directions are read-only.
+        the rows where ``Rays(..., local=...)`` reads both arrays twice more (0.52 against
+        0.93 ms for 153,216 rays, 1.26 against 2.81 ms for 342,000:
+        ``benchmarks/bench_render_checks.py``). ``local`` (n, 3) float64 must be read-only
+        with everything it views, as for ``Rays.local``. The origins and directions are
+        read-only.
         """
         allowed = "(n, 3) float64 directions, read-only with everything it views"
         if not isinstance(local, np.ndarray) or local.dtype != np.float64 or local.ndim != 2 \
