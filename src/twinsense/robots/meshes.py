@@ -9,6 +9,7 @@ metres, and a URDF ``scale`` attribute converts any other unit.
 from __future__ import annotations
 
 import functools
+import io
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,9 +33,25 @@ def dae_unit(path: Path) -> float:
     return float(m.group(1)) if m else 1.0
 
 
+_BIND_MATERIAL = re.compile(rb"<bind_material>.*?</bind_material>", re.S)
+
+
+def _load(path: str) -> trimesh.Trimesh:
+    loaded = trimesh.load(path, force="mesh", process=False)
+    if path.lower().endswith(".dae") and len(loaded.faces) == 0:
+        # pycollada drops a node's whole <instance_geometry> when one of its material
+        # bindings names a missing effect or texture (Blender exports do), so the file
+        # reads as empty. The link's material is twinsense's own: read the file again
+        # without the bindings (the geometry and node transforms are untouched).
+        with open(path, "rb") as fh:
+            data = _BIND_MATERIAL.sub(b"", fh.read())
+        loaded = trimesh.load(io.BytesIO(data), file_type="dae", force="mesh", process=False)
+    return loaded
+
+
 @functools.lru_cache(maxsize=128)
 def _read(path: str, mtime: float) -> tuple[np.ndarray, np.ndarray]:
-    loaded = trimesh.load(path, force="mesh", process=False)
+    loaded = _load(path)
     v = np.asarray(loaded.vertices, dtype=float)
     f = np.asarray(loaded.faces, dtype=np.int64)
     if path.lower().endswith(".dae"):

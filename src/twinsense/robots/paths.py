@@ -49,7 +49,8 @@ def resolve_uri(uri: str, base_dir: Path) -> Path:
     if uri.startswith("file://"):
         return Path(uri[len("file://"):])
     if uri.startswith("package://"):
-        rest = uri[len("package://"):]
+        # "package:///pkg/rest" (an empty authority, as some descriptions write it) is "package://pkg/rest".
+        rest = uri[len("package://"):].lstrip("/")
         pkg, _, sub = rest.partition("/")
         if pkg == "example-robot-data":
             return example_robot_data_share() / sub

@@ -84,9 +84,14 @@ def urdf_tree(path, *, materials=None, shapes: str = "visual", name: str | None 
         raise ConfigError(f"{field}.shapes", shapes, "one of: " + ", ".join(SHAPE_SOURCES))
     try:
         # yourdfpy falls back to a recovering parser on broken XML and loads what it can: refuse it first.
-        ET.parse(p)
+        root = ET.parse(p).getroot()
     except ET.ParseError as exc:
         raise ConfigError("urdf.path", str(path), f"a well-formed URDF XML file ({exc})") from None
+    # yourdfpy would fail on these with a bare KeyError or an empty robot.
+    if root.tag != "robot" or not root.get("name") or root.find("link") is None:
+        found = f"<{root.tag}> with {len(root.findall('link'))} <link> elements and name={root.get('name')!r}"
+        raise ConfigError("urdf.path", str(path), f"a URDF file: a named <robot> with at least one <link> "
+                          f"(found {found}; a .urdf.xacro stub must be expanded by xacro first)")
     try:
         robot = yourdfpy.URDF.load(str(p), build_scene_graph=False, load_meshes=False,
                                    build_collision_scene_graph=False, load_collision_meshes=False).robot
@@ -109,7 +114,8 @@ def urdf_tree(path, *, materials=None, shapes: str = "visual", name: str | None 
         if kind in ("revolute", "prismatic") and j.limit is not None:
             lo = -math.inf if j.limit.lower is None else float(j.limit.lower)
             hi = math.inf if j.limit.upper is None else float(j.limit.upper)
-        axis = (1.0, 0.0, 0.0) if j.axis is None else tuple(float(x) for x in j.axis)
+        # URDF's default axis; a fixed joint's axis is ignored (often written "0 0 0").
+        axis = (1.0, 0.0, 0.0) if j.axis is None or kind == "fixed" else tuple(float(x) for x in j.axis)
         joints.append(Joint(j.name, kind, j.parent, j.child, _pose(j.origin), axis, lo, hi))
     return KinematicTree(name or robot.name or p.stem, links, joints)
 

@@ -122,8 +122,12 @@ class Joint:
             raise ConfigError(f"joints[{n}].origin", self.origin, "a twinsense Pose (joint frame -> parent link)")
         a = V.vector(f"joints[{n}].axis", self.axis, 3)
         norm = V._norm(a)
+        if kind == "fixed" and norm == 0.0:
+            # A fixed joint never turns: URDF writers often give it axis="0 0 0".
+            a, norm = np.array([0.0, 0.0, 1.0]), 1.0
         if not norm > 0 or not math.isfinite(norm):
-            raise ConfigError(f"joints[{n}].axis", self.axis, "a non-zero finite direction (3,)")
+            raise ConfigError(f"joints[{n}].axis", self.axis,
+                              "a finite direction (3,), non-zero for a revolute or prismatic joint")
         a = a / norm
         a.setflags(write=False)
         object.__setattr__(self, "axis", a)
