@@ -156,7 +156,7 @@ def tof_stages(scene, tof, times, anchor: float) -> None:
         ph = PixelPhasors(*hits_to_phasors(hits.distance, hits.cos_incidence, hits.object_id,
                                            material_table(scene), cfg, tof.radiometry, 1))
         done("hits -> pixel phasors")
-        noise = noise_rows(cfg, noise_seeds(cfg, rng), 0, cfg.height)
+        noise = noise_rows(cfg, noise_seeds(rng), 0, cfg.height)
         done("noise draws (a background thread in a capture)")
         raw = blurred_raw(ph, cfg)
         done("cross-talk blur")

@@ -271,7 +271,7 @@ def wrist_chain(frames: int) -> None:
     stage(f"hits -> pixel phasors (compiled, {workers} bands)",
           lambda k: hits_to_phasors(hits.distance, hits.cos_incidence, hits.object_id, tables, cfg,
                                     r_.radiometry, workers, r_._scratch))
-    seeds = noise_seeds(cfg, rng)
+    seeds = noise_seeds(rng)
     slabs = draw_noise_slabs(cfg, seeds)
     # The two ways of drawing the noise taken in turn, call by call (one thread each, no threads to share).
     before, now = [], []

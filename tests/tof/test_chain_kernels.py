@@ -150,7 +150,7 @@ def test_captures_on_two_threads_equal_captures_one_after_another():
 
 def test_noise_slabs_are_the_frames_stream_block_after_block():
     cfg = config(height=45)  # a last block of 5 rows
-    seeds = noise_seeds(cfg, np.random.default_rng(3))
+    seeds = noise_seeds(np.random.default_rng(3))
     assert seeds.shape == (1,)  # one stream per frame
     slabs = draw_noise_slabs(cfg, seeds)
     whole = noise_rows(cfg, seeds, 0, cfg.height)
@@ -203,7 +203,7 @@ def test_bad_noise_slabs_and_seeds_raise_config_errors():
     # Wrong seeds or slabs would otherwise fail inside NumPy or the compiled pass (or read
     # past a short slab); each names the field, the value and what is allowed.
     cfg = config(height=45)
-    seeds = noise_seeds(cfg, np.random.default_rng(3))
+    seeds = noise_seeds(np.random.default_rng(3))
     good = draw_noise_slabs(cfg, seeds)
     bad_seeds = {"too few": seeds[:0], "too many": np.repeat(seeds, 2), "floats": seeds.astype(float),
                  "negative": -seeds - 1}

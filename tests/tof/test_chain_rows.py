@@ -50,7 +50,7 @@ def assert_same(a, b) -> None:
 def phasors_and_noise(cfg):
     cam = ToFCamera(cfg, LOOK_X)
     ph = cam._render_phasors(scene(), 0.2)
-    return cam, ph, draw_noise_slabs(cfg, noise_seeds(cfg, np.random.default_rng(4)))
+    return cam, ph, draw_noise_slabs(cfg, noise_seeds(np.random.default_rng(4)))
 
 
 @pytest.mark.parametrize("overrides", [{}, {"crosstalk_sigma_px": 0.0}, {"crosstalk_sigma_px": 1.3},

@@ -179,7 +179,7 @@ class ToFCamera:
         cfg = self.config
         if not cfg.noise:
             return None
-        seeds = noise_seeds(cfg, rng)
+        seeds = noise_seeds(rng)
         out = None
         if mine:
             size = noise_size(cfg)

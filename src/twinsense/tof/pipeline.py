@@ -87,7 +87,7 @@ class ChainNoise:
 NOISE_BLOCK_ROWS = 8
 
 
-def noise_seeds(config: ToFConfig, rng: np.random.Generator) -> np.ndarray:
+def noise_seeds(rng: np.random.Generator) -> np.ndarray:
     """The seed of the frame's noise stream, drawn from ``rng``: (1,) int64."""
     return rng.integers(0, 2 ** 63 - 1, size=1, dtype=np.int64)
 
@@ -224,7 +224,7 @@ def draw_noise(config: ToFConfig, rng: np.random.Generator) -> ChainNoise:
 
     They do not depend on the scene; the same generator state gives the same frame.
     """
-    return noise_rows(config, noise_seeds(config, rng), 0, config.height)
+    return noise_rows(config, noise_seeds(rng), 0, config.height)
 
 
 def run_chain(phasors: PixelPhasors | list[PixelPhasors], config: ToFConfig,
