@@ -19,7 +19,8 @@ the next sensor's earlier frame) get the state of their own time.
 Between two steps
 -----------------
 A time that falls between steps k and k+1 (t_k <= t < t_k + dt) gets step k's
-state moved on by step k's velocities over tau = t - t_k: p = p_k + v_k tau,
+state moved on by step k's velocities over tau = t - t_k (a time within 1e-9 of
+a step before t_k, MuJoCo's sum of steps, is on step k: tau = 0): p = p_k + v_k tau,
 R = exp([w_k tau]x) R_k, velocities held. For a body under acceleration a the
 position error is |a| tau^2 / 2 <= |a| dt^2 / 2 (4.4e-5 m for gravity at a
 3 ms step) and the velocity error |a| tau <= |a| dt.
@@ -50,6 +51,9 @@ from twinsense.scene.scene import Frame, Scene, SceneObject
 STATE_CACHE_SIZE = 32
 #: MuJoCo joint types with one coordinate (slide, hinge).
 _ONE_DOF = (2, 3)
+#: A time this fraction of a step or less before a step's is on that step: MuJoCo's time is a sum of
+#: steps and misses the clock's k dt (a frame time k / frame_rate) by a few ulps, either way.
+STEP_SLACK = 1e-9
 
 
 class MujocoJointSetpoints(JointSetpoints):
@@ -70,11 +74,11 @@ class MujocoJointSetpoints(JointSetpoints):
 
     def q(self, t):
         self._cosim.step_to(t)
-        return super().q(t)
+        return super().q(self._cosim.on_step(t))
 
     def qd(self, t):
         self._cosim.step_to(t)
-        return super().qd(t)
+        return super().qd(self._cosim.on_step(t))
 
 
 def _pose(pos, quat_wxyz) -> Pose:
@@ -178,13 +182,25 @@ class MujocoCosim:
         """Advance MuJoCo to the last step at or before ``t`` [s] (nothing if it is there already)."""
         t = check_time(t)
         with self._lock:
-            # A step ends at time + dt; take it when that is not after t (1e-9 of a step absorbs the
+            # A step ends at time + dt; take it when that is not after t (STEP_SLACK of a step absorbs the
             # rounding of MuJoCo's accumulated time).
-            while self.data.time + self.timestep * (1 - 1e-9) <= t:
+            while self.data.time + self.timestep * (1 - STEP_SLACK) <= t:
                 if self.control is not None:
                     self.control(self.model, self.data)
                 self._mj.mj_step(self.model, self.data)
                 self._record()
+
+    def on_step(self, t: float) -> float:
+        """The time of the kept step that ``t`` [s] falls on within rounding (what ``step_to`` stepped to), else t.
+
+        Without it a frame time a few ulps before MuJoCo's accumulated step time would read the step before,
+        moved on by a whole step, although the physics has taken the step.
+        """
+        with self._lock:
+            i = bisect.bisect_right(self._times, t)
+            if i < len(self._times) and self._times[i] - t <= self.timestep * STEP_SLACK:
+                return self._times[i]
+        return t
 
     def _evaluate(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Body positions (nbody, 3), rotations (nbody, 3, 3), linear and angular velocities of stored step k."""
@@ -218,6 +234,7 @@ class MujocoCosim:
         t = check_time(t)
         with self._lock:
             self.step_to(t)
+            t = self.on_step(t)
             k = bisect.bisect_right(self._times, t) - 1
             if k < 0:
                 raise ConfigError("t", t, f"a time within the co-simulation's kept history "
