@@ -7,7 +7,9 @@ kernel turns 3 x 3 Rodrigues rotations down its own tree order. The two share on
 the root, mimic joints and the tree order are all read the same way.
 
 Each robot is loaded once per module (``shapes="collision"``: the kinematics do not depend on
-the shapes, and the collision meshes of all 68 files load in ~9 s, the visual ones in ~31 s).
+the shapes, and the collision meshes of all 68 files load in ~9 s, the visual ones in ~31 s); the
+whole file runs in 10-12 s on the shared 2-core test machine. A 1e-12 m change of one joint origin of
+the UR5 moves its links by 8e-13 m against the pose tolerance of 6.7e-14 m: the check would see it.
 """
 
 import functools
@@ -34,7 +36,7 @@ EPS = np.finfo(float).eps
 # Pose tolerance [ulp of the largest coordinate]. Per joint each side rounds a 3 x 3 product (3 terms), the joint
 # rotation (Rodrigues against trimesh's I cos + (1 - cos) a a^T + sin [a]x) and a position sum: <= ~10 eps of the
 # largest coordinate (or of 1 for rotation entries). These files chain at most 21 joints (TIAGo: base to
-# fingertip, 15 of them movable), so worst-case linear growth is ~210 ulps; 300 covers it. Seen: <= 6 ulps.
+# fingertip, 15 of them movable), so worst-case linear growth is ~210 ulps; 300 covers it. Seen: <= 7 ulps.
 POSE_ULPS = 300
 # Central-difference step along s in q + s qd [rad or m per (rad/s or m/s)]; see _velocity_tolerance.
 H = 1e-6
@@ -81,13 +83,9 @@ def _sample(tree, ref, rng, margin: float):
             x0, x1 = sorted(((lo[i] - off) / mult, (hi[i] - off) / mult))
             a[m], b[m] = max(a[m], x0), min(b[m], x1)
             assert a[m] <= b[m], (tree.joint_names[m], tree.joint_names[i])
-    scale = np.ones(tree.n_joints)  # how fast each joint moves relative to its own qd (its largest mimic |mult|)
-    for m, mult, _ in mimics.values():
-        if m is not None:
-            scale[m] = max(scale[m], abs(mult))
-    free = b - a > 2.0 * margin * scale
-    q = np.where(free, rng.uniform(np.where(free, a + margin * scale, 0.0), np.where(free, b - margin * scale, 0.0)),
-                 0.5 * (a + b))
+    # A master kept within [a, b] keeps its mimic joints within theirs: q +- margin qd (|qd| <= 1) stays in [a, b].
+    free = b - a > 2.0 * margin
+    q = np.where(free, rng.uniform(np.where(free, a + margin, 0.0), np.where(free, b - margin, 0.0)), 0.5 * (a + b))
     qd = np.where(free, rng.uniform(-1.0, 1.0, tree.n_joints), 0.0)  # a joint locked by its limits stays still
     for i, (m, mult, off) in mimics.items():
         q[i], qd[i] = (mult * q[m] + off, mult * qd[m]) if m is not None else (off, 0.0)
