@@ -24,7 +24,7 @@ import pytest
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
-from twinsense.robots import MujocoCosim, mjcf_tree
+from twinsense.robots import MujocoCosim, load_mjcf
 from twinsense.robots.mjcf import INFINITE_PLANE_SIZE, geom_mesh
 from twinsense.robots.paths import robosuite_robots_dir
 from twinsense.scene import Box, Capsule, Cylinder, Mount, Plane, Pose, Sphere
@@ -91,17 +91,24 @@ def _one_dof_ranges(model) -> tuple[list[int], np.ndarray]:
 @pytest.mark.parametrize("robot", ROBOTS)
 def test_tree_poses_and_velocities_match_mujoco(robot):
     model = compiled(robot)
-    tree = mjcf_tree(model)
+    floating = check_tree(model, np.random.default_rng(_seed(robot)))
+    assert floating == [j for j in range(model.njnt) if model.jnt_type[j] == FREE]  # GR1's and Spot's bases moved
+
+
+def check_tree(model, rng) -> list[int]:
+    """Every body's pose and velocities from twinsense's tree at 2 random states against MuJoCo's; returns
+    the free joints moved through the tree's base."""
+    tree = load_mjcf(model).tree
     # The tree's joints are MuJoCo's hinge and slide joints, in MuJoCo's order; free and ball joints are
     # fixed joints of the tree (module docstring of twinsense.robots.mjcf).
     one_dof, lim = _one_dof_ranges(model)
     assert tree.joint_names == tuple(model.joint(j).name for j in one_dof)
-    free = [j for j in range(model.njnt) if model.jnt_type[j] == FREE]
-    # A free joint's motion is the tree's base: one free body at most, hung from the world body.
-    assert len(free) <= 1 and all(model.body_parentid[model.jnt_bodyid[j]] == 0 for j in free)
-    one_dof, lim = _one_dof_ranges(model)
+    np.testing.assert_array_equal(tree.limits, np.where(model.jnt_limited[one_dof, None], lim, [-np.inf, np.inf]))
     qadr, dadr = model.jnt_qposadr[one_dof], model.jnt_dofadr[one_dof]
-    rng = np.random.default_rng(_seed(robot))
+    free = [j for j in range(model.njnt) if model.jnt_type[j] == FREE]
+    # A robot on a free joint (GR1, Spot: the only body hung from the world) moves as the tree's base;
+    # a free body beside others keeps its fixed joint at qpos0, at rest, as the tree has it.
+    floating = free if len(free) == 1 and np.count_nonzero(model.body_parentid[1:] == 0) == 1 else []
     data = mujoco.MjData(model)
     res = np.zeros(6)
     for _ in range(2):
@@ -110,7 +117,7 @@ def test_tree_poses_and_velocities_match_mujoco(robot):
         data.qpos[:], data.qvel[:] = model.qpos0, 0.0  # ball joints at qpos0 (identity), as the tree has them
         data.qpos[qadr], data.qvel[dadr] = q, qd
         base = None
-        for j in free:
+        for j in floating:
             qa, da = int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j])
             data.qpos[qa:qa + 3], data.qpos[qa + 3:qa + 7] = rng.uniform(-1, 1, 3), _random_quat(rng)
             data.qvel[da:da + 6] = rng.uniform(-2.0, 2.0, 6)
@@ -133,6 +140,7 @@ def test_tree_poses_and_velocities_match_mujoco(robot):
             mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, b, res, 0)
             np.testing.assert_allclose(st.point_velocity(name, data.xipos[b][None])[0], res[3:], rtol=0, atol=TOL,
                                        err_msg=name)
+    return floating
 
 
 # ---------------------------------------------------------------- geoms and the co-simulation clock
@@ -222,10 +230,12 @@ def check_geoms(cosim: MujocoCosim, data, t: float) -> None:
         # the merged mesh's vertices as built (trimesh's processed view merges those within 1e-8)
         drawn = st.pose.apply(np.asarray(obj.geometry.vertices, float))
         assert len(drawn) == sum(len(v) for _, v in parts), name  # nothing but these geoms
+        world = [v @ data.geom_xmat[g].reshape(3, 3).T + data.geom_xpos[g] for g, v in parts]
+        if np.abs(np.vstack(world) - drawn).max() <= TOL:
+            continue  # the parts in geom order (the fast way to pass); else each part anywhere in the mesh
         near = cKDTree(drawn)
-        for g, v in parts:
-            world = v @ data.geom_xmat[g].reshape(3, 3).T + data.geom_xpos[g]
-            d, _ = near.query(world)
+        for (g, _), w in zip(parts, world, strict=True):
+            d, _ = near.query(w)
             assert d.max() <= TOL, (name, model.geom(g).name, d.max())
 
 
@@ -271,7 +281,6 @@ def check_cosim(model, rng) -> None:
     follower = cosim.joint_setpoints({model.joint(j).name: model.joint(j).name for j in one_dof})
     qadr, dadr = model.jnt_qposadr[one_dof], model.jnt_dofadr[one_dof]
     mujoco.mj_forward(model, ref)
-    check_geoms(cosim, ref, 0.0)
     for _ in range(STEPS):
         mujoco.mj_step(model, ref)
     mujoco.mj_forward(model, ref)  # after mj_step xpos, xmat lag one step: recompute them from qpos, qvel
@@ -338,13 +347,13 @@ EVERY_GEOM = """<mujoco model="every_geom">
     <geom name="floor" type="plane" size="0 0 0.05" pos="0 0 -1"/>
     <body name="ground" pos="2 0 -0.9"><geom type="hfield" hfield="terrain"/></body>
     <body name="arm" pos="0 0 0.5" euler="10 20 30">
-      <joint name="shoulder" type="hinge" axis="0 1 1"/>
+      <joint name="shoulder" type="hinge" axis="0 1 1" ref="20"/>
       <geom name="cap" type="capsule" size="0.03 0.1" pos="0.1 0 0" euler="0 90 0"/>
       <geom name="ell" type="ellipsoid" size="0.05 0.03 0.02" pos="0.25 0.01 0" euler="5 10 15"/>
       <geom name="can" type="cylinder" size="0.02 0.04" pos="0.3 -0.05 0"/>
       <geom name="bump" type="hfield" hfield="terrain" pos="0.3 0 0.2"/>
       <body name="hand" pos="0.4 0 0" euler="0 0 40">
-        <joint name="wrist" type="slide" axis="1 0 0" pos="0.02 0 0"/>
+        <joint name="wrist" type="slide" axis="1 0 0" pos="0.02 0 0" ref="0.05"/>
         <joint name="roll" type="hinge" axis="1 0 0" pos="0 0.03 0"/>
         <geom name="ball" type="sphere" size="0.03"/>
         <body name="tip" pos="0.05 0 0"><joint name="swivel" type="ball"/>
@@ -360,9 +369,12 @@ EVERY_GEOM = """<mujoco model="every_geom">
 
 
 def test_every_geom_type_and_free_and_ball_joints():
-    # Capsule, ellipsoid, an infinite plane, height fields and a ball joint: the types robosuite's
-    # robots do not use, through the same checks (with a free body beside the arm).
+    # Capsule, ellipsoid, an infinite plane, height fields, a ball joint and joints with a reference
+    # position (ref: MuJoCo turns a hinge by qpos - qpos0): what robosuite's robots do not use, through
+    # the same checks (with a free body beside the arm).
     model = mujoco.MjModel.from_xml_string(EVERY_GEOM)
+    assert np.all(model.qpos0[model.jnt_qposadr[[model.joint("shoulder").id, model.joint("wrist").id]]] != 0)
+    check_tree(model, np.random.default_rng(11))
     data = mujoco.MjData(model)
     data.qvel[:] = np.random.default_rng(3).uniform(-2, 2, model.nv)  # turning from the start
     cosim = MujocoCosim(model, data, geoms="all")

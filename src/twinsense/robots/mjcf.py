@@ -61,6 +61,23 @@ def _quat_pose(pos, quat_wxyz) -> Pose:
     return Pose.from_quat(np.asarray(pos, dtype=float), (x, y, z, w))
 
 
+def _reference(model, j: int) -> Pose:
+    """Hinge or slide joint j turned or shifted back by its reference position (MJCF ``ref``, qpos0).
+
+    MuJoCo moves a joint by qpos - qpos0 from the body frame as written; the tree moves it by q, so the
+    joint frame starts at -qpos0 and q is MuJoCo's qpos (its limits, ``joint_setpoints``). A rotation
+    about, or a shift along, the joint axis keeps that axis.
+    """
+    ref = float(model.qpos0[int(model.jnt_qposadr[j])])
+    axis = np.asarray(model.jnt_axis[j], dtype=float)
+    axis = axis / np.linalg.norm(axis)
+    if ref == 0.0:
+        return Pose()
+    if int(model.jnt_type[j]) == JNT_HINGE:
+        return Pose.from_rotvec(rotvec=-ref * axis)
+    return Pose(-ref * axis)
+
+
 def body_name(model, b: int) -> str:
     n = model.body(b).name
     return n if n else f"body{b}"
@@ -159,7 +176,8 @@ def mjcf_tree(model_or_path, *, materials=None, geoms: str = "visual", name: str
             if model.jnt_limited[j]:
                 lo, hi = float(model.jnt_range[j][0]), float(model.jnt_range[j][1])
             kind = "revolute" if int(model.jnt_type[j]) == JNT_HINGE else "prismatic"
-            joints.append(Joint(jname, kind, prev, child, origin @ Pose(anchor), tuple(model.jnt_axis[j]), lo, hi))
+            joints.append(Joint(jname, kind, prev, child, origin @ Pose(anchor) @ _reference(model, j),
+                                tuple(model.jnt_axis[j]), lo, hi))
             prev, origin = child, Pose(-anchor)
         geom = body_geometry(model, b, geoms, f"mjcf.bodies[{names[b]}]")
         links.append(Link(names[b], geom, mats[names[b]]))
