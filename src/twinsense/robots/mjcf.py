@@ -4,8 +4,10 @@ The model is compiled by ``mujoco.MjModel.from_xml_path`` and read from the
 compiled arrays, so includes, defaults, mesh scaling and MuJoCo's own mesh
 re-centring are applied exactly as MuJoCo applies them. Bodies become links
 (the world body is the root link ``"world"``), hinge and slide joints become
-revolute and prismatic joints, free and ball joints are taken as fixed (the
-kinematic tree has one axis per joint; :class:`~twinsense.robots.mujoco_cosim.MujocoCosim`
+revolute and prismatic joints (q is MuJoCo's qpos, also for a joint with a
+reference position ``ref``), free and ball joints are taken as fixed at MuJoCo's
+qpos0 (the kinematic tree has one axis per joint; a robot on a free joint moves
+through the articulated body's base; :class:`~twinsense.robots.mujoco_cosim.MujocoCosim`
 follows free and ball joints through MuJoCo's own state).
 
 A joint anchored away from its body's origin, or a second joint in the same
