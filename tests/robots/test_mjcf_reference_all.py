@@ -364,6 +364,8 @@ EVERY_GEOM = """<mujoco model="every_geom">
       </body>
     </body>
     <body name="crate" pos="0 1 0.3"><freejoint/><geom type="box" size="0.1 0.05 0.02"/></body>
+    <body name="target" mocap="true" pos="0 -1 0.5"><geom type="box" size="0.02 0.02 0.02" pos="0 0 0.05"/>
+      <site name="aim" pos="0 0 0.1"/></body>
   </worldbody>
 </mujoco>"""
 
@@ -371,13 +373,18 @@ EVERY_GEOM = """<mujoco model="every_geom">
 def test_every_geom_type_and_free_and_ball_joints():
     # Capsule, ellipsoid, an infinite plane, height fields, a ball joint and joints with a reference
     # position (ref: MuJoCo turns a hinge by qpos - qpos0): what robosuite's robots do not use, through
-    # the same checks (with a free body beside the arm).
+    # the same checks (with a free body beside the arm and a mocap body moved by the controller).
     model = mujoco.MjModel.from_xml_string(EVERY_GEOM)
     assert np.all(model.qpos0[model.jnt_qposadr[[model.joint("shoulder").id, model.joint("wrist").id]]] != 0)
     check_tree(model, np.random.default_rng(11))
     data = mujoco.MjData(model)
     data.qvel[:] = np.random.default_rng(3).uniform(-2, 2, model.nv)  # turning from the start
-    cosim = MujocoCosim(model, data, geoms="all")
+
+    def control(m, d):  # the mocap body glides along x and turns about z
+        d.mocap_pos[0] = (0.3 * d.time, -1.0, 0.5)
+        d.mocap_quat[0] = (np.cos(d.time), 0.0, 0.0, np.sin(d.time))
+
+    cosim = MujocoCosim(model, data, geoms="all", control=control)
     assert "ground" in cosim.scene.frame_names  # a body with only a height field: a mount frame
     assert isinstance(cosim.scene.object("hand").geometry, Sphere)  # one primitive at the body origin
     ref = mujoco.MjData(model)
@@ -386,10 +393,15 @@ def test_every_geom_type_and_free_and_ball_joints():
     check_geoms(cosim, ref, 0.0)
     t = 7.5 * model.opt.timestep
     for _ in range(7):
+        control(model, ref)
         mujoco.mj_step(model, ref)
     mujoco.mj_forward(model, ref)
-    tip = model.body("tip").id
-    st = _propagated(model, ref, tip, t - ref.time)
-    _assert_state(cosim.scene.mount_target("tip").state_at(t), st.pose, st.linear_velocity, st.angular_velocity,
-                  "tip")
+    assert ref.mocap_pos[0, 0] > 0  # the mocap body has moved
+    for b in range(1, model.nbody):
+        st = _propagated(model, ref, b, t - ref.time)
+        _assert_state(cosim.scene.mount_target(cosim.names[b]).state_at(t), st.pose, st.linear_velocity,
+                      st.angular_velocity, cosim.names[b])
+    aim = model.site("aim").id
+    np.testing.assert_allclose(cosim.scene.mount_target("aim").state_at(t).pose.position, ref.site_xpos[aim],
+                               rtol=0, atol=TOL)  # a mocap body has no velocity: held between steps
     check_geoms(cosim, ref, ref.time)
