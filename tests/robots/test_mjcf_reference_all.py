@@ -339,13 +339,19 @@ def test_cosim_geoms_and_wrist_tof_between_steps(robot):
 
 EVERY_GEOM = """<mujoco model="every_geom">
   <option timestep="0.004" gravity="0 0 -9.81"/>
+  <extension><plugin plugin="mujoco.sdf.torus"><instance name="torus">
+    <config key="radius1" value="0.1"/><config key="radius2" value="0.03"/></instance></plugin></extension>
   <asset>
+    <mesh name="torus"><plugin instance="torus"/></mesh>
     <hfield name="terrain" nrow="3" ncol="3" size="0.5 0.5 0.1 0.05" elevation="0 1 0 1 0 1 0 1 0"/>
     <mesh name="tet" vertex="0 0 0  0.1 0 0  0 0.1 0  0 0 0.1" scale="1 2 1"/>
   </asset>
   <worldbody>
     <geom name="floor" type="plane" size="0 0 0.05" pos="0 0 -1"/>
     <body name="ground" pos="2 0 -0.9"><geom type="hfield" hfield="terrain"/></body>
+    <body name="ring" pos="-1 0 0.2"><joint name="spin" type="hinge" axis="1 0 0"/>
+      <geom type="sdf" mesh="torus"><plugin instance="torus"/></geom>
+      <geom name="tag" type="box" size="0.01 0.01 0.01" pos="0.2 0 0"/></body>
     <body name="arm" pos="0 0 0.5" euler="10 20 30">
       <joint name="shoulder" type="hinge" axis="0 1 1" ref="20"/>
       <geom name="cap" type="capsule" size="0.03 0.1" pos="0.1 0 0" euler="0 90 0"/>
@@ -371,7 +377,7 @@ EVERY_GEOM = """<mujoco model="every_geom">
 
 
 def test_every_geom_type_and_free_and_ball_joints():
-    # Capsule, ellipsoid, an infinite plane, height fields, a ball joint and joints with a reference
+    # Capsule, ellipsoid, an infinite plane, height fields, an SDF, a ball joint and joints with a reference
     # position (ref: MuJoCo turns a hinge by qpos - qpos0): what robosuite's robots do not use, through
     # the same checks (with a free body beside the arm and a mocap body moved by the controller).
     model = mujoco.MjModel.from_xml_string(EVERY_GEOM)
@@ -386,6 +392,7 @@ def test_every_geom_type_and_free_and_ball_joints():
 
     cosim = MujocoCosim(model, data, geoms="all", control=control)
     assert "ground" in cosim.scene.frame_names  # a body with only a height field: a mount frame
+    assert len(cosim.scene.object("ring").geometry.vertices) == 8  # the SDF left out, the box kept
     assert isinstance(cosim.scene.object("hand").geometry, Sphere)  # one primitive at the body origin
     ref = mujoco.MjData(model)
     ref.qvel[:] = data.qvel
