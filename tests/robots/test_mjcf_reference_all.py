@@ -5,8 +5,9 @@ For each ``<robot>/robot.xml``: (a) every body's world pose and velocities from
 ``mj_kinematics`` and ``mj_objectVelocity``; (b) :class:`~twinsense.robots.MujocoCosim`
 with every geom: each geom placed where MuJoCo puts it, and a wrist-mounted ToF
 camera captured between two physics steps at the pose the adapter documents.
-A small model with every geom type (capsule, ellipsoid, infinite plane and a
-height field, which robosuite's robots lack) goes through the same checks.
+A small model with what robosuite's robots lack (capsule, ellipsoid, infinite
+plane, height fields and an SDF, a ball joint, joints with ``ref``, a mocap
+body) goes through the same checks.
 
 Tolerance 1e-9 (m, rad, m/s, rad/s) throughout: both sides compute in float64
 from the same compiled model; the longest chain here (GR1: 15 bodies, 11 joints
@@ -14,8 +15,8 @@ deep, on a free base; coordinates ~2 m, speeds ~10 m/s) accumulates a few 1e-15
 of rounding (<= 5.2e-15 seen), so 1e-9 leaves five orders of margin while any
 error of convention (a wrong frame, point, axis order, half-size or reference
 position) shows as 1e-4 or more, and reading the step before a frame time on a
-step as ~1e-6 m. The whole file runs in ~15 s on 2 cores, 6 s of
-it MuJoCo compiling the 12 robots.
+step as ~1e-6 m. The whole file runs in ~15 s on 2 cores (14-17 s measured),
+6 s of it MuJoCo compiling the 12 robots.
 """
 
 import functools
