@@ -64,11 +64,12 @@ def test_panda_urdf_and_mjcf_agree_up_to_a_fixed_flange_offset(mj_model):
     urdf = load_robot("panda", shapes="collision").tree  # the STL shapes load fastest; kinematics are the same
     mjcf = mjcf_tree(mj_model("panda-mjcf"))
     assert urdf.joint_names[:7] == tuple(f"panda_joint{i}" for i in range(1, 8))
-    assert urdf.joint_names[7:] == ("panda_finger_joint1", "panda_finger_joint2")
+    assert urdf.joint_names[7:] == ("panda_finger_joint1",)  # finger_joint2 mimics it
+    assert urdf.mimic_joints == ("panda_finger_joint2",)
     assert mjcf.joint_names == tuple(f"joint{i}" for i in range(1, 8))
     # The offset, found once at the home pose: robosuite's right_hand against the URDF's panda_hand.
     home = mjcf.home
-    offset = mjcf.forward(home).pose("right_hand").inverse() @ urdf.forward(np.r_[home, 0, 0]).pose("panda_hand")
+    offset = mjcf.forward(home).pose("right_hand").inverse() @ urdf.forward(np.r_[home, 0]).pose("panda_hand")
     # Stated in docs/robots.md: 0.5 mm along the flange z axis, 0.0282 deg about it (robosuite's quaternion
     # (0.924, 0, 0, -0.383) is -45 deg rounded to 3 digits); the bases coincide.
     np.testing.assert_allclose(offset.position, [0, 0, 0.0005], atol=1e-12)
@@ -76,12 +77,12 @@ def test_panda_urdf_and_mjcf_agree_up_to_a_fixed_flange_offset(mj_model):
     rng = np.random.default_rng(11)
     for _ in range(10):
         q = rng.uniform(mjcf.limits[:, 0], mjcf.limits[:, 1])
-        a = urdf.forward(np.r_[q, 0.02, 0.02]).pose("panda_hand")
+        a = urdf.forward(np.r_[q, 0.02]).pose("panda_hand")
         b = mjcf.forward(q).pose("right_hand") @ offset
         # Both files hold the same link offsets; what remains is float rounding: 1e-6 m / 1e-6 rad as stated.
         np.testing.assert_allclose(a.position, b.position, atol=1e-6)
         np.testing.assert_allclose(a.rotation, b.rotation, atol=1e-6)
-        np.testing.assert_allclose(urdf.forward(np.r_[q, 0, 0]).pose("panda_link0").matrix, np.eye(4), atol=1e-12)
+        np.testing.assert_allclose(urdf.forward(np.r_[q, 0]).pose("panda_link0").matrix, np.eye(4), atol=1e-12)
 
 
 def test_robot_in_scene_and_mount_on_link(ur5):

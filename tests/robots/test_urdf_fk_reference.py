@@ -14,6 +14,7 @@ the UR5 moves its links by 8e-13 m against the pose tolerance of 6.7e-14 m: the 
 
 import functools
 import math
+import warnings
 import zlib
 
 import numpy as np
@@ -47,51 +48,48 @@ CONFIGS = 3
 def _pair(rel: str):
     """(twinsense tree, yourdfpy URDF with its scene graph) of one file, parsed once per module."""
     path = ROBOTS / rel
-    tree = urdf_tree(path, shapes="collision")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        tree = urdf_tree(path, shapes="collision")
+    # Only a mimic joint whose master the file lacks is warned about (see _orphans), and each is.
+    named = {str(w.message).split("joint ")[1].split(" mimics")[0].strip("'") for w in caught}
+    orphans = {j.name for j in tree.joints if j.name in tree.joint_names and j.mimic is None} & named
+    assert all(issubclass(w.category, UserWarning) and "which the file does not have" in str(w.message)
+               for w in caught), [str(w.message) for w in caught]
+    assert orphans == named, (orphans, named)
     ref = yourdfpy.URDF.load(str(path), build_scene_graph=True, load_meshes=False,
                              build_collision_scene_graph=False, load_collision_meshes=False)
     return tree, ref
 
 
-def _mimics(tree, ref) -> dict:
-    """{twinsense joint index: (master index or None, multiplier, offset)} for the mimic joints.
+def _orphans(tree, ref) -> dict:
+    """{twinsense q column: offset} of the mimic joints whose master the file lacks.
 
-    yourdfpy drives a mimic joint as multiplier * q_master + offset, and as 0 + offset (with a logged warning)
-    when the master is not an actuated joint (alex_psyonic_hands.urdf's finger joints name masters
-    "index_q1", ... that the file lacks: its joints are "Left_index_q1", ...); twinsense keeps mimic
-    joints as joints of their own, so the test sets them the same way.
+    Both follow a mimic joint's master (multiplier * q_master + offset: twinsense in its kinematics kernel,
+    so a mimic joint is no column of q). A master the file lacks (alex_psyonic_hands.urdf's finger joints
+    name "index_q1", ... while its joints are "Left_index_q1", ...) makes yourdfpy hold the joint at 0 +
+    offset (with a logged warning) and twinsense drive it as a joint of its own (with a UserWarning): the
+    test sets it to the offset.
     """
-    actuated = set(ref.actuated_joint_names)
-    out = {}
-    for j in ref.robot.joints:
-        if j.mimic is not None and j.name in tree.joint_names:
-            master = tree.joint_index(j.mimic.joint) if j.mimic.joint in actuated else None
-            out[tree.joint_index(j.name)] = (master, float(j.mimic.multiplier), float(j.mimic.offset))
-    return out
+    return {tree.joint_index(j.name): float(j.mimic.offset or 0.0) for j in ref.robot.joints
+            if j.mimic is not None and j.name in tree.joint_names}
 
 
 def _sample(tree, ref, rng, margin: float):
-    """(q, qd, cfg): joint values within the limits ([-pi, pi] for unlimited ones) and velocities in [-1, 1]
-    [rad/s or m/s] such that q +- margin qd stays within every limit, mimic joints set from their masters;
-    cfg is yourdfpy's configuration (the actuated joints only)."""
+    """(q, qd, cfg): driven joint values within the limits ([-pi, pi] for unlimited ones) and velocities in
+    [-1, 1] [rad/s or m/s] such that q +- margin qd stays within every limit, the orphaned mimic joints at their
+    offsets; cfg is yourdfpy's configuration (its actuated joints). Mimic joints' own limits bind neither
+    library (ROS computes a mimic joint from its master alone): the PR2's grippers open fully here."""
     lo, hi = tree.limits[:, 0], tree.limits[:, 1]
-    mimics = _mimics(tree, ref)
+    orphans = _orphans(tree, ref)
     a, b = np.maximum(lo, -math.pi), np.minimum(hi, math.pi)
-    for i, (m, mult, off) in mimics.items():
-        # A master's range shrinks to the values that keep its mimic joints within their own limits.
-        if m is not None and mult != 0.0:
-            x0, x1 = sorted(((lo[i] - off) / mult, (hi[i] - off) / mult))
-            a[m], b[m] = max(a[m], x0), min(b[m], x1)
-            assert a[m] <= b[m], (tree.joint_names[m], tree.joint_names[i])
-    # A master kept within [a, b] keeps its mimic joints within theirs: q +- margin qd (|qd| <= 1) stays in [a, b].
     free = b - a > 2.0 * margin
     q = np.where(free, rng.uniform(np.where(free, a + margin, 0.0), np.where(free, b - margin, 0.0)), 0.5 * (a + b))
     qd = np.where(free, rng.uniform(-1.0, 1.0, tree.n_joints), 0.0)  # a joint locked by its limits stays still
-    for i, (m, mult, off) in mimics.items():
-        q[i], qd[i] = (mult * q[m] + off, mult * qd[m]) if m is not None else (off, 0.0)
-    # mult * q + off may round past a limit the master's range was cut to: by < 1 ulp, far below the tolerances.
-    q = np.clip(q, lo, hi)
-    cfg = {n: q[i] for i, n in enumerate(tree.joint_names) if i not in mimics}
+    for i, off in orphans.items():
+        q[i], qd[i] = off, 0.0
+    actuated = set(ref.actuated_joint_names)
+    cfg = {n: q[i] for i, n in enumerate(tree.joint_names) if n in actuated}
     return q, qd, cfg
 
 
@@ -115,7 +113,10 @@ def test_link_poses_match_yourdfpy(rel):
     assert tree.root == ref.base_link
     assert set(tree.link_names) == set(ref.link_map)
     movable = [j.name for j in ref.robot.joints if j.type in ("revolute", "continuous", "prismatic")]
-    assert tree.joint_names == tuple(movable)  # floating joints are fixed in twinsense (none in these files)
+    # Floating joints are fixed in twinsense (none in these files); mimic joints follow their masters.
+    assert tree.joint_names == tuple(n for n in movable if n not in tree.mimic_joints)
+    mimics = {j.name for j in ref.robot.joints if j.mimic is not None and j.name in movable}  # Talos: fixed ones
+    assert set(tree.mimic_joints) == mimics - set(tree.joint_names)
     rng = _rng(rel, 1)
     for _ in range(CONFIGS):
         q, _, cfg = _sample(tree, ref, rng, 0.0)
@@ -178,20 +179,25 @@ _JOINT_KINDS_URDF = """<robot name="kinds">
 
 
 def test_floating_base_mimic_and_planar_joints(tmp_path):
-    # A floating joint is taken as fixed at its origin (as yourdfpy's scene graph does), a mimic joint is a joint
-    # of its own that the caller sets to multiplier * q_master + offset, a planar joint is refused by name.
+    # A floating joint is taken as fixed at its origin (as yourdfpy's scene graph does), a mimic joint follows
+    # its master (multiplier * q_master + offset, outside its own limits too), a planar joint is refused by name.
     path = tmp_path / "kinds.urdf"
     path.write_text(_JOINT_KINDS_URDF.format(base_kind="floating"))
     tree = load_urdf(path).tree
     ref = yourdfpy.URDF.load(str(path), build_scene_graph=True, load_meshes=False)
-    assert tree.joint_names == ("shoulder", "slide_a", "slide_b")
-    assert _mimics(tree, ref) == {2: (1, -2.0, 0.01)}
+    assert tree.joint_names == ("shoulder", "slide_a") and tree.mimic_joints == ("slide_b",)
     rng = np.random.default_rng(4)
     for _ in range(CONFIGS):
-        q, _, cfg = _sample(tree, ref, rng, 0.0)
-        assert q[2] == -2.0 * q[1] + 0.01
+        q, qd, cfg = _sample(tree, ref, rng, 0.0)
         ref.update_cfg(cfg)
-        st = tree.forward(q)
+        st = tree.forward(q, qd)
+        # slide_b = -2 slide_a + 0.01 along y of the arm frame, its rate -2 qd_a: exact in binary64 up to the
+        # rounding of the one product and sum (the finger's offset from finger_a's origin: 0.5 ulp each).
+        rel = st.pose("arm").inverse() @ st.pose("finger_b")
+        np.testing.assert_allclose(rel.position, [0.5, -2.0 * q[1] + 0.01, 0.0], rtol=0, atol=4 * EPS)
+        vb = st.pose("arm").rotation.T @ (st.linear_velocities[st.index("finger_b")]
+                                          - st.point_velocity("arm", st.positions[[st.index("finger_b")]])[0])
+        np.testing.assert_allclose(vb, [0.0, -2.0 * qd[1], 0.0], rtol=0, atol=8 * EPS)
         for n in tree.link_names:
             # Three joints deep, coordinates < 1 m: the POSE_ULPS bound above holds with room.
             np.testing.assert_allclose(st.pose(n).matrix, ref.get_transform(frame_to=n, frame_from="world"),

@@ -33,7 +33,7 @@ ROBOTS: dict[str, RobotDescription] = {r.name: r for r in (
     RobotDescription("ur10", "example-robot-data", "robots/ur_description/urdf/ur10_robot.urdf", "urdf",
                      "Universal Robots UR10, 6 joints (example-robot-data URDF)"),
     RobotDescription("panda", "example-robot-data", "robots/panda_description/urdf/panda.urdf", "urdf",
-                     "Franka Emika Panda, 7 arm joints + 2 fingers (example-robot-data URDF)"),
+                     "Franka Emika Panda, 7 arm joints + a finger joint the other mimics (example-robot-data URDF)"),
     RobotDescription("kinova", "example-robot-data", "robots/kinova_description/robots/kinova.urdf", "urdf",
                      "Kinova Jaco 2 (j2s6s200), 6 arm joints (example-robot-data URDF)"),
     RobotDescription("xarm7", "example-robot-data", "robots/xarm_description/urdf/xarm7.urdf", "urdf",

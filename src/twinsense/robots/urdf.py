@@ -4,12 +4,14 @@ Every ``<link>``'s visuals (meshes with their declared ``scale``, boxes,
 cylinders, spheres) are merged into one mesh in the link frame; every
 ``<joint>`` becomes a :class:`~twinsense.scene.articulated.Joint` (revolute,
 continuous, prismatic, fixed; a floating joint is taken as fixed: the base
-pose places the robot). Mimic joints are kept as joints of their own.
+pose places the robot). A ``<mimic>`` joint follows its master
+(:class:`~twinsense.scene.articulated.Mimic`; not a column of the joint motion).
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -21,7 +23,7 @@ from twinsense.robots.descriptions import resolve
 from twinsense.robots.materials import link_materials
 from twinsense.robots.meshes import merge, primitive_mesh, read_mesh
 from twinsense.robots.paths import resolve_uri
-from twinsense.scene.articulated import ArticulatedBody, Joint, JointMotion, KinematicTree, Link
+from twinsense.scene.articulated import ArticulatedBody, Joint, JointMotion, KinematicTree, Link, Mimic
 from twinsense.scene.geometry import Box, Cylinder, Sphere
 from twinsense.scene.motion import Motion
 from twinsense.scene.pose import Pose
@@ -105,6 +107,7 @@ def urdf_tree(path, *, materials=None, shapes: str = "visual", name: str | None 
         geom = merge(_shape_parts(lk, shapes, base_dir, field), f"{lk.name}")
         links.append(Link(lk.name, geom, mats[lk.name]))
     joints = []
+    joint_names = {j.name for j in robot.joints}
     for j in robot.joints:
         kind = _JOINT_KINDS.get(j.type)
         if kind is None:
@@ -116,7 +119,15 @@ def urdf_tree(path, *, materials=None, shapes: str = "visual", name: str | None 
             hi = math.inf if j.limit.upper is None else float(j.limit.upper)
         # URDF's default axis; a fixed joint's axis is ignored (often written "0 0 0").
         axis = (1.0, 0.0, 0.0) if j.axis is None or kind == "fixed" else tuple(float(x) for x in j.axis)
-        joints.append(Joint(j.name, kind, j.parent, j.child, _pose(j.origin), axis, lo, hi))
+        mimic = None
+        if j.mimic is not None and kind != "fixed":
+            if j.mimic.joint in joint_names:
+                mimic = Mimic(j.mimic.joint, 1.0 if j.mimic.multiplier is None else float(j.mimic.multiplier),
+                              0.0 if j.mimic.offset is None else float(j.mimic.offset))
+            else:  # kept as a joint of its own: the file names no such master
+                warnings.warn(f"{field}: joint {j.name!r} mimics {j.mimic.joint!r}, which the file does not "
+                              "have; it is driven as a joint of its own", stacklevel=2)
+        joints.append(Joint(j.name, kind, j.parent, j.child, _pose(j.origin), axis, lo, hi, mimic))
     return KinematicTree(name or robot.name or p.stem, links, joints)
 
 

@@ -6,10 +6,12 @@ from twinsense.scene.articulated import (
     JointConstantVelocity,
     JointKeyframes,
     JointMotion,
+    JointSamples,
     JointSetpoints,
     KinematicTree,
     Link,
     LinkMotion,
+    Mimic,
     TreeState,
 )
 from twinsense.scene.geometry import (
@@ -38,8 +40,9 @@ from twinsense.scene.scene import SENSOR_KINDS, Frame, Mount, Scene, SceneObject
 
 __all__ = [
     "MAGNET_SHAPES", "SENSOR_KINDS", "ArticulatedBody", "Box", "Capsule", "ConstantVelocity", "Cylinder", "Frame",
-    "Geometry", "Joint", "JointConstantVelocity", "JointKeyframes", "JointMotion", "JointSetpoints", "Keyframes",
-    "KinematicTree", "Link", "LinkMotion", "Magnet", "Material", "MeshFile", "Motion", "MotionState", "Mount",
+    "Geometry", "Joint", "JointConstantVelocity", "JointKeyframes", "JointMotion", "JointSamples",
+    "JointSetpoints", "Keyframes",
+    "KinematicTree", "Link", "LinkMotion", "Magnet", "Material", "MeshFile", "Mimic", "Motion", "MotionState", "Mount",
     "Oscillation", "Plane", "Pose", "Scene", "SceneObject", "Sphere", "Static", "TreeState", "TriangleMesh",
     "Waypoints", "get_material", "material_names", "register_material",
 ]

@@ -34,7 +34,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.interpolate import CubicSpline
+from scipy.interpolate import CubicHermiteSpline, CubicSpline
 
 from twinsense import validation as V
 from twinsense.compiled import jit
@@ -75,6 +75,29 @@ def _limit(field_name: str, value, default: float) -> float:
     return v
 
 
+@dataclass(frozen=True)
+class Mimic:
+    """A joint that follows another: q = multiplier * q_joint + offset, qd = multiplier * qd_joint
+    (URDF's ``<mimic>``: a gripper's second finger, a coupled linkage).
+
+    ``joint`` names the driving joint (a movable joint of the same tree, itself possibly a
+    mimic one); ``offset`` [rad or m].
+    """
+
+    joint: str
+    multiplier: float = 1.0
+    offset: float = 0.0
+
+    def __post_init__(self) -> None:
+        _name("mimic.joint", self.joint)
+        for f in ("multiplier", "offset"):
+            v = getattr(self, f)
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) \
+                    or not math.isfinite(v):
+                raise ConfigError(f"mimic.{f}", v, "a finite number")
+            object.__setattr__(self, f, float(v))
+
+
 @dataclass(frozen=True, eq=False)
 class Joint:
     """A joint between two links.
@@ -93,6 +116,9 @@ class Joint:
         Joint axis in the joint frame (normalised here).
     lower, upper : float
         Limits [rad] (revolute) or [m] (prismatic); +-inf means none.
+    mimic : Mimic, optional
+        A revolute or prismatic joint driven by another one (not a column of q; its own
+        limits are not checked, as ROS computes a mimic joint from its master alone).
     """
 
     name: str
@@ -103,6 +129,7 @@ class Joint:
     axis: tuple = (0.0, 0.0, 1.0)
     lower: float = -math.inf
     upper: float = math.inf
+    mimic: Mimic | None = None
 
     def __post_init__(self) -> None:
         n = _name("joint.name", self.name)
@@ -137,10 +164,22 @@ class Joint:
             raise ConfigError(f"joints[{n}].lower", lo, f"a limit <= upper ({hi:g})")
         object.__setattr__(self, "lower", lo)
         object.__setattr__(self, "upper", hi)
+        if self.mimic is not None:
+            if not isinstance(self.mimic, Mimic):
+                raise ConfigError(f"joints[{n}].mimic", self.mimic, "a twinsense Mimic or None")
+            if kind == "fixed":
+                raise ConfigError(f"joints[{n}].mimic", self.mimic, "None for a fixed joint")
+            if self.mimic.joint == n:
+                raise ConfigError(f"joints[{n}].mimic.joint", n, "another joint than itself")
 
     @property
     def movable(self) -> bool:
         return self.kind != "fixed"
+
+    @property
+    def driven(self) -> bool:
+        """A column of q: movable and not a mimic joint."""
+        return self.kind != "fixed" and self.mimic is None
 
     @property
     def unit(self) -> str:
@@ -275,8 +314,9 @@ class TreeState:
 def _fk_kernel(q, qd, jint, jdat, root, base, out):  # pragma: no cover - compiled
     """Forward kinematics with velocities, joints in parent-before-child order (see KinematicTree.forward).
 
-    jint (m, 4) int: per joint q index (-1: none), kind code, parent link, child link.
-    jdat (m, 15): origin rotation (row-major 9), origin position (3), axis (3).
+    jint (m, 5) int: per joint q index (-1: none), kind code, parent link, child link, mimic (1: the
+    joint value is multiplier q + offset, its velocity multiplier qd, of that q index).
+    jdat (m, 17): origin rotation (row-major 9), origin position (3), axis (3), multiplier, offset.
     base (18,): root position, rotation (row-major 9), linear and angular velocity.
     out (n_links, 18): position, rotation (row-major 9), linear and angular velocity per link.
     Per joint k (joint frame = child frame):
@@ -298,6 +338,9 @@ def _fk_kernel(q, qd, jint, jdat, root, base, out):  # pragma: no cover - compil
         if jint[k, 0] >= 0:
             qk = q[jint[k, 0]]
             qdk = qd[jint[k, 0]]
+            if jint[k, 4] != 0:
+                qk = jdat[k, 15] * qk + jdat[k, 16]
+                qdk = jdat[k, 15] * qdk
         # Joint rotation J in the joint frame: Rodrigues for a revolute joint, identity otherwise.
         if kind == 0:
             cs = math.cos(qk)
@@ -427,7 +470,7 @@ class KinematicTree:
             raise ConfigError(f"{name}.joints", f"links {lost}", "a tree: these links form a cycle, unreachable "
                               f"from the root {self.root!r}")
         self._parent_joint = parent_joint
-        movable = [j for j in self.joints if j.movable]
+        movable = [j for j in self.joints if j.driven]
         self.joint_names = tuple(j.name for j in movable)
         self._joint_index = {n: i for i, n in enumerate(self.joint_names)}
         lim = np.array([[j.lower, j.upper] for j in movable], dtype=float).reshape(-1, 2)
@@ -438,22 +481,51 @@ class KinematicTree:
         self._shape = (len(movable),)
         self._base0 = np.zeros(18)  # the root at the origin, at rest: position, rotation (identity), velocities
         self._base0[3:12] = np.eye(3).ravel()
+        self._mimics = self._resolve_mimics()
         self._compile(order)
+
+    def _resolve_mimics(self) -> dict[str, tuple[int, float, float]]:
+        """{mimic joint: (q column, multiplier, offset)}, a chain of mimics composed down to its driven joint."""
+        by_name = {j.name: j for j in self.joints}
+        out: dict[str, tuple[int, float, float]] = {}
+        for j in self.joints:
+            if j.mimic is None:
+                continue
+            mult, off, seen, cur = 1.0, 0.0, [j.name], j
+            while cur.mimic is not None:
+                m = cur.mimic
+                master = by_name.get(m.joint)
+                if master is None or not master.movable:
+                    raise ConfigError(f"{self.name}.joints[{cur.name}].mimic.joint", m.joint,
+                                      "a revolute or prismatic joint of the tree: "
+                                      + ", ".join(x.name for x in self.joints if x.movable and x is not cur))
+                if master.name in seen:
+                    raise ConfigError(f"{self.name}.joints[{j.name}].mimic", " -> ".join([*seen, master.name]),
+                                      "a chain of mimic joints ending at a driven joint (not a cycle)")
+                # cur = m.multiplier * master + m.offset, and j = mult * cur + off.
+                mult, off = mult * m.multiplier, mult * m.offset + off
+                seen.append(master.name)
+                cur = master
+            out[j.name] = (self._joint_index[cur.name], mult, off)
+        return out
 
     # ---------------------------------------------------------------- precomputation
     def _compile(self, order: list[Joint]) -> None:
         m = len(order)
         self._order_parent = np.array([self._link_index[j.parent] for j in order], dtype=np.intp)
         self._order_child = np.array([self._link_index[j.child] for j in order], dtype=np.intp)
-        self._order_qi = np.array([self._joint_index.get(j.name, -1) if j.movable else -1 for j in order],
-                                  dtype=np.intp)
+        mim = self._mimics
+        self._order_qi = np.array([mim[j.name][0] if j.name in mim else self._joint_index.get(j.name, -1)
+                                   if j.movable else -1 for j in order], dtype=np.intp)
         kinds = np.array([_KIND_CODE[j.kind] for j in order], dtype=np.intp)
+        is_mimic = np.array([j.name in mim for j in order], dtype=np.intp)
         self._jint = np.ascontiguousarray(np.column_stack(
-            [self._order_qi, kinds, self._order_parent, self._order_child]).reshape(m, 4).astype(np.intp))
+            [self._order_qi, kinds, self._order_parent, self._order_child, is_mimic]).reshape(m, 5).astype(np.intp))
         self._jdat = np.ascontiguousarray(np.column_stack(
             [np.array([j.origin.rotation.ravel() for j in order]).reshape(m, 9),
              np.array([j.origin.position for j in order]).reshape(m, 3),
-             np.array([j.axis for j in order]).reshape(m, 3)]))
+             np.array([j.axis for j in order]).reshape(m, 3),
+             np.array([mim[j.name][1:] if j.name in mim else (1.0, 0.0) for j in order]).reshape(m, 2)]))
         self._root_index = self._link_index[self.root]
 
     # ---------------------------------------------------------------- queries
@@ -464,7 +536,7 @@ class KinematicTree:
 
     @property
     def n_joints(self) -> int:
-        """Number of movable joints (the length of q)."""
+        """Number of driven joints (the length of q: movable joints that are not mimic joints)."""
         return len(self.joint_names)
 
     def link(self, name: str) -> Link:
@@ -483,8 +555,13 @@ class KinematicTree:
 
         raise UnknownNameError(f"{self.name}.joint", name, [j.name for j in self.joints])
 
+    @property
+    def mimic_joints(self) -> tuple:
+        """Names of the joints that follow another (:class:`Mimic`; not columns of q)."""
+        return tuple(self._mimics)
+
     def joint_index(self, name: str) -> int:
-        """Column of movable joint ``name`` in q."""
+        """Column of driven joint ``name`` in q (a mimic joint has none)."""
         i = self._joint_index.get(name)
         if i is None:
             from twinsense.errors import UnknownNameError
@@ -738,6 +815,168 @@ class JointKeyframes(JointMotion):
                 "joint_names": None if self.joint_names is None else list(self.joint_names)}
 
 
+#: How far [rad or m] a recorded joint value may lie outside its joint's limits and still be accepted
+#: (then clipped onto the limit): encoder noise and rounding put a joint parked at its limit a few
+#: counts beyond it (a 17-bit encoder's count is 4.8e-5 rad; drivers report values rounded to ~1e-9).
+SAMPLES_LIMIT_TOLERANCE = 1e-6
+
+
+class JointSamples(JointMotion):
+    """Densely sampled recorded joint positions (and velocities): a robot's ``/joint_states`` played back.
+
+    With ``velocities``, a piecewise cubic Hermite through every (t_i, q_i, qd_i)
+    (:class:`scipy.interpolate.CubicHermiteSpline`: C1, its derivative the recorded
+    velocity at every sample; error <= h^4 max|q''''| / 384). Without, a not-a-knot
+    cubic spline (C2; not the clamped one of :class:`JointKeyframes`: a recording
+    neither starts nor ends at rest). At a sample time ``q`` and ``qd`` are the
+    recorded values themselves (``qd`` the spline's slope without velocities).
+    Before the first and after the last sample the joints hold the first / last
+    sample with zero velocity (a step in velocity there: the recording says
+    nothing about the robot outside its span).
+
+    Repeated time stamps (real logs have them: a driver republishing the last
+    state) are dropped when the whole row repeats (positions and velocities);
+    a repeated stamp with other values, or a time going back, is a ConfigError
+    naming the sample index.
+
+    Limits, checked when a body is built (like :class:`JointKeyframes`: every
+    sample and the interpolant's extrema between samples): a value more than
+    :data:`SAMPLES_LIMIT_TOLERANCE` (1e-6 rad or m) outside a joint's limits is a
+    ConfigError naming the joint and the time; a value within that tolerance
+    outside (measurement noise at a limit) is clipped onto the limit by ``q(t)``.
+
+    Parameters
+    ----------
+    times : (n_t,) float
+        Sample times [s], non-decreasing, n_t >= 2 distinct.
+    positions : (n_t, n_j) float
+        Joint positions [rad or m].
+    velocities : (n_t, n_j) float, optional
+        Joint velocities [rad/s or m/s] at the same samples.
+    joint_names : list of str, optional
+        The joints of the columns (default: every driven joint, in tree order).
+    """
+
+    def __init__(self, times, positions, velocities=None, joint_names=None):
+        f = "joints.samples"
+        t = V.array(f"{f}.times", times, (None,), "s")
+        if np.any(np.abs(t) > V.TIME_MAX):
+            raise ConfigError(f"{f}.times", times, f"times within +-{V.TIME_MAX:g} [s]")
+        q = self._table(f"{f}.positions", positions, len(t))
+        qd = None if velocities is None else self._table(f"{f}.velocities", velocities, len(t))
+        if qd is not None and qd.shape != q.shape:
+            raise ConfigError(f"{f}.velocities", f"array of shape {qd.shape}",
+                              f"one velocity per position: shape {q.shape}")
+        dt = np.diff(t)
+        back = np.flatnonzero(dt < 0)
+        if back.size:
+            i = int(back[0]) + 1
+            raise ConfigError(f"{f}.times[{i}]", float(t[i]), f"a time >= the previous sample's ({t[i - 1]:.9g} s)")
+        same = np.flatnonzero(dt == 0)
+        for i in same + 1:
+            if not (np.array_equal(q[i], q[i - 1]) and (qd is None or np.array_equal(qd[i], qd[i - 1]))):
+                raise ConfigError(f"{f}.times[{i}]", float(t[i]),
+                                  f"a time > the previous sample's ({t[i - 1]:.9g} s): a repeated time stamp is "
+                                  "only dropped when its whole row repeats too")
+        keep = np.ones(len(t), dtype=bool)
+        keep[same + 1] = False
+        t, q = t[keep], q[keep]
+        qd = None if qd is None else qd[keep]
+        if len(t) < 2:
+            raise ConfigError(f"{f}.times", times, "at least 2 samples at distinct times [s]")
+        self.joint_names = _joint_names(f"{f}.joint_names", joint_names)
+        if self.joint_names is not None and len(self.joint_names) != q.shape[1]:
+            raise ConfigError(f"{f}.joint_names", list(self.joint_names),
+                              f"one name per column of positions ({q.shape[1]})")
+        for a in (t, q) if qd is None else (t, q, qd):
+            a.setflags(write=False)
+        self.times, self.positions, self.velocities = t, q, qd
+        if qd is None:
+            self._spline = CubicSpline(t, q, axis=0, bc_type="not-a-knot")
+        else:
+            self._spline = CubicHermiteSpline(t, q, qd, axis=0)
+        self._dspline = self._spline.derivative()
+        # Clip bounds of q(t): the limits of the bodies it drives (set by check), +-inf until then.
+        self._lo = np.full(q.shape[1], -np.inf)
+        self._hi = np.full(q.shape[1], np.inf)
+
+    @staticmethod
+    def _table(field_name: str, value, n_t: int) -> np.ndarray:
+        a = np.array(V._floats(field_name, value, "a finite array (n_times, n_joints)"), dtype=float)
+        if a.ndim == 1 and len(a) == n_t:
+            a = a[:, None]
+        if a.ndim != 2 or len(a) != n_t or a.shape[1] == 0:
+            raise ConfigError(field_name, f"array of shape {a.shape}",
+                              f"one row per sample time: shape ({n_t}, n_joints)")
+        bad = np.argwhere(~np.isfinite(a))
+        if bad.size:
+            i, k = (int(x) for x in bad[0])
+            raise ConfigError(f"{field_name}[{i}][{k}]", float(a[i, k]), "a finite number")
+        return a
+
+    @property
+    def n_columns(self) -> int:
+        return self.positions.shape[1]
+
+    def _where(self, t: float) -> int:
+        """-1 inside an interval; the sample index at a sample time; -2 / -3 before / after the span."""
+        if t < self.times[0]:
+            return -2
+        if t > self.times[-1]:
+            return -3
+        i = int(np.searchsorted(self.times, t))
+        return i if self.times[i] == t else -1
+
+    def q(self, t):
+        t = check_time(t)
+        w = self._where(t)
+        if w == -1:
+            q = np.asarray(self._spline(t), dtype=float)
+        else:  # the recorded row itself, not the spline's rounding of it
+            q = self.positions[{-2: 0, -3: -1}.get(w, w)].copy()
+        return np.clip(q, self._lo, self._hi)
+
+    def qd(self, t):
+        t = check_time(t)
+        w = self._where(t)
+        if w in (-2, -3):
+            return np.zeros(self.n_columns)
+        if w >= 0 and self.velocities is not None:
+            return self.velocities[w].copy()
+        return np.asarray(self._dspline(t), dtype=float)
+
+    #: (min, max, t_min, t_max) per column over the whole interpolant: the cubic pieces' extrema,
+    #: found as for the keyframes (the roots of each piece's quadratic derivative and its ends).
+    extrema = JointKeyframes.extrema
+
+    def check(self, tree, columns, field_name):
+        tol = SAMPLES_LIMIT_TOLERANCE
+        for k, col in enumerate(columns):
+            lo, hi = tree.limits[col]
+            out = np.flatnonzero((self.positions[:, k] < lo - tol) | (self.positions[:, k] > hi + tol))
+            if out.size:
+                i = int(out[0])
+                raise ConfigError(f"{field_name}.samples.positions[{i}][{k}]",
+                                  f"{self.positions[i, k]:.9g} at t = {self.times[i]:.9g} s",
+                                  _limits_text(tree, col) + f" (+-{tol:g}: measurement noise at a limit)")
+        vmin, vmax, tmin, tmax = self.extrema()
+        for k, col in enumerate(columns):
+            lo, hi = tree.limits[col]
+            for v, tv in ((vmin[k], tmin[k]), (vmax[k], tmax[k])):
+                if not lo - tol <= v <= hi + tol:
+                    raise ConfigError(f"{field_name}.samples", f"{float(v):.9g} at t = {float(tv):.9g} s",
+                                      _limits_text(tree, col) + f" (+-{tol:g}) along the whole interpolant between "
+                                      "the samples (the cubic overshoots here, between two samples near the limit)")
+        # Within the tolerance outside: q(t) clips onto the limits (of every body this motion drives).
+        self._lo[:] = np.maximum(self._lo, tree.limits[columns, 0])
+        self._hi[:] = np.minimum(self._hi, tree.limits[columns, 1])
+
+    def to_dict(self):
+        return {"type": "samples", "times": self.times.tolist(), "positions": self.positions.tolist(),
+                "velocities": None if self.velocities is None else self.velocities.tolist(),
+                "joint_names": None if self.joint_names is None else list(self.joint_names)}
+
+
 class JointConstantVelocity(JointMotion):
     """q(t) = q0 + qd t: constant joint velocities [rad/s or m/s] from q0 at t = 0.
 
@@ -932,6 +1171,9 @@ class ArticulatedBody:
                 if n not in tree.joint_names:
                     from twinsense.errors import UnknownNameError
 
+                    if n in tree.mimic_joints:
+                        raise ConfigError(f"{name}.joints.joint_names", n, "a driven joint: "
+                                          f"{n!r} follows {tree.joint(n).mimic.joint!r} (mimic); drive that one")
                     raise UnknownNameError(f"{name}.joints.joint_names", n, list(tree.joint_names))
                 cols.append(tree.joint_index(n))
             cols = np.array(cols, dtype=np.intp)
