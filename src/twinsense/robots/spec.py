@@ -6,10 +6,12 @@
     constant_velocity: {q0: [...], qd: [...]}
     fixed: [...]                    # or {joint name: value}
     setpoints: [...]                # initial values; pushed from outside while running
+    recording: {file: run.mcap, topic: /joint_states}   # a recorded trajectory (MCAP or CSV)
 
 with an optional ``joint_names`` list naming the columns (default: every
 movable joint in the description's order). Joints not named hold their home
-value.
+value. A recording's ``file`` is relative to the scenario file; its
+``joint_names`` choose the joints read from it.
 """
 
 from __future__ import annotations
@@ -26,16 +28,21 @@ from twinsense.scene.articulated import (
     JointConstantVelocity,
     JointKeyframes,
     JointMotion,
+    JointSamples,
     JointSetpoints,
 )
 from twinsense.scene.motion import Motion
 from twinsense.scene.pose import Pose
 
-JOINT_MOTION_KINDS = ("keyframes", "constant_velocity", "fixed", "setpoints")
+JOINT_MOTION_KINDS = ("keyframes", "constant_velocity", "fixed", "setpoints", "recording")
+#: Keys of a ``recording:`` entry (``file`` required); see :func:`twinsense.robots.read_joint_states`.
+RECORDING_KEYS = ("file", "topic", "time_offset", "clock")
 
 
-def joint_motion_from_dict(data: Any, field: str = "joints") -> JointMotion | None:
-    """A joint motion from a mapping with one of ``JOINT_MOTION_KINDS`` (None for None)."""
+def joint_motion_from_dict(data: Any, field: str = "joints", base_dir: Path | None = None) -> JointMotion | None:
+    """A joint motion from a mapping with one of ``JOINT_MOTION_KINDS`` (None for None).
+
+    ``base_dir``: the directory a recording's relative ``file`` is taken from (the scenario file's)."""
     if data is None:
         return None
     if not isinstance(data, dict):
@@ -51,6 +58,8 @@ def joint_motion_from_dict(data: Any, field: str = "joints") -> JointMotion | No
         if names is not None:
             raise ConfigError(f"{field}.joint_names", names, "no joint_names when fixed is a {joint: value} mapping")
         names, value = list(value), list(value.values())
+    if kind == "recording":
+        return _recording(value, names, f"{field}.recording", base_dir)
     try:
         if kind == "keyframes":
             if not isinstance(value, dict) or set(value) != {"times", "values"}:
@@ -71,6 +80,28 @@ def joint_motion_from_dict(data: Any, field: str = "joints") -> JointMotion | No
         raise ConfigError(f, e.value, e.allowed) from None
 
 
+def _recording(value: Any, names: Any, field: str, base_dir: Path | None) -> JointSamples:
+    """``recording: {file, topic, time_offset, clock}`` read into a JointSamples (errors: ``field.<key>``)."""
+    from twinsense.robots.recordings import read_joint_states
+
+    if not isinstance(value, dict) or "file" not in value or set(value) - set(RECORDING_KEYS):
+        raise ConfigError(field, value, "a mapping {file: <.mcap, bag directory or .csv>, topic: /joint_states, "
+                          "time_offset: 0.0, clock: header} (file required)")
+    file = value["file"]
+    if not isinstance(file, str) or not file:
+        raise ConfigError(f"{field}.file", file, "the path of an .mcap file, a ROS 2 bag directory or a .csv file")
+    p = Path(file)
+    if not p.is_absolute() and base_dir is not None:
+        p = base_dir / p
+    kw = {k: value[k] for k in ("topic", "time_offset", "clock") if k in value}
+    try:
+        return read_joint_states(p, joint_names=names, **kw)
+    except ConfigError as e:
+        key = "file" if e.field == "path" else e.field
+        where = f" (in {e.source})" if e.source and key != "file" else ""
+        raise ConfigError(f"{field}.{key}", e.value, e.allowed + where) from None
+
+
 def robot_from_dict(name: str, description: str, *, base: Pose | Motion | None = None, joints: Any = None,
                     materials: dict | None = None, base_dir: Path | None = None,
                     shapes: str = "visual") -> ArticulatedBody:
@@ -80,7 +111,7 @@ def robot_from_dict(name: str, description: str, *, base: Pose | Motion | None =
     if not isinstance(description, str) or not description:
         raise ConfigError("description", description, "an installed robot (" + ", ".join(robot_names())
                           + ") or the path of a .urdf / MJCF .xml file")
-    motion = joint_motion_from_dict(joints)
+    motion = joint_motion_from_dict(joints, base_dir=base_dir)
     if description in ROBOTS:
         target: Any = description
     else:
