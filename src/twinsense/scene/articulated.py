@@ -895,7 +895,7 @@ class JointSamples(JointMotion):
             self._spline = CubicSpline(t, q, axis=0, bc_type="not-a-knot")
         else:
             self._spline = CubicHermiteSpline(t, q, qd, axis=0)
-        self._dspline = self._spline.derivative()
+        self._c = self._spline.c  # (4, n_t - 1, n_j): each piece's coefficients of s^3, s^2, s, 1
         # Clip bounds of q(t): the limits of the bodies it drives (set by check), +-inf until then.
         self._lo = np.full(q.shape[1], -np.inf)
         self._hi = np.full(q.shape[1], np.inf)
@@ -918,32 +918,31 @@ class JointSamples(JointMotion):
     def n_columns(self) -> int:
         return self.positions.shape[1]
 
-    def _where(self, t: float) -> int:
-        """-1 inside an interval; the sample index at a sample time; -2 / -3 before / after the span."""
-        if t < self.times[0]:
-            return -2
-        if t > self.times[-1]:
-            return -3
-        i = int(np.searchsorted(self.times, t))
-        return i if self.times[i] == t else -1
+    def q_qd(self, t):
+        """(q, qd) at t [s], both from one interval search: the piece's cubic by Horner's rule."""
+        t = check_time(t)
+        times = self.times
+        if not times[0] <= t <= times[-1]:  # held: the first / last sample, at rest
+            q = self.positions[0 if t < times[0] else -1]
+            return np.clip(q, self._lo, self._hi), np.zeros(self.n_columns)
+        i = int(np.searchsorted(times, t, side="right")) - 1
+        if times[i] == t:  # at a sample: the recorded row itself, not the spline's rounding of it
+            if self.velocities is not None:
+                qd = self.velocities[i].copy()
+            else:  # the spline's slope there (the last sample: the end of the last piece)
+                j = min(i, len(times) - 2)
+                c, h = self._c[:, j], t - times[j]
+                qd = (3 * c[0] * h + 2 * c[1]) * h + c[2]
+            return np.clip(self.positions[i], self._lo, self._hi), qd
+        c, h = self._c[:, i], t - times[i]
+        q = ((c[0] * h + c[1]) * h + c[2]) * h + c[3]
+        return np.clip(q, self._lo, self._hi), (3 * c[0] * h + 2 * c[1]) * h + c[2]
 
     def q(self, t):
-        t = check_time(t)
-        w = self._where(t)
-        if w == -1:
-            q = np.asarray(self._spline(t), dtype=float)
-        else:  # the recorded row itself, not the spline's rounding of it
-            q = self.positions[{-2: 0, -3: -1}.get(w, w)].copy()
-        return np.clip(q, self._lo, self._hi)
+        return self.q_qd(t)[0]
 
     def qd(self, t):
-        t = check_time(t)
-        w = self._where(t)
-        if w in (-2, -3):
-            return np.zeros(self.n_columns)
-        if w >= 0 and self.velocities is not None:
-            return self.velocities[w].copy()
-        return np.asarray(self._dspline(t), dtype=float)
+        return self.q_qd(t)[1]
 
     #: (min, max, t_min, t_max) per column over the whole interpolant: the cubic pieces' extrema,
     #: found as for the keyframes (the roots of each piece's quadratic derivative and its ends).
