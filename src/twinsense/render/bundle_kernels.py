@@ -356,7 +356,8 @@ def _test(us, vs, best_t, best_k, tri, k):  # pragma: no cover
 def pick_cells(c_lo, c_hi, ray_start, order, us, vs, tri_start, tris, data, zmin, early,
                tri_inst, tri_prim, inst, prim):  # pragma: no cover
     """Closest triangle of every ray in cells c_lo..c_hi-1: its instance and primitive into
-    inst, prim (n,) int32 at the ray's index (left as they are, -1, on a miss).
+    inst, prim (n,) int32 at the ray's index (-1 on a miss; every binned ray is written, so
+    arrays whose rays are all binned need no filling first).
 
     ray_start, order, us, vs: the rays counting-sorted by cell with their u, v
     (:func:`bin_rays`, :func:`scatter_rays`: structure of arrays, so the loop over a
@@ -396,6 +397,9 @@ def pick_cells(c_lo, c_hi, ray_start, order, us, vs, tri_start, tris, data, zmin
             if f >= 0:
                 inst[order[r0 + j]] = tri_inst[f]
                 prim[order[r0 + j]] = tri_prim[f]
+            else:
+                inst[order[r0 + j]] = -1
+                prim[order[r0 + j]] = -1
 
 
 
