@@ -3,8 +3,9 @@
 Messages are ROS 2 messages (``ros2msg`` schemas, CDR encoding) written with
 the ``mcap`` and ``mcap-ros2-support`` libraries (the ``ros2`` extra). The
 converter reads only the recording: each sensor's streams and its
-``config`` JSON, and, for the poses of the scene's objects on ``/tf`` and
-for radar detections (derived from the recorded ADC codes), the scene and
+``config`` JSON, and, for the poses of the scene's objects and mount frames
+on ``/tf``, the joint states of its robots and people and for radar
+detections (derived from the recorded ADC codes), the scene and
 sensors the caller rebuilds from the recording's scenario (``twinsense
 convert`` does this). One builder per sensor kind makes its messages
 (:data:`KIND_MESSAGES`, :func:`register_messages` for a new kind). Topics,
@@ -80,6 +81,9 @@ ROS_MSGDEFS: dict[str, str] = {
     "sensor_msgs/msg/MagneticField": _with_deps(
         "std_msgs/Header header\ngeometry_msgs/Vector3 magnetic_field\nfloat64[9] magnetic_field_covariance\n",
         *_HEADER_DEPS, ("geometry_msgs/Vector3", _VEC)),
+    "sensor_msgs/msg/JointState": _with_deps(
+        "std_msgs/Header header\nstring[] name\nfloat64[] position\nfloat64[] velocity\nfloat64[] effort\n",
+        *_HEADER_DEPS),
 }
 
 _RADAR_CUBE = ("std_msgs/Header header\nuint32 n_rx\nuint32 n_chirps\nuint32 n_samples\n"
@@ -178,6 +182,54 @@ def static_sensor_transforms(name: str, kind: str, cfg: dict) -> list[tuple[str,
     # world <- optical = (world <- link) (link <- optical)  =>  world <- link = pose @ optical^-1
     return [(parent, f"{name}_link", pose @ link_optical.inverse()),
             (f"{name}_link", f"{name}_optical_frame", link_optical)]
+
+
+def scene_transforms(scene: Scene) -> tuple[list[tuple[str, str, Pose]], list]:
+    """Every scene object and mount frame as a child of ``world``: (static transforms, moving items).
+
+    Static items come as (``world``, name, pose item -> world); moving ones
+    (objects and frames whose motion is not static: robot links, flanges,
+    sites, people) as the items themselves, to be posed at each frame time
+    with ``item.pose_at(t)``. Mount frames are what links without geometry
+    become (a flange such as ``ur5/tool0``, an MJCF site): sensors hang from
+    them, so they are published like the objects.
+    """
+    static: list[tuple[str, str, Pose]] = []
+    moving: list = []
+    eye = np.eye(4)
+    for item in (*scene.objects, *scene.frames):
+        if item.name == WORLD_FRAME:
+            # MuJoCo's world body (its geoms) is the world frame itself: world -> world would be a loop.
+            if item.motion.is_static and np.array_equal(item.pose_at(0.0).matrix, eye):
+                continue
+            raise ConfigError(f"scene[{item.name!r}].name", item.name,
+                              f"a name other than {WORLD_FRAME!r} (the root frame of /tf) for an item "
+                              "that is not at the world origin")
+        if item.motion.is_static:
+            static.append((WORLD_FRAME, item.name, item.pose_at(0.0)))
+        else:
+            moving.append(item)
+    return static, moving
+
+
+def body_frame(body) -> str:
+    """The frame id of an articulated body's joint states: its root link, ``<body>/<root link>``."""
+    return f"{body.name}/{body.tree.root}"
+
+
+def joint_state(body, ns: int) -> dict:
+    """A ``sensor_msgs/JointState`` of an articulated body at stamp ``ns``.
+
+    ``name``: the driven joints (``tree.joint_names``); ``position`` [rad or m]
+    and ``velocity`` [rad/s or m/s] as the body evaluates them at t = ns 1e-9 s
+    (``body.joint_state``: joints the motion does not drive held at home);
+    ``effort`` empty (the kinematic model has no forces). The header's
+    frame is the body's root link (the message is not placed in space;
+    ROS tools ignore it).
+    """
+    q, qd = body.joint_state(ns * 1e-9)
+    return {"header": _header(ns, body_frame(body)), "name": list(body.tree.joint_names),
+            "position": _f8(q), "velocity": _f8(qd), "effort": _f8(np.empty(0))}
 
 
 def _h(r: np.ndarray) -> np.ndarray:
@@ -456,8 +508,11 @@ def write_mcap(rec: Recording, out, scene: Scene | None = None, sensors: dict[st
     """Write the messages of an open recording to ``out`` (an ``.mcap`` path); returns the path.
 
     ``scene`` (rebuilt from the recording's scenario) adds every object's
-    frame to ``/tf`` (moving objects at each frame time) and ``/tf_static``
-    (static objects); without it only the sensors' frames are published.
+    and mount frame's transform (robot links without geometry, sites) to
+    ``/tf`` (moving ones at each frame time) and ``/tf_static`` (static
+    ones), and one ``/<body>/joint_states`` per articulated body (robots,
+    people) at each frame time; without it only the sensors' frames are
+    published.
     ``sensors`` (name -> sensor, rebuilt from the same scenario) lets a
     builder derive what the recording does not store: radar detections.
     The file is written under a temporary name beside ``out`` and renamed
@@ -492,13 +547,12 @@ def _write(writer, rec: Recording, scene: Scene | None, sensors: dict[str, Any])
     t_first = events[0][0] if events else 0
 
     static = [tr for name, s in rec.sensors.items() for tr in static_sensor_transforms(name, s.kind, s.config)]
-    moving = []
+    moving: list = []
+    bodies: tuple = ()
     if scene is not None:
-        for obj in scene:
-            if obj.is_static:
-                static.append((WORLD_FRAME, obj.name, obj.pose_at(0.0)))
-            else:
-                moving.append(obj)
+        items, moving = scene_transforms(scene)
+        static += items
+        bodies = scene.articulated_bodies
     emit("/tf_static", "tf2_msgs/msg/TFMessage",
          {"transforms": [_transform(t_first, p, c, pose) for p, c, pose in static]}, t_first)
 
@@ -510,6 +564,8 @@ def _write(writer, rec: Recording, scene: Scene | None, sensors: dict[str, Any])
                 t = ns * 1e-9
                 emit("/tf", "tf2_msgs/msg/TFMessage",
                      {"transforms": [_transform(ns, WORLD_FRAME, o.name, o.pose_at(t)) for o in moving]}, ns)
+            for body in bodies:
+                emit(f"/{body.name}/joint_states", "sensor_msgs/msg/JointState", joint_state(body, ns), ns)
             last_ns = ns
         for topic, msgtype, msg in _sensor_messages(name, rec[name], k, ns, sensors.get(name)):
             emit(topic, msgtype, msg, ns)

@@ -167,6 +167,27 @@ class Scene:
     def frame_names(self) -> tuple[str, ...]:
         return tuple(self._frames)
 
+    @property
+    def frames(self) -> tuple[Frame, ...]:
+        """The mount frames, in the order they were added."""
+        return tuple(self._frames.values())
+
+    @property
+    def articulated_bodies(self) -> tuple:
+        """The articulated bodies (robots, people) with links in the scene, in the order of their first link.
+
+        Found from the links' motions, so a body added with ``body.add_to(scene)`` counts as one added
+        with :meth:`add_articulated`. A link's motion carries its body (``LinkMotion.body``); it is
+        recognised by its ``joint_state`` method because this module cannot import
+        ``scene.articulated`` (that module imports this one).
+        """
+        bodies: dict[int, object] = {}
+        for item in (*self._objects, *self._frames.values()):
+            body = getattr(item.motion, "body", None)
+            if callable(getattr(body, "joint_state", None)):
+                bodies.setdefault(id(body), body)
+        return tuple(bodies.values())
+
     def mount_target(self, name: str) -> SceneObject | Frame:
         """The object or frame called ``name`` (what a sensor mount refers to)."""
         f = self._frames.get(name)
