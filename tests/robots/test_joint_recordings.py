@@ -390,3 +390,76 @@ def test_samples_input_errors():
         JointSamples([0, "x"], [[0.0], [0.0]])
     s = JointSamples([0, 1, 2], [0.0, 1.0, 0.0])  # one joint as a vector
     assert s.n_columns == 1 and s.to_dict()["type"] == "samples"
+
+
+def _raw_mcap(path, msgdef: str, messages, **writer_options):
+    """An MCAP file written record by record with mcap's low-level Writer (CDR bytes from rosbags)."""
+    from mcap.writer import Writer as McapWriter
+
+    with open(path, "wb") as f:
+        w = McapWriter(f, **writer_options)
+        w.start("ros2", "test")
+        sid = w.register_schema(JS.__msgtype__, "ros2msg", msgdef.encode())
+        cid = w.register_channel("/joint_states", "cdr", sid)
+        for log_ns, msg in messages:
+            w.add_message(cid, log_ns, TS.serialize_cdr(msg, JS.__msgtype__), log_ns)
+        w.finish()
+    return path
+
+
+def test_mcap_without_summary_or_chunks_and_unreadable_files(tmp_path):
+    from mcap.writer import IndexType
+
+    s = sample_times_ns(3)
+    msgs = [(int(x), _js(int(x), ["a"], [0.1 * k])) for k, x in enumerate(s)]
+    bare = dict(repeat_channels=False, repeat_schemas=False, index_types=IndexType.NONE, use_chunking=False,
+                use_statistics=False, use_summary_offsets=False)
+    # No summary section (the channels are found by reading the file through).
+    path = _raw_mcap(tmp_path / "bare.mcap", TS.generate_msgdef(JS.__msgtype__, ros_version=2)[0], msgs, **bare)
+    np.testing.assert_array_equal(read_joint_states(path).positions.ravel(), [0.0, 0.1, 0.2])
+    # A ROS 1 style definition ("time stamp") the ROS 2 decoder cannot read: the message is named.
+    path = _raw_mcap(tmp_path / "ros1def.mcap", TS.generate_msgdef(JS.__msgtype__, ros_version=1)[0], msgs)
+    with pytest.raises(ConfigError, match="definition decodes") as e:
+        read_joint_states(path)
+    assert e.value.field == "/joint_states[0]"
+    # A recording cut short (no footer).
+    data = (tmp_path / "bare.mcap").read_bytes()
+    (tmp_path / "cut.mcap").write_bytes(data[: len(data) // 2])
+    with pytest.raises(ConfigError, match="readable MCAP file"):
+        read_joint_states(tmp_path / "cut.mcap")
+    # A bag directory must hold exactly one .mcap file.
+    (tmp_path / "two").mkdir()
+    for n in ("a", "b"):
+        (tmp_path / "two" / f"{n}.mcap").write_bytes(data)
+    with pytest.raises(ConfigError, match="holds 2 .mcap files"):
+        read_joint_states(tmp_path / "two")
+
+
+def test_malformed_messages_and_bad_arguments(tmp_path):
+    s = sample_times_ns(2)
+    dup = write_bag(tmp_path / "dup", [(int(x), _js(int(x), ["a", "a"], [0, 0])) for x in s])
+    with pytest.raises(ConfigError, match="without repeats") as e:
+        read_joint_states(dup)
+    assert e.value.field == "/joint_states[0].name"
+    short = write_bag(tmp_path / "short", [(int(x), _js(int(x), ["a", "b"], [0])) for x in s])
+    with pytest.raises(ConfigError, match="one position per name") as e:
+        read_joint_states(short)
+    assert e.value.field == "/joint_states[0].position"
+    for kw, field in (({"joint_names": "a"}, "joint_names"), ({"joint_names": ["a", "a"]}, "joint_names"),
+                      ({"time_offset": math.nan}, "time_offset"), ({"clock": "wall"}, "clock"),
+                      ({"topic": 3}, "topic")):
+        with pytest.raises(ConfigError) as e:
+            read_joint_states(short, **kw)
+        assert e.value.field == field
+    with pytest.raises(ConfigError):
+        read_joint_states(None)
+
+
+def test_a_recording_pickles_with_its_body(bag):
+    import pickle
+
+    ur5 = load_robot("ur5", name="ur5", joints=read_joint_states(bag[0]), shapes="collision")
+    copy = pickle.loads(pickle.dumps(ur5))
+    for tt in (0.0123, 1.5):
+        for a, b in zip(copy.joint_state(tt), ur5.joint_state(tt), strict=True):
+            np.testing.assert_array_equal(a, b)

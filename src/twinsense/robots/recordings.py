@@ -167,7 +167,7 @@ def _read_mcap(p: Path, topic: str, names: tuple | None, clock: str):
         cols = names
         has_vel = True
         try:
-            for i, (_, _, message, msg) in enumerate(reader.iter_decoded_messages(topics=[topic])):
+            for i, (_, _, message, msg) in enumerate(_decoded(reader, topic, src)):
                 here = f"{topic}[{i}]"
                 mnames = list(msg.name)
                 index = {n: j for j, n in enumerate(mnames)}
@@ -204,6 +204,24 @@ def _read_mcap(p: Path, topic: str, names: tuple | None, clock: str):
         raise ConfigError("topic", topic, f"a topic with at least 2 messages (it holds {len(rows)})", source=src)
     return (np.array(stamps, dtype=np.int64), np.array(rows, dtype=float),
             np.array(vrows, dtype=float) if has_vel else None, cols)
+
+
+def _decoded(reader, topic: str, src: str):
+    """The topic's (schema, channel, message, decoded) in log order; a message the decoder cannot read is a
+    ConfigError naming it (the decoder's own errors come from deep inside it: any of them means that)."""
+    it = reader.iter_decoded_messages(topics=[topic])
+    i = 0
+    while True:
+        try:
+            item = next(it)
+        except StopIteration:
+            return
+        except Exception as exc:  # the decoder raises many kinds for one cause: data it cannot read
+            raise ConfigError(f"{topic}[{i}]", f"{type(exc).__name__}: {exc}",
+                              "a message the file's ros2msg definition decodes (a readable MCAP file)",
+                              source=src) from None
+        yield item
+        i += 1
 
 
 # ---------------------------------------------------------------- CSV
