@@ -203,9 +203,9 @@ def test_ur5_tool_mount_velocity_matches_finite_difference_of_its_pose(bag):
     for tt in (t[40] + 0.0021, t[211] + 0.0033):
         st = mount.state_at(scene, tt)
         p0, p1 = mount.state_at(scene, tt - d).pose, mount.state_at(scene, tt + d).pose
-        # Central differences: error d^2/6 max|x'''|. With sum|qd| <= 9 rad/s, sum|qdd| <= 16 rad/s^2,
-        # sum|qddd| <= 50 rad/s^3 and a reach <= 1.2 m, |x'''| <= 1.2 (9^3 + 3*9*16 + 50) = 1.5e3 m/s^3: 2.5e-8
-        # m/s; rounding: 1e-16 m / 1e-5 s = 1e-11. |w''| <= 9*16 + 50 + ... < 1e3 rad/s^3: 1.7e-8 rad/s.
+        # Central differences: error d^2/6 max|x'''|. With sum|qd| <= 9 rad/s, sum|qdd| <= 18 rad/s^2,
+        # sum|qddd| <= 50 rad/s^3 and a reach <= 1.2 m, |x'''| <= 1.2 (9^3 + 3*9*18 + 50) = 1.5e3 m/s^3: 2.5e-8
+        # m/s; rounding: 1e-16 m / 1e-5 s = 1e-11. |w''| <= 9*18 + 50 + ... < 1e3 rad/s^3: 1.7e-8 rad/s.
         v_fd = (p1.position - p0.position) / (2 * d)
         w_fd = Rotation.from_matrix(p1.rotation @ p0.rotation.T).as_rotvec() / (2 * d)
         np.testing.assert_allclose(st.linear_velocity, v_fd, rtol=0, atol=5e-8)
