@@ -7,7 +7,11 @@ without set-up (frames and layouts as in docs/streaming.md):
 topic                           type                  content
 ==============================  ====================  ==========================================
 ``/tf``                         FrameTransforms       sensor frames (REP 103, as in the MCAP
-                                                      output) and scene objects at each frame time
+                                                      output), scene objects and mount frames
+                                                      (robot flanges, sites) at each frame time
+``/<body>/joint_states``        JSON                  robots, people: sensor_msgs/JointState's
+                                                      fields (header, name, position, velocity,
+                                                      effort) at each frame time
 ``/<s>/depth``                  RawImage ``32FC1``    camera, ToF: depth [m]
 ``/<s>/amplitude``              RawImage ``32FC1``    ToF: amplitude [DN]
 ``/<s>/camera_info``            CameraCalibration     camera, ToF
@@ -41,10 +45,12 @@ from twinsense import validation as V
 from twinsense.errors import ConfigError
 from twinsense.io.mcap import (
     WORLD_FRAME,
+    body_frame,
     camera_info,
     lidar_columns,
     pack_columns,
     radar_detection_columns,
+    scene_transforms,
     sensor_frame,
     stamp_ns,
     static_sensor_transforms,
@@ -73,6 +79,14 @@ def require_foxglove():
         raise ImportError("the Foxglove server needs the optional 'stream' extra: "
                           "pip install 'twinsense[stream]' (foxglove-sdk, pyzmq)") from err
     return foxglove
+
+
+class _TimeState(list):
+    """The moving items' transforms at one time, [(parent, child, pose)], and the articulated bodies'
+    joint states then, ``joints``: [(body name, root frame, joint names, q, qd)]; both taken on the
+    simulation thread."""
+
+    joints: list
 
 
 def _plain(obj: Any) -> Any:
@@ -132,14 +146,15 @@ class FoxgloveSink(QueuedSink):
         self.port = int(self.server.port)
         self._static = []
         self._moving = []
+        self._bodies = ()
         for s in self.sensors:
             cfg = _plain(s.config_dict()) if hasattr(s, "config_dict") else {}
             self._static += static_sensor_transforms(s.name, s.kind, cfg)
-        for obj in self.scene:
-            if obj.is_static:
-                self._static.append((WORLD_FRAME, obj.name, obj.pose_at(0.0)))
-            else:
-                self._moving.append(obj)
+        if self.scene is not None:
+            # Objects and mount frames (flanges, frame-only links, sites), as in the MCAP output.
+            static, self._moving = scene_transforms(self.scene)
+            self._static += static
+            self._bodies = self.scene.articulated_bodies
         self._next_stats = time.monotonic() + self.stats_interval
 
     def _stop(self) -> None:
@@ -210,7 +225,9 @@ class FoxgloveSink(QueuedSink):
         t = float(t)
         poses = None
         if t != self._posed_t:
-            poses = [(WORLD_FRAME, o.name, o.pose_at(t)) for o in getattr(self, "_moving", ())]
+            poses = _TimeState((WORLD_FRAME, o.name, o.pose_at(t)) for o in getattr(self, "_moving", ()))
+            poses.joints = [(b.name, body_frame(b), b.tree.joint_names, *b.joint_state(t))
+                            for b in getattr(self, "_bodies", ())]
             self._posed_t = t
         queued = super().send(sensor, t, (frame, poses))
         if not queued and poses is not None:
@@ -237,6 +254,12 @@ class FoxgloveSink(QueuedSink):
         if poses is not None:
             # Every transform at every new frame time: a client that joins late has them at once.
             self._log("/tf", "FrameTransforms", self._transforms(poses, ns), ns)
+            for body, root, names, q, qd in getattr(poses, "joints", ()):
+                # JSON with sensor_msgs/JointState's fields (Foxglove has no joint-state schema of its own).
+                self._log(f"/{body}/joint_states", None,
+                          {"header": {"stamp": {"sec": ns // 1_000_000_000, "nanosec": ns % 1_000_000_000},
+                                      "frame_id": root},
+                           "name": list(names), "position": q.tolist(), "velocity": qd.tolist(), "effort": []}, ns)
         if kind in ("camera", "tof"):
             if name not in self._camera_info:
                 self._camera_info[name] = camera_info(kind, _plain(sensor.config_dict()))
