@@ -6,7 +6,10 @@ seconds of simulation time; Rerun stores integer nanoseconds):
 ``world``                              view coordinates right-handed, z up (static)
 ``world/objects/<object>``             the object's mesh (static) and pose
                                        (static, or per frame time when it moves);
-                                       robot links ``<robot>/<link>`` nest under ``<robot>``
+                                       robot links ``<robot>/<link>`` nest under ``<robot>``;
+                                       mount frames (links without geometry, sites)
+                                       likewise, a pose only (axes where a sensor
+                                       hangs from one)
 ``world/sensors/<sensor>``             sensor -> world transform (static when fixed)
 ``world/sensors/<sensor>/image``       pinhole of a camera or ToF sensor (static)
 ``world/sensors/<sensor>/image/depth`` depth image [m] (``DepthImage``, meter = 1)
@@ -57,6 +60,8 @@ PALETTE = ((166, 206, 227, 255), (178, 223, 138, 255), (251, 154, 153, 255), (25
            (202, 178, 214, 255), (255, 255, 153, 255), (190, 190, 190, 255))
 # The power floor of the dB maps: 10 log10 of zero would be -inf.
 _DB_FLOOR = 1e-30
+#: [m] Axis length of the triad drawn at a mount frame a sensor hangs from (a robot flange's size).
+FRAME_AXIS_LENGTH = 0.05
 
 
 def require_rerun():
@@ -150,6 +155,10 @@ class RerunLogger:
         self.sensors = {s.name: s for s in sensors}
         self._last_t: float | None = None
         self._moving = [] if scene is None else [o for o in scene if not o.is_static]
+        # Mount frames (links without geometry, sites) get a pose like the objects: the frames sensors hang
+        # from are then in the entity tree (the sensors' own entities carry their world poses).
+        self._frames = () if scene is None else scene.frames
+        self._moving += [f for f in self._frames if not f.motion.is_static]
 
     def log_static(self) -> None:
         """World axes, every object's mesh, fixed sensor poses and pinholes, series names."""
@@ -165,6 +174,13 @@ class RerunLogger:
                                         albedo_factor=PALETTE[i % len(PALETTE)]), static=True)
                 if obj.is_static:
                     rec.log(path, _transform(rr, obj.pose_at(0.0)), static=True)
+            hung = {s.mount.parent for s in self.sensors.values()}
+            for frame in self._frames:
+                path = object_path(frame.name)
+                if frame.name in hung:
+                    rec.log(path, rr.TransformAxes3D(FRAME_AXIS_LENGTH), static=True)
+                if frame.motion.is_static:
+                    rec.log(path, _transform(rr, frame.pose_at(0.0)), static=True)
         for s in self.sensors.values():
             base = entity("world", "sensors", s.name)
             if s.mount.parent is None:
@@ -183,7 +199,7 @@ class RerunLogger:
     def _set_time(self, t: float) -> None:
         self.rec.set_time(TIMELINE, duration=float(t))
         if t != self._last_t:
-            # Moving objects once per distinct frame time, on the same timeline as the frames.
+            # Moving objects and frames once per distinct frame time, on the same timeline as the frames.
             for obj in self._moving:
                 self.rec.log(object_path(obj.name), _transform(self.rr, obj.pose_at(float(t))))
             self._last_t = t
