@@ -1166,8 +1166,8 @@ class ArticulatedBody:
         if joint_motion is None:
             joint_motion = JointConstantVelocity(tree.home, np.zeros(tree.n_joints))
         if not isinstance(joint_motion, JointMotion):
-            raise ConfigError(f"{name}.joints", joint_motion,
-                              "a JointKeyframes, JointConstantVelocity or JointSetpoints (or None)")
+            raise ConfigError(f"{name}.joints", joint_motion, "a JointMotion: JointKeyframes, JointSamples, "
+                              "JointConstantVelocity or JointSetpoints (or None)")
         names = joint_motion.joint_names
         if names is None:
             if joint_motion.n_columns != tree.n_joints:
