@@ -124,7 +124,7 @@ def robot_run(tmp_path_factory):
     res = simulate(sc.scene, sc.sensors, sc.duration, out=out / "r.h5", seed=sc.seed, scenario=sc.raw)
     path = M.convert(res.path, out / "r.mcap", lambda d: scenario_from_dict(d, base_dir=ROOT / "examples"))
     types, msgs = read(path)
-    return {"h5": res.path, "scene": sc.scene, "types": types, "msgs": msgs}
+    return {"h5": res.path, "mcap": path, "scene": sc.scene, "types": types, "msgs": msgs}
 
 
 def test_every_frame_resolves_to_world_robot_and_person(robot_run):
@@ -181,6 +181,21 @@ def test_joint_states_are_the_bodies_values(robot_run):
     # The robot moves between keyframes: its joint states are not all the same.
     ur5 = [m.position for _, m in msgs["/ur5/joint_states"]]
     assert not np.array_equal(ur5[0], ur5[-1])
+
+
+def test_the_joint_states_replay_as_the_same_motion(robot_run):
+    # The file's joint states read by twinsense's own recorded-trajectory reader (mcap-ros2-support's
+    # decoder): a JointSamples exact at its samples (the stamps), velocities as published.
+    from twinsense.robots.recordings import read_joint_states
+
+    body = robot_run["scene"].articulated_bodies[0]
+    samples = read_joint_states(robot_run["mcap"], "/ur5/joint_states")
+    times = [log for log, _ in robot_run["msgs"]["/tf"]]
+    for ns in times:
+        q, qd = body.joint_state(ns * 1e-9)
+        sq, sqd = samples.q_qd(ns * 1e-9)
+        np.testing.assert_array_equal(sq, q)
+        np.testing.assert_array_equal(sqd, qd)
 
 
 def test_link_poses_are_forward_kinematics_of_the_joint_states(robot_run):
