@@ -257,3 +257,10 @@ def test_an_item_called_world_away_from_the_origin_is_refused(tmp_path):
     scene.add_frame(Frame("flange", Pose(position=(0.0, 0.0, 1.0))))
     static, moving = M.scene_transforms(scene)
     assert [(p, c) for p, c, _ in static] == [("world", "flange")] and moving == []
+
+
+def test_joint_state_definition_is_the_official_one():
+    # The embedded schema text equals the one rosbags generates from its own ROS 2 Humble
+    # sensor_msgs/msg/JointState (with its Header and Time dependencies), character for character.
+    text, _ = get_typestore(Stores.ROS2_HUMBLE).generate_msgdef("sensor_msgs/msg/JointState", ros_version=2)
+    assert M.MSGDEFS["sensor_msgs/msg/JointState"] == text
