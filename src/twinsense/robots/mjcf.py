@@ -159,7 +159,7 @@ def mjcf_tree(model_or_path, *, materials=None, geoms: str = "visual", name: str
     names = [body_name(model, b) for b in range(model.nbody)]
     mats = link_materials(names, materials, "mjcf.materials")
     links = [Link(names[0])]
-    joints = []
+    joints, driven = [], []
     for b in range(1, model.nbody):
         parent = names[int(model.body_parentid[b])]
         offset = _quat_pose(model.body_pos[b], model.body_quat[b])
@@ -167,6 +167,7 @@ def mjcf_tree(model_or_path, *, materials=None, geoms: str = "visual", name: str
                 if model.body_jntadr[b] >= 0 and int(model.jnt_type[j]) in (JNT_HINGE, JNT_SLIDE)]
         prev, origin = parent, offset
         for k, j in enumerate(jids):
+            driven.append(j)
             jname = model.joint(j).name or f"joint{j}"
             anchor = np.asarray(model.jnt_pos[j], dtype=float)
             last = k == len(jids) - 1
@@ -185,7 +186,24 @@ def mjcf_tree(model_or_path, *, materials=None, geoms: str = "visual", name: str
         links.append(Link(names[b], geom, mats[names[b]]))
         if prev != names[b]:
             joints.append(Joint(f"{names[b]}:fixed", "fixed", prev, names[b], origin))
-    return KinematicTree(name or model.names.split(b"\0", 1)[0].decode() or "mjcf", links, joints)
+    return KinematicTree(name or model.names.split(b"\0", 1)[0].decode() or "mjcf", links, joints,
+                         home=_home(model, driven))
+
+
+def _home(model, jids: list[int]) -> np.ndarray:
+    """The tree's rest values of hinge/slide joints ``jids`` (its joint order): the model's keyframe
+    named "home" (MuJoCo Menagerie's convention) if it has one, else qpos0 (each joint's ``ref``),
+    clipped into the joint's range (robosuite's Jaco has qpos0 = 0 outside some ranges)."""
+    qpos = model.qpos0
+    for k in range(model.nkey):
+        if model.key(k).name == "home":
+            qpos = model.key_qpos[k]
+            break
+    out = np.array([float(qpos[int(model.jnt_qposadr[j])]) for j in jids])
+    for i, j in enumerate(jids):
+        if model.jnt_limited[j]:
+            out[i] = min(max(out[i], float(model.jnt_range[j][0])), float(model.jnt_range[j][1]))
+    return out
 
 
 def load_mjcf(path_or_name, *, name: str | None = None, joints: JointMotion | None = None, materials=None,

@@ -405,9 +405,14 @@ class KinematicTree:
     links : sequence of Link
     joints : sequence of Joint
         Every link except the root is the child of exactly one joint.
+    home : (n_joints,) float, optional
+        The rest configuration of the driven joints [rad or m], within the limits (an MJCF
+        model's "home" keyframe or qpos0); default 0 clipped into each joint's limits.
+        A body without a joint motion rests there, and joints a motion does not drive
+        hold it.
     """
 
-    def __init__(self, name: str, links: Sequence[Link], joints: Sequence[Joint]):
+    def __init__(self, name: str, links: Sequence[Link], joints: Sequence[Joint], home=None):
         self.name = _name("tree.name", name)
         if isinstance(links, (str, bytes)) or not isinstance(links, Sequence) or not links:
             raise ConfigError(f"{name}.links", links, "a non-empty sequence of Link")
@@ -483,6 +488,12 @@ class KinematicTree:
         self._base0[3:12] = np.eye(3).ravel()
         self._mimics = self._resolve_mimics()
         self._compile(order)
+        rest = np.clip(0.0, self._lower, self._upper)
+        if home is not None:
+            rest = self._vector(f"{self.name}.home", home).copy()
+            self.check_limits(rest, f"{self.name}.home")
+        rest.setflags(write=False)
+        self._home = rest
 
     def _resolve_mimics(self) -> dict[str, tuple[int, float, float]]:
         """{mimic joint: (q column, multiplier, offset)}, a chain of mimics composed down to its driven joint."""
@@ -531,8 +542,8 @@ class KinematicTree:
     # ---------------------------------------------------------------- queries
     @property
     def home(self) -> np.ndarray:
-        """(n_joints,) the home configuration: 0 clipped into each joint's limits [rad or m]."""
-        return np.clip(0.0, self._lower, self._upper)
+        """(n_joints,) the rest configuration [rad or m] (``home``; default 0 clipped into each joint's limits)."""
+        return self._home.copy()
 
     @property
     def n_joints(self) -> int:
