@@ -511,8 +511,8 @@ def write_mcap(rec: Recording, out, scene: Scene | None = None, sensors: dict[st
     and mount frame's transform (robot links without geometry, sites) to
     ``/tf`` (moving ones at each frame time) and ``/tf_static`` (static
     ones), and one ``/<body>/joint_states`` per articulated body (robots,
-    people) at each frame time; without it only the sensors' frames are
-    published.
+    people) at each frame time (a body at rest too); without it only the
+    sensors' frames are published.
     ``sensors`` (name -> sensor, rebuilt from the same scenario) lets a
     builder derive what the recording does not store: radar detections.
     The file is written under a temporary name beside ``out`` and renamed
