@@ -264,3 +264,31 @@ def test_joint_state_definition_is_the_official_one():
     # sensor_msgs/msg/JointState (with its Header and Time dependencies), character for character.
     text, _ = get_typestore(Stores.ROS2_HUMBLE).generate_msgdef("sensor_msgs/msg/JointState", ros_version=2)
     assert M.MSGDEFS["sensor_msgs/msg/JointState"] == text
+
+
+def test_a_body_at_rest_frames_static_joint_states_at_home(tmp_path):
+    # A one-joint arm without a joint motion: its flange (no geometry) is on /tf_static, nothing on /tf,
+    # and its joint states are still published at each frame time, at home (0 clipped into [0.2, 1]).
+    from twinsense.io.recording import open_recording
+    from twinsense.scene.articulated import ArticulatedBody, Joint, KinematicTree, Link
+
+    tree = KinematicTree("arm", [Link("base", Box((0.2, 0.2, 0.2))), Link("flange", None)],
+                         [Joint("j", "revolute", "base", "flange", origin=Pose(position=(0.0, 0.0, 1.0)),
+                                lower=0.2, upper=1.0)])
+    scene = Scene()
+    body = ArticulatedBody("arm", tree, base=Pose(position=(1.0, 0.0, 0.0)))
+    body.add_to(scene)
+    cam = DepthCamera.preset("generic", name="cam", width=8, height=6, frame_rate=10,
+                             mount=Mount(Pose(), parent="arm/flange"))
+    res = simulate(scene, [cam], 0.2, out=tmp_path / "a.h5")
+    with open_recording(res.path) as rec:
+        path = M.write_mcap(rec, tmp_path / "a.mcap", scene)
+    _, msgs = read(path)
+    tree_msgs = check_tree(msgs)
+    assert "/tf" not in msgs and tree_msgs[-1]["cam_link"][0] == "arm/flange"
+    np.testing.assert_allclose(_matrix(tree_msgs[-1]["arm/flange"][1]), body.state(0.0).pose("flange").matrix,
+                               rtol=0, atol=POSE_TOL)
+    rows = msgs["/arm/joint_states"]
+    assert [log for log, _ in rows] == [0, 100_000_000]
+    for _, m in rows:
+        assert list(m.name) == ["j"] and list(m.position) == [0.2] and list(m.velocity) == [0.0]
