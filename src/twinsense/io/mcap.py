@@ -4,7 +4,7 @@ Messages are ROS 2 messages (``ros2msg`` schemas, CDR encoding) written with
 the ``mcap`` and ``mcap-ros2-support`` libraries (the ``ros2`` extra). The
 converter reads only the recording: each sensor's streams and its
 ``config`` JSON, and, for the poses of the scene's objects and mount frames
-on ``/tf``, the joint states of its robots and people and for radar
+on ``/tf``, the joint states of its robots and people, and radar
 detections (derived from the recorded ADC codes), the scene and
 sensors the caller rebuilds from the recording's scenario (``twinsense
 convert`` does this). One builder per sensor kind makes its messages
