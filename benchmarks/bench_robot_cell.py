@@ -34,6 +34,9 @@ one with that commit's ``src`` (unpacked to a temporary folder; or a folder hold
 package tree) and one with this tree's, in turn
 ``--rounds`` times, so that both codes see the same machine load.
 
+``--radar-resolutions``: the flange radar at 1, 1/4 and 1/16 of its render rays: frame time and what
+the cube loses (its power, its strongest range bin) against the full render.
+
 Run:  .venv/bin/python benchmarks/bench_robot_cell.py [--frames N] [--cell-only | --skin-only] [--repeats N]
       .venv/bin/python benchmarks/bench_robot_cell.py --cell-only --before COMMIT [--rounds N]
 """
@@ -96,6 +99,43 @@ def wrist_radar(scene, frames: int) -> None:
     for label, measured in radar_before_after(radar, scene, times, frames).items():
         report(f"radar paper_bgt60tr13c on the moving flange ({cfg.render_width} x {cfg.render_height} "
                f"rays), {label}", *measured, anchor, 30.0)
+
+
+def radar_resolutions(scene, frames: int) -> None:
+    """The flange radar at 1, 1/4 and 1/16 of the preset's render rays (half and a quarter of each
+    count): median wall and CPU per frame, and what the cube loses (its power against the full
+    render's, frame by frame, and the strongest range bin) over ``frames`` frames from T0."""
+    import dataclasses
+
+    from twinsense.radar import FMCWRadar
+
+    base = flange_radar(ROBOT)
+    times = [T0 + k / 30.0 for k in range(frames + 2)]
+    print(f"\n== the flange radar at fewer render rays ({frames} frames from {T0} s; power and strongest "
+          "range bin of the noise-free cube against the full render's)")
+    ref = None
+    for div in (1, 2, 4):
+        cfg = dataclasses.replace(base.config, render_width=base.config.render_width // div,
+                                  render_height=base.config.render_height // div)
+        radar = FMCWRadar(cfg, name="wrist_radar", mount=base.mount)
+        for k in range(2):
+            radar.capture(scene, times[k], np.random.default_rng(k))
+        walls, cpus, profiles = [], [], []
+        for k in range(2, frames + 2):
+            c0, t0 = time.process_time(), time.perf_counter()
+            frame = radar.capture(scene, times[k], np.random.default_rng(k))
+            walls.append(time.perf_counter() - t0)
+            cpus.append(time.process_time() - c0)
+            sig = frame.signal * np.hanning(frame.signal.shape[-1])
+            profiles.append((np.abs(np.fft.rfft(sig, axis=-1)) ** 2).mean(axis=(0, 1)))
+        profiles = np.array(profiles)
+        ref = profiles if ref is None else ref
+        db = 10 * np.log10(profiles.sum(axis=1) / ref.sum(axis=1))
+        same_peak = int(np.sum(np.argmax(profiles, axis=1) == np.argmax(ref, axis=1)))
+        med = float(np.median(walls))
+        print(f"  {cfg.render_width:4d} x {cfg.render_height:3d} rays: {med * 1e3:7.1f} ms median wall "
+              f"({1 / med:5.1f} frames/s), {np.median(cpus) * 1e3:6.1f} ms CPU; cube power "
+              f"{db.min():+.1f} .. {db.max():+.1f} dB; strongest range bin the same in {same_peak} of {frames}")
 
 
 def skin_frames(scene, skin, frames: int, t0: float = T0, label: str = "") -> None:
@@ -311,6 +351,8 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=1, help="whole-cell runs of each way per window")
     ap.add_argument("--skin-only", action="store_true", help="only the forearm skin's cases")
     ap.add_argument("--wrist-tof-only", action="store_true", help="only the wrist ToF camera (collision meshes)")
+    ap.add_argument("--radar-resolutions", action="store_true",
+                    help="only the flange radar at 1, 1/4 and 1/16 of its render rays")
     ap.add_argument("--before", help="with --cell-only: a commit (or a src folder) whose code runs in turn with "
                     "this tree's")
     ap.add_argument("--rounds", type=int, default=2, help="with --before: runs of each code")
@@ -329,6 +371,10 @@ def main() -> None:
         skin_frames(scene, sensors[3], args.frames)
         skin_frames(scene, sensors[3], args.frames, T_REACH, ", the person's hand reaching for it")
         skin_solver_paths(scene, sensors[3], args.frames)
+        print_load_at_end()
+        return
+    if args.radar_resolutions:
+        radar_resolutions(scene, args.frames)
         print_load_at_end()
         return
     n_tri = sum(len(o.geometry.mesh.faces) for o in scene.objects)
