@@ -29,6 +29,36 @@ from twinsense.stream.sinks import QueuedSink
 WANTED = ("/depth/depth", "/twinsense/stats", "/tf", "/lidar/points")
 
 
+class _Done(Exception):
+    pass
+
+
+def serve_with_client(sc, sinks, sink, client, args, wanted) -> tuple:
+    """Run scenario ``sc`` paced (rate 1) into ``sinks``; a client thread ``client(sink.port, *args)``
+    connects when the server opens (``args`` = (got, ready, ...): the run waits up to 10 s for ``ready``)
+    and the run stops once ``got`` holds every ``wanted`` topic or the client has ended.
+    Returns (the serve result, whether the run was stopped that way)."""
+    got, ready = args[0], args[1]
+    threads = []
+
+    def on_open(_sinks):
+        th = threading.Thread(target=client, args=(sink.port, *args))
+        th.start()
+        threads.append(th)
+        ready.wait(10)
+
+    def done():
+        return _Done() if all(t in got for t in wanted) or not threads[0].is_alive() else None
+
+    try:
+        res, stopped = serve(sc.scene, sc.sensors, sc.duration, sinks, rate=1.0, seed=sc.seed, on_open=on_open,
+                             stop=done), False
+    except _Done as e:
+        res, stopped = e.serve_result, True
+    threads[0].join()
+    return res, stopped
+
+
 def _decoder(channel: dict):
     """A protobuf message class from the FileDescriptorSet a channel advertises."""
     fds = descriptor_pb2.FileDescriptorSet.FromString(base64.b64decode(channel["schema"]))
@@ -75,30 +105,13 @@ def test_a_websocket_client_subscribes_and_decodes():
     sc = scenario(10.0, [{"name": "lidar", "kind": "lidar", "preset": "velodyne_vlp16", "frame_rate": 10,
                          "overrides": {"columns": 90},
                          "mount": {"pose": {"look_at": {"eye": [0.0, 0.0, 1.0], "target": [4.0, 0.0, 1.0]}}}}])
-    got, ready, seen, threads = {}, threading.Event(), {}, []
+    got, ready, seen = {}, threading.Event(), {}
     sink, keep = FoxgloveSink(port=0, stats_interval=0.05), Keep()
-
-    def on_open(sinks):
-        th = threading.Thread(target=_client, args=(sink.port, got, ready, seen))
-        th.start()
-        threads.append(th)
-        ready.wait(10)
-
-    class Done(Exception):
-        pass
-
-    def done():
-        return Done() if all(t in got for t in WANTED) or not threads[0].is_alive() else None
-
-    try:
-        res = serve(sc.scene, sc.sensors, sc.duration, [keep, sink], rate=1.0, seed=sc.seed, on_open=on_open,
-                    stop=done)
+    res, stopped = serve_with_client(sc, [keep, sink], sink, _client, (got, ready, seen), WANTED)
+    if not stopped:
         pytest.fail(f"the client did not get every channel: got {sorted(got)}, advertised "
                     f"{sorted(c['topic'] for c in seen['advertised'].values())}, subscribed "
                     f"{sorted(c['topic'] for c in seen['subscribed'].values())}; {res.summary()}")
-    except Done as stopped:
-        res = stopped.serve_result
-    threads[0].join()
     assert sink.subscribed == 0  # the server is stopped
     assert isinstance(sink, FrameSink) and sink.server is None
     # Every frame the run produced is accounted for: sent or dropped (a paced run rarely drops, but a

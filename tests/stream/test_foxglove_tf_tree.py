@@ -10,12 +10,11 @@ import threading
 from pathlib import Path
 
 import numpy as np
-import pytest
-from test_foxglove_stream import _decoder
+from test_foxglove_stream import _decoder, serve_with_client
 from websockets.sync.client import connect
 
 from twinsense.scenario import scenario_from_dict
-from twinsense.stream import FoxgloveSink, serve
+from twinsense.stream import FoxgloveSink
 
 ROOT = Path(__file__).resolve().parents[2]
 WANTED = ("/tf", "/ur5/joint_states")
@@ -57,24 +56,10 @@ def _client(port: int, got: dict, ready: threading.Event) -> None:
 
 def test_flange_frame_and_joint_states_on_the_stream():
     sc = _scenario()
-    got, ready, threads = {}, threading.Event(), []
+    got, ready = {}, threading.Event()
     sink = FoxgloveSink(port=0)
-
-    def on_open(sinks):
-        th = threading.Thread(target=_client, args=(sink.port, got, ready))
-        th.start()
-        threads.append(th)
-        ready.wait(10)
-
-    class Done(Exception):
-        pass
-
-    def done():
-        return Done() if all(t in got for t in WANTED) or not threads[0].is_alive() else None
-
-    with pytest.raises(Done):
-        serve(sc.scene, sc.sensors, sc.duration, [sink], rate=1.0, seed=sc.seed, on_open=on_open, stop=done)
-    threads[0].join()
+    _, stopped = serve_with_client(sc, [sink], sink, _client, (got, ready), WANTED)
+    assert stopped
     assert set(got) == set(WANTED)
     body = sc.scene.articulated_bodies[0]
 
