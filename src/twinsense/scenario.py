@@ -260,6 +260,8 @@ class RobotSpec(_Model):
     joints: dict[str, Any] | None = None  # see twinsense.robots.spec.joint_motion_from_dict
     materials: dict[str, str] = {}
     shapes: Literal["visual", "collision"] = "visual"  # link meshes: visuals (MJCF display geoms) or collision
+    xacro_args: dict[str, Any] | None = None  # a .xacro description's name:=value arguments
+    packages: dict[str, str] | None = None  # package folders for $(find) and package://, relative to this file
 
 
 class PersonWalkSpec(_Model):
@@ -614,7 +616,8 @@ def _add_robots(spec: ScenarioSpec, scene: Scene, base_dir: Path) -> list:
             from twinsense.robots.spec import robot_from_dict
 
             body = robot_from_dict(rs.name, rs.description, base=rs.base.build(f"robots[{i}].base"),
-                                   joints=rs.joints, materials=rs.materials, base_dir=base_dir, shapes=rs.shapes)
+                                   joints=rs.joints, materials=rs.materials, base_dir=base_dir, shapes=rs.shapes,
+                                   xacro_args=rs.xacro_args, packages=rs.packages)
             body.add_to(scene)
         except ConfigError as e:
             tail = e.field.removeprefix(f"{rs.name}.")

@@ -22,7 +22,9 @@ from typing import Any
 import numpy as np
 
 from twinsense.errors import ConfigError
+from twinsense.robots.packages import check_packages
 from twinsense.robots.registry import ROBOTS, load_robot, robot_names
+from twinsense.robots.xacro_files import is_xacro
 from twinsense.scene.articulated import (
     ArticulatedBody,
     JointConstantVelocity,
@@ -104,13 +106,15 @@ def _recording(value: Any, names: Any, field: str, base_dir: Path | None) -> Joi
 
 def robot_from_dict(name: str, description: str, *, base: Pose | Motion | None = None, joints: Any = None,
                     materials: dict | None = None, base_dir: Path | None = None,
-                    shapes: str = "visual") -> ArticulatedBody:
+                    shapes: str = "visual", xacro_args: Any = None, packages: Any = None) -> ArticulatedBody:
     """An articulated robot from a description (installed name or file path, relative to ``base_dir``).
 
-    ``shapes``: "visual" or "collision" link meshes (URDF ``shapes``, MJCF ``geoms``)."""
+    ``shapes``: "visual" or "collision" link meshes (URDF ``shapes``, MJCF ``geoms``).
+    A xacro description (.xacro, .urdf.xacro) takes ``xacro_args`` {name: value}; a URDF or
+    xacro one ``packages`` {package: folder} for ``$(find)`` and ``package://``, folders relative to ``base_dir``."""
     if not isinstance(description, str) or not description:
         raise ConfigError("description", description, "an installed robot (" + ", ".join(robot_names())
-                          + ") or the path of a .urdf / MJCF .xml file")
+                          + ") or the path of a .urdf, .xacro / .urdf.xacro or MJCF .xml file")
     motion = joint_motion_from_dict(joints, base_dir=base_dir)
     if description in ROBOTS:
         target: Any = description
@@ -118,15 +122,22 @@ def robot_from_dict(name: str, description: str, *, base: Pose | Motion | None =
         p = Path(description)
         if not p.is_absolute() and base_dir is not None:
             p = base_dir / p
-        if p.suffix.lower() not in (".urdf", ".xml", ".mjcf"):
+        if p.suffix.lower() not in (".urdf", ".xacro", ".xml", ".mjcf"):
             raise ConfigError("description", description, "an installed robot (" + ", ".join(robot_names())
-                              + ") or the path of a .urdf / MJCF .xml file")
+                              + ") or the path of a .urdf, .xacro / .urdf.xacro or MJCF .xml file")
         if not p.is_file():
-            raise ConfigError("description", str(p), "an existing robot description file (.urdf or MJCF .xml), "
-                              "or an installed robot: " + ", ".join(robot_names()))
+            raise ConfigError("description", str(p), "an existing robot description file (.urdf, .xacro or "
+                              "MJCF .xml), or an installed robot: " + ", ".join(robot_names()))
         target = p
     if shapes not in ("visual", "collision"):
         raise ConfigError("shapes", shapes, "visual, collision")
-    fmt = ROBOTS[target].fmt if isinstance(target, str) else ("urdf" if target.suffix.lower() == ".urdf" else "mjcf")
-    kw = {"shapes": shapes} if fmt == "urdf" else {"geoms": shapes}
+    fmt = ROBOTS[target].fmt if isinstance(target, str) else (
+        "urdf" if target.suffix.lower() in (".urdf", ".xacro") else "mjcf")
+    kw: dict[str, Any] = {"shapes": shapes} if fmt == "urdf" else {"geoms": shapes}
+    if xacro_args and not (isinstance(target, Path) and is_xacro(target)):
+        raise ConfigError("xacro_args", xacro_args, "no entry: only a .xacro description takes arguments")
+    if packages and fmt != "urdf":
+        raise ConfigError("packages", packages, "no entry: only a URDF or xacro description names packages")
+    if fmt == "urdf":
+        kw.update(xacro_args=xacro_args, packages=check_packages(packages, base_dir))
     return load_robot(target, name=name, joints=motion, materials=materials or None, base=base, **kw)

@@ -1,0 +1,75 @@
+"""ROS package folders without ROS: what ``$(find pkg)`` and ``package://pkg/...`` point at.
+
+A robot description names files by package (``$(find ur_description)/urdf/ur.xacro``,
+``package://ur_description/meshes/base.stl``). Without a ROS install there is no
+package index, so a package's folder is, in this order (the first that applies wins):
+
+1. the ``packages={pkg: folder}`` argument;
+2. example-robot-data's installed share folder, for the package ``example-robot-data``;
+3. a folder of the package's name among the description file's folder and its parents
+   (the description's own package), or inside one of them (a sibling package of a
+   ROS workspace's ``src/``), nearest first: the rule
+   :func:`twinsense.robots.paths.resolve_uri` applies to meshes.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from twinsense.errors import ConfigError
+from twinsense.robots.paths import example_robot_data_share, resolve_uri
+
+_EXAMPLE_ROBOT_DATA = "example-robot-data"
+
+
+def check_packages(packages, base_dir: Path | None = None, field: str = "packages") -> dict[str, Path]:
+    """``packages={name: folder}`` checked: non-empty names, existing folders (relative ones from ``base_dir``)."""
+    if packages is None:
+        return {}
+    if not isinstance(packages, dict):
+        raise ConfigError(field, packages, "a mapping {package name: folder}")
+    out = {}
+    for pkg, folder in packages.items():
+        if not isinstance(pkg, str) or not pkg or "/" in pkg or pkg != pkg.strip():
+            raise ConfigError(field, pkg, "package names: non-empty strings without '/' or surrounding spaces")
+        if not isinstance(folder, (str, os.PathLike)) or not str(folder):
+            raise ConfigError(f"{field}[{pkg}]", folder, "the path of the package's folder")
+        p = Path(folder)
+        if not p.is_absolute() and base_dir is not None:
+            p = base_dir / p
+        if not p.is_dir():
+            raise ConfigError(f"{field}[{pkg}]", str(p), "an existing folder: the package's root "
+                              "(the folder holding its package.xml, urdf/, meshes/)")
+        out[pkg] = p.resolve()
+    return out
+
+
+def package_folder(pkg: str, base_dir: Path, packages: dict[str, Path]) -> Path | None:
+    """The folder of package ``pkg`` for a description in ``base_dir`` (None: not found); see the module doc."""
+    if pkg in packages:
+        return packages[pkg]
+    if pkg == _EXAMPLE_ROBOT_DATA:
+        return example_robot_data_share()
+    for parent in (base_dir, *base_dir.parents):  # the same walk as resolve_uri's
+        if parent.name == pkg:
+            return parent
+        if (parent / pkg).is_dir():
+            return parent / pkg
+    return None
+
+
+def where_looked(pkg: str, base_dir: Path, packages: dict[str, Path]) -> str:
+    """Where :func:`package_folder` looked for ``pkg``, in words (for an error message)."""
+    given = ", ".join(sorted(packages)) if packages else "none given"
+    return (f"packages= (names: {given}), then a folder named {pkg!r} at or inside {base_dir} or one of its "
+            f"parents; give it as packages={{{pkg!r}: <its folder>}}")
+
+
+def package_path(uri: str, base_dir: Path, packages: dict[str, Path]) -> Path:
+    """A mesh reference as a path: ``package://pkg/rest`` from ``packages`` when named there, else as resolve_uri."""
+    if packages and uri.startswith("package://"):
+        pkg, _, sub = uri[len("package://"):].lstrip("/").partition("/")
+        if pkg in packages:
+            return packages[pkg] / sub
+    return resolve_uri(uri, base_dir)
