@@ -6,9 +6,12 @@ The reference is an independent expansion: the same robot written out by hand as
 limits and link poses; every error names the file and what is allowed.
 """
 
+import importlib.util
 import math
+import sys
 import threading
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -220,6 +223,37 @@ def test_hector_quadrotor_of_example_robot_data(tmp_path):
     assert 0.4 < size.max() < 0.8, size
 
 
+def test_franka_panda_xacro_against_its_packaged_urdf():
+    # robosuite ships Franka's panda_description package with both the xacro sources and the URDF their authors
+    # expanded with ROS xacro: an independent expansion of a real description (meshes by package:// into the
+    # package folder above the file). The packaged URDF has panda_link8, which robosuite's copy of
+    # panda_arm.xacro comments out; every other link and joint is the same.
+    spec = importlib.util.find_spec("robosuite")
+    urdf = Path(next(iter(spec.submodule_search_locations))) / "models/assets/bullet_data/panda_description/urdf"
+    for name, extra in (("hand", set()), ("panda_arm", {"panda_link8"})):
+        ours = urdf_tree(urdf / f"{name}.urdf.xacro", shapes="collision")
+        ref = urdf_tree(urdf / f"{name}.urdf", shapes="collision")
+        assert {lk.name for lk in ref.links} - {lk.name for lk in ours.links} == extra
+        assert ours.joint_names == tuple(j for j in ref.joint_names if ref.joint(j).child not in extra)
+        for j in ours.joints:
+            r = ref.joint(j.name)
+            assert (j.kind, j.parent, j.child, j.lower, j.upper) == (r.kind, r.parent, r.child, r.lower, r.upper)
+            assert tuple(j.axis) == tuple(r.axis)
+        rng = np.random.default_rng(3)
+        lo = np.array([ours.joint(j).lower for j in ours.joint_names])
+        hi = np.array([ours.joint(j).upper for j in ours.joint_names])
+        for _ in range(5):
+            q = rng.uniform(lo, hi)
+            so, sr = ours.forward(q), ref.forward(q)
+            for lk in ours.links:
+                # The packaged URDF writes pi/2 as 1.57079632679 (4.9e-12 rad short); 6 such joints on the
+                # 1.2 m arm move a link by <= 6 * 4.9e-12 * 1.2 = 3.5e-11 m and turn it by <= 3e-11 rad: 5e-11.
+                np.testing.assert_allclose(so.pose(lk.name).matrix, sr.pose(lk.name).matrix, rtol=0, atol=5e-11)
+    # The whole arm with its hand: the hand hangs on panda_link8, which the edited panda_arm.xacro lacks.
+    with pytest.raises(ConfigError, match=r"joints\[panda_hand_joint\].parent = 'panda_link8'"):
+        urdf_tree(urdf / "panda_arm_hand.urdf.xacro", shapes="collision")
+
+
 def test_expansion_is_safe_from_threads(pkg):
     # xacro keeps its state in module globals: four threads, each its own argument, each gets its own robot.
     out = {}
@@ -314,6 +348,12 @@ def test_result_that_is_not_a_robot(tmp_path):
                  '<model name="m"/></sdf>')
     with pytest.raises(ConfigError, match=r"xacro.path.*expands to a URDF robot.*world.xacro gives <sdf> with 0"):
         expand_xacro(f)
+
+
+def test_without_xacro_installed_the_error_names_the_extra(pkg, monkeypatch):
+    monkeypatch.setitem(sys.modules, "xacro", None)  # `import xacro` fails as on an install without it
+    with pytest.raises(ConfigError, match=r"robots extra = 'xacro'.*pip install twinsense\[robots\]"):
+        urdf_tree(pkg / "urdf" / "arm.urdf.xacro")
 
 
 def test_nothing_is_written_next_to_the_file(pkg):
