@@ -303,6 +303,13 @@ def test_syntax_and_evaluation_errors(pkg):
     undefined.write_text('<robot name="x" xmlns:xacro="http://www.ros.org/wiki/xacro"><xacro:nosuch/></robot>')
     with pytest.raises(ConfigError, match=r"xacro: unknown macro name: xacro:nosuch"):
         urdf_tree(undefined)
+    # A failing substitution: xacro's message once, with the kind of error.
+    env = pkg / "urdf" / "env.urdf.xacro"
+    env.write_text('<robot name="x" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+                   '<link name="$(env TWINSENSE_TEST_UNSET_VARIABLE)"/></robot>')
+    with pytest.raises(ConfigError, match=r"\(xacro: SubstitutionException: environment variable "
+                       r"'TWINSENSE_TEST_UNSET_VARIABLE' is not set; in .*env.urdf.xacro\)$"):
+        urdf_tree(env)
 
 
 def test_unknown_package(pkg):

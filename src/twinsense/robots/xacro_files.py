@@ -137,7 +137,11 @@ def _error(exc: Exception, path: Path, stack: list, args: _Args, given: dict, ba
     if isinstance(inner, OSError):
         return ConfigError("xacro.path", str(path), f"included files that exist: {where}{chain} includes "
                            f"{inner.filename} ({inner.strerror})")
-    msg = " ".join(str(exc).split()) or type(exc).__name__
+    msg = str(exc)
+    if inner is not None and exc.args and str(exc.args[0]).startswith("<class "):
+        # eval_extension's message is "<class ...>: inner" and then the inner error again: once, by its name.
+        msg = f"{type(inner).__name__}: {inner}"
+    msg = " ".join(msg.split()) or type(exc).__name__
     return ConfigError("xacro.path", str(path), f"a xacro file that expands without error (xacro: {msg}; "
                        f"in {where}{chain})")
 
