@@ -252,7 +252,7 @@ class ObjectSpec(_Model):
 
 
 class RobotSpec(_Model):
-    """An articulated robot: an installed description or a .urdf / MJCF file, its base pose, its joint motion."""
+    """An articulated robot: an installed description or a .urdf, .xacro or MJCF file, its base pose, its joints."""
 
     name: str = Field(min_length=1, pattern=r"^[^/]+$")
     description: str = Field(min_length=1)
