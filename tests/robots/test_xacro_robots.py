@@ -163,6 +163,10 @@ def test_load_robot_and_load_urdf_take_xacro(pkg):
     path = pkg / "urdf" / "arm.urdf.xacro"
     body = load_robot(path, name="arm", xacro_args={"upper_length": "0.5"})
     assert body.tree.joint("wrist_joint").origin.position[2] == 0.5
+    # NumPy scalars are numbers and bools like Python's.
+    tree = urdf_tree(path, xacro_args={"upper_length": np.float32(0.25), "with_tool": np.bool_(False)})
+    assert tree.joint("wrist_joint").origin.position[2] == 0.25 and "tool" not in [lk.name for lk in tree.links]
+    assert urdf_tree(path, xacro_args={"upper_length": np.int64(1)}).joint("wrist_joint").origin.position[2] == 1.0
     assert load_urdf(str(path)).tree.name == "my_arm"
     # A plain .xacro suffix is xacro too.
     plain = pkg / "urdf" / "arm.xacro"

@@ -22,12 +22,15 @@ from __future__ import annotations
 
 import importlib
 import math
+import numbers
 import os
 import threading
 import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
 from xml.parsers.expat import ExpatError
+
+import numpy as np
 
 from twinsense.errors import ConfigError
 from twinsense.robots.deps import require
@@ -68,12 +71,14 @@ class _Args(dict):
 
 def _arg_text(name: str, value) -> str:
     """An argument's value as the text of ``name:=value`` on xacro's command line."""
-    if isinstance(value, bool):  # xacro's conditions read "true"/"false"
+    if isinstance(value, (bool, np.bool_)):  # xacro's conditions read "true"/"false"
         return "true" if value else "false"
     if isinstance(value, str):
         return value
-    if isinstance(value, (int, float)) and math.isfinite(value):
-        return repr(value) if isinstance(value, float) else str(int(value))
+    if isinstance(value, numbers.Integral):
+        return str(int(value))
+    if isinstance(value, numbers.Real) and math.isfinite(value):
+        return repr(float(value))  # the shortest text that reads back to the same double
     raise ConfigError(f"xacro_args[{name}]", value, "a string, a finite number or a bool (name:=value)")
 
 
