@@ -36,7 +36,7 @@ from twinsense.errors import ConfigError
 from twinsense.robots.deps import require
 from twinsense.robots.packages import check_packages, package_folder, where_looked
 
-#: File suffixes read as xacro (``.urdf.xacro`` ends in ``.xacro`` too).
+#: The suffix of a file read as xacro (``.urdf.xacro`` ends in it too).
 XACRO_SUFFIX = ".xacro"
 
 _LOCK = threading.Lock()
