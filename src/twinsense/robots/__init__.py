@@ -1,8 +1,11 @@
-"""Robots in the scene: URDF and MJCF loading, named installed descriptions, MuJoCo co-simulation.
+"""Robots in the scene: URDF, xacro and MJCF loading, named installed descriptions, MuJoCo
+co-simulation, recorded joint states.
 
 Needs the ``robots`` extra (``pip install twinsense[robots]``): yourdfpy for
-URDF, mujoco for MJCF and co-simulation, example-robot-data for the named
-robots. A missing package raises ConfigError naming the extra when used.
+URDF, xacro for xacro files, mujoco for MJCF and co-simulation,
+example-robot-data for the named robots; reading joint states from MCAP also
+needs the ``ros2`` extra. A missing package raises ConfigError naming the
+extra when used.
 """
 
 from twinsense.robots.materials import LINK_MATERIAL_RULES, default_material, link_materials
