@@ -59,6 +59,22 @@ def serve_with_client(sc, sinks, sink, client, args, wanted) -> tuple:
     return res, stopped
 
 
+def resubscribe_if_unknown(ws, m: dict, subs: dict) -> None:
+    """Subscribe again when the server answers a subscription with "Unknown channel ID: <id>".
+
+    foxglove-sdk can send a channel's advertisement a moment before the client's connection
+    takes subscriptions to it: a client that subscribes at once (as these do) is then refused,
+    seen under load about once in ten runs. The channel is known a moment later, so the same
+    subscription is sent again (``subs``: subscription id -> advertised channel).
+    """
+    text = m.get("message", "") if m.get("op") == "status" else ""
+    if text.startswith("Unknown channel ID: "):
+        cid = int(text.rsplit(" ", 1)[1])
+        for sid, ch in subs.items():
+            if ch["id"] == cid:
+                ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": sid, "channelId": cid}]}))
+
+
 def _decoder(channel: dict):
     """A protobuf message class from the FileDescriptorSet a channel advertises."""
     fds = descriptor_pb2.FileDescriptorSet.FromString(base64.b64decode(channel["schema"]))
@@ -76,6 +92,7 @@ def _client(port: int, got: dict, ready: threading.Event, seen: dict) -> None:
             msg = ws.recv(timeout=10)
             if isinstance(msg, str):
                 m = json.loads(msg)
+                resubscribe_if_unknown(ws, m, subs)
                 if m["op"] == "advertise":
                     for ch in m["channels"]:
                         channels[ch["id"]] = ch

@@ -10,7 +10,7 @@ import threading
 from pathlib import Path
 
 import numpy as np
-from test_foxglove_stream import _decoder, serve_with_client
+from test_foxglove_stream import _decoder, resubscribe_if_unknown, serve_with_client
 from websockets.sync.client import connect
 
 from twinsense.scenario import scenario_from_dict
@@ -40,6 +40,7 @@ def _client(port: int, got: dict, ready: threading.Event) -> None:
             msg = ws.recv(timeout=10)
             if isinstance(msg, str):
                 m = json.loads(msg)
+                resubscribe_if_unknown(ws, m, subs)
                 if m["op"] == "advertise":
                     for ch in m["channels"]:
                         if ch["topic"] in WANTED:
