@@ -463,3 +463,15 @@ def test_a_recording_pickles_with_its_body(bag):
     for tt in (0.0123, 1.5):
         for a, b in zip(copy.joint_state(tt), ur5.joint_state(tt), strict=True):
             np.testing.assert_array_equal(a, b)
+
+
+def test_unset_header_stamps_point_to_the_log_clock(tmp_path):
+    # A driver that leaves JointState's header unset: every stamp 0. Header times would all repeat;
+    # the error names clock and its way out, and the log clock reads the file.
+    names = ["a", "b"]
+    msgs = [(10**9 + k * 10**7, _js(0, names, [0.01 * k, -0.01 * k])) for k in range(5)]
+    path = write_bag(tmp_path / "unset", msgs)
+    with pytest.raises(ConfigError, match=r"clock = 'header'.*'log' for messages whose header stamps are all 0"):
+        read_joint_states(path)
+    rec = read_joint_states(path, clock="log")
+    np.testing.assert_allclose(rec.times, 0.01 * np.arange(5), rtol=0, atol=1e-15)

@@ -202,6 +202,10 @@ def _read_mcap(p: Path, topic: str, names: tuple | None, clock: str):
             raise ConfigError("path", src, f"a readable MCAP file ({type(exc).__name__}: {exc})") from None
     if len(rows) < 2:
         raise ConfigError("topic", topic, f"a topic with at least 2 messages (it holds {len(rows)})", source=src)
+    if clock == "header" and not any(stamps):
+        # Some drivers publish JointState with an unset header: every stamp 0.
+        raise ConfigError("clock", clock, "'log' for messages whose header stamps are all 0 (the "
+                          "recorder's receive times then give the times)", source=src)
     return (np.array(stamps, dtype=np.int64), np.array(rows, dtype=float),
             np.array(vrows, dtype=float) if has_vel else None, cols)
 
