@@ -10,6 +10,7 @@ on /tf against the tree's forward kinematics of those joint states.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import mujoco
@@ -292,3 +293,38 @@ def test_a_body_at_rest_frames_static_joint_states_at_home(tmp_path):
     assert [log for log, _ in rows] == [0, 100_000_000]
     for _, m in rows:
         assert list(m.name) == ["j"] and list(m.position) == [0.2] and list(m.velocity) == [0.0]
+
+
+# ROS 2's topic name rules (rcl's validation, as `ros2 topic` applies them to a bag's topics): tokens of
+# letters, digits and underscores, none starting with a digit, joined by single slashes from a leading one.
+_ROS2_TOPIC = re.compile(r"^(/[A-Za-z_][A-Za-z0-9_]*)+$")
+
+
+@pytest.mark.parametrize(("name", "want"), [
+    ("/tf", "/tf"), ("/ur5/joint_states", "/ur5/joint_states"), ("/my-arm/joint_states", "/my_arm/joint_states"),
+    ("/2nd.cam/depth", "/_2nd_cam/depth"), ("/a//b/", "/a/b"), ("/wrist tof/points", "/wrist_tof/points")])
+def test_topic_names_are_valid_ros2_names(name, want):
+    assert M.ros_topic(name) == want and _ROS2_TOPIC.match(want)
+
+
+def test_a_body_and_sensor_with_hyphens_give_valid_topics(tmp_path):
+    # Names a scenario allows ("my-arm", "wrist-cam") but ROS 2 refuses in a topic: every topic of the
+    # file is a valid ROS 2 name; the frame ids keep the names as they are (tf frames may hold '-').
+    from twinsense.io.recording import open_recording
+    from twinsense.scene.articulated import ArticulatedBody, Joint, KinematicTree, Link
+
+    tree = KinematicTree("arm", [Link("base", Box((0.2, 0.2, 0.2))), Link("flange", None)],
+                         [Joint("j", "revolute", "base", "flange", origin=Pose(position=(0.0, 0.0, 1.0)))])
+    scene = Scene()
+    ArticulatedBody("my-arm", tree, base=Pose(position=(1.0, 0.0, 0.0))).add_to(scene)
+    cam = DepthCamera.preset("generic", name="wrist-cam", width=8, height=6, frame_rate=10,
+                             mount=Mount(Pose(), parent="my-arm/flange"))
+    res = simulate(scene, [cam], 0.1, out=tmp_path / "a.h5")
+    with open_recording(res.path) as rec:
+        path = M.write_mcap(rec, tmp_path / "a.mcap", scene)
+    types, msgs = read(path)
+    assert all(_ROS2_TOPIC.match(t) for t in types), sorted(types)
+    assert {"/my_arm/joint_states", "/wrist_cam/depth", "/wrist_cam/camera_info"} <= set(types)
+    assert msgs["/wrist_cam/depth"][0][1].header.frame_id == "wrist-cam_optical_frame"
+    tree_msgs = check_tree(msgs)
+    assert tree_msgs[-1]["wrist-cam_link"][0] == "my-arm/flange"

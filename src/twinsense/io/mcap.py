@@ -15,8 +15,10 @@ frames and message layouts are described in docs/ros2-mcap.md.
 from __future__ import annotations
 
 import array
+import functools
 import json
 import os
+import re
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -504,6 +506,19 @@ def _sensor_messages(name: str, s: SensorRecording, k: int, ns: int, sensor: Any
     return out
 
 
+_TOPIC_CHARS = re.compile(r"[^A-Za-z0-9_/]")
+
+
+@functools.lru_cache(maxsize=1024)
+def ros_topic(topic: str) -> str:
+    """``topic`` as a valid ROS 2 topic name: a character other than a letter, digit, ``_`` or
+    ``/`` becomes ``_``, a name token starting with a digit gets a leading ``_``, and empty
+    tokens go ("/my-robot/joint_states" -> "/my_robot/joint_states"; a sensor or robot name
+    may hold what ROS 2 refuses in a topic, and ROS 2 tools refuse such a file's topics)."""
+    tokens = [t for t in _TOPIC_CHARS.sub("_", topic).split("/") if t]
+    return "/" + "/".join("_" + t if t[0].isdigit() else t for t in tokens)
+
+
 def write_mcap(rec: Recording, out, scene: Scene | None = None, sensors: dict[str, Any] | None = None) -> Path:
     """Write the messages of an open recording to ``out`` (an ``.mcap`` path); returns the path.
 
@@ -540,7 +555,7 @@ def _write(writer, rec: Recording, scene: Scene | None, sensors: dict[str, Any])
     def emit(topic: str, msgtype: str, msg: dict, ns: int) -> None:
         if msgtype not in schemas:
             schemas[msgtype] = writer.register_msgdef(msgtype, MSGDEFS[msgtype])
-        writer.write_message(topic, schemas[msgtype], msg, log_time=ns, publish_time=ns)
+        writer.write_message(ros_topic(topic), schemas[msgtype], msg, log_time=ns, publish_time=ns)
 
     # Frame times of every sensor, on the shared clock.
     events = sorted((stamp_ns(t), name, k) for name, s in rec.sensors.items() for k, t in enumerate(s.timestamps))
