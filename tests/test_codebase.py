@@ -26,7 +26,8 @@ TESTS = Path(__file__).parent
 #: Layers from the ground up; a module may import from its own layer and from
 #: the layers below, never from a layer above.
 LAYERS: list[tuple[str, frozenset[str]]] = [
-    ("ground", frozenset({"errors", "constants", "validation", "linalg", "compiled", "_version", "data"})),
+    ("ground", frozenset({"errors", "constants", "validation", "linalg", "compiled", "_version", "data",
+                          "forksafe"})),
     ("scene", frozenset({"scene"})),
     ("robots", frozenset({"robots", "safety"})),
     ("render", frozenset({"render"})),

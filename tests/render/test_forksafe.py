@@ -1,4 +1,4 @@
-"""Fork safety (render/forksafe.py): a lock another thread held at the fork is free in the
+"""Fork safety (twinsense/forksafe.py): a lock another thread held at the fork is free in the
 child, the forking thread's own hold is kept, per-process containers start empty; and a
 child forked while another thread holds every render lock casts and captures as the parent.
 
@@ -18,9 +18,9 @@ import numpy as np
 import pytest
 
 from twinsense import Pose
+from twinsense.forksafe import ForkSafeLock, cleared_in_child
 from twinsense.render import embree4
 from twinsense.render.caster import SceneCaster
-from twinsense.render.forksafe import ForkSafeLock, cleared_in_child
 from twinsense.render.rays import Rays
 from twinsense.scene import Box, ConstantVelocity, Mount, Scene
 from twinsense.tof import ToFCamera

@@ -27,13 +27,13 @@ from __future__ import annotations
 
 import math
 import sys
-import threading
 import weakref
 from dataclasses import dataclass
 
 import numpy as np
 
 from twinsense.errors import ConfigError
+from twinsense.forksafe import ForkSafeLock
 from twinsense.radar.config import RadarConfig
 from twinsense.radar.radiometry import (
     amplitude_scale,
@@ -250,7 +250,7 @@ class ScatterRenderer:
         self._snap: _Snapshot | None = None
         self._buffers: dict | None = None  # the cast's output arrays, kept (compiled passes)
         self._spare: list | None = None  # the last frame's scatterer arrays (see _outputs)
-        self._kept_lock = threading.Lock()  # held by the render using _buffers and _spare
+        self._kept_lock = ForkSafeLock()  # held by the render using _buffers and _spare
 
     @property
     def compiled(self) -> bool:

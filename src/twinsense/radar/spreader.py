@@ -34,13 +34,13 @@ rows are a small share.
 from __future__ import annotations
 
 import math
-import threading
 
 import numpy as np
 
 from twinsense import validation as V
 from twinsense.compiled import jit
 from twinsense.errors import ConfigError
+from twinsense.forksafe import ForkSafeLock
 from twinsense.radar.kernels import series_tile
 
 _TWO_PI = 2.0 * math.pi
@@ -154,7 +154,7 @@ class Kernel:
 
 
 _KERNELS: dict[tuple[int, int], Kernel] = {}
-_KERNELS_LOCK = threading.Lock()
+_KERNELS_LOCK = ForkSafeLock()
 
 
 def kernel_for(n_modes: int, tol: float) -> Kernel:

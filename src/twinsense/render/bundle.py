@@ -38,8 +38,8 @@ from concurrent.futures import wait
 
 import numpy as np
 
+from twinsense.forksafe import ForkSafeLock
 from twinsense.render import bundle_kernels as bk
-from twinsense.render.forksafe import ForkSafeLock
 from twinsense.render.parallel import pool
 from twinsense.render.rays import LocalBundle, row_checksum
 

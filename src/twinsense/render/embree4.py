@@ -28,7 +28,7 @@ from functools import lru_cache
 import numpy as np
 
 from twinsense.errors import ConfigError
-from twinsense.render.forksafe import ForkSafeLock, cleared_in_child
+from twinsense.forksafe import ForkSafeLock, cleared_in_child
 
 # Enumerations of embree4/rtcore_common.h, rtcore_device.h, rtcore_geometry.h.
 RTC_GEOMETRY_TYPE_TRIANGLE = 0

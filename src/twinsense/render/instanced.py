@@ -28,10 +28,10 @@ from concurrent.futures import wait
 
 import numpy as np
 
+from twinsense.forksafe import ForkSafeLock
 from twinsense.render.bundle import BundlePicker
 from twinsense.render.embree4 import InstanceScene
 from twinsense.render.embree4_kernels import instanced_hits, trace
-from twinsense.render.forksafe import ForkSafeLock
 from twinsense.render.parallel import pool
 
 _EMPTY1 = np.zeros(0)

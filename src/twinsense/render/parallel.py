@@ -13,7 +13,7 @@ from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
 from typing import TypeVar
 
-from twinsense.render.forksafe import cleared_in_child
+from twinsense.forksafe import cleared_in_child
 
 T = TypeVar("T")
 R = TypeVar("R")

@@ -24,7 +24,6 @@ import importlib
 import math
 import numbers
 import os
-import threading
 import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -33,15 +32,15 @@ from xml.parsers.expat import ExpatError
 import numpy as np
 
 from twinsense.errors import ConfigError
+from twinsense.forksafe import ForkSafeLock
 from twinsense.robots.deps import require
 from twinsense.robots.packages import check_packages, package_folder, where_looked
 
 #: The suffix of a file read as xacro (``.urdf.xacro`` ends in it too).
 XACRO_SUFFIX = ".xacro"
 
-_LOCK = threading.Lock()
-# A child forked while another thread expands would inherit the lock held: it gets a free one.
-os.register_at_fork(after_in_child=lambda: globals().__setitem__("_LOCK", threading.Lock()))
+# A child forked while another thread expands finds it free (twinsense.forksafe).
+_LOCK = ForkSafeLock()
 
 
 def is_xacro(path) -> bool:

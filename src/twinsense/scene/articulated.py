@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import bisect
 import math
-import threading
 from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -39,6 +38,7 @@ from scipy.interpolate import CubicHermiteSpline, CubicSpline
 from twinsense import validation as V
 from twinsense.compiled import jit
 from twinsense.errors import ConfigError
+from twinsense.forksafe import ForkSafeLock
 from twinsense.scene.geometry import Geometry, TriangleMesh
 from twinsense.scene.materials import Material, get_material
 from twinsense.scene.motion import Motion, MotionState, Static, check_time
@@ -1076,7 +1076,7 @@ class JointSetpoints(JointMotion):
         self._q = [q0]
         self._qd = [np.zeros_like(q0)]
         self._version = 0
-        self._lock = threading.Lock()
+        self._lock = ForkSafeLock()
 
     @property
     def n_columns(self):
@@ -1162,7 +1162,7 @@ class ArticulatedBody:
         # joint motion or base (the setters below) empties the cache.
         self._cache: OrderedDict = OrderedDict()
         self._last: tuple | None = None  # (t, motion version, state) of the newest state asked for
-        self._lock = threading.Lock()
+        self._lock = ForkSafeLock()
         self.joint_motion = joint_motion
         self.base = base
 
@@ -1237,7 +1237,7 @@ class ArticulatedBody:
 
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
-        self._lock = threading.Lock()
+        self._lock = ForkSafeLock()
 
     @property
     def is_static(self) -> bool:

@@ -2,16 +2,15 @@
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
 
 from twinsense.errors import ConfigError
+from twinsense.forksafe import ForkSafeLock, cleared_in_child
 from twinsense.linalg import rotate_rows
 from twinsense.render import Rays, cast
-from twinsense.render.forksafe import cleared_in_child
 from twinsense.render.parallel import default_workers
 from twinsense.scene.pose import Pose
 from twinsense.scene.scene import Mount, Scene
@@ -102,7 +101,7 @@ class ToFCamera:
         # Work arrays kept between frames (noise slabs, the chain's temporaries): one
         # capture at a time uses them; a capture that overlaps it on another thread
         # gets fresh ones.
-        self._work_lock = threading.Lock()
+        self._work_lock = ForkSafeLock()
         self._noise_buffer: np.ndarray | None = None
         self._chain_scratch: dict = {}
 
@@ -261,7 +260,7 @@ class _FedChain:
         self._noise = noise
         self._pose = pose
         self._mine = mine
-        self._lock = threading.Lock()
+        self._lock = ForkSafeLock()
         self.chain: ChainRows | None = None
 
     def __call__(self, real, imag, tap_sum, r0: int, r1: int) -> None:

@@ -16,10 +16,9 @@ what rendering the whole image gives.
 
 from __future__ import annotations
 
-import threading
-
 import numpy as np
 
+from twinsense.forksafe import ForkSafeLock
 from twinsense.linalg import rotate_rows
 from twinsense.render import Hits, PinholeCamera, Rays, caster_for
 from twinsense.scene.scene import Scene
@@ -71,7 +70,7 @@ class ToFRenderer:
         self._pixel_world: dict[bytes, np.ndarray] = {}
         self._static: dict[int, tuple] = {}
         self._scratch: dict = {}  # work arrays of hits_to_phasors, kept between frames
-        self._scratch_lock = threading.Lock()
+        self._scratch_lock = ForkSafeLock()
 
     # --- rays ------------------------------------------------------------------
 
