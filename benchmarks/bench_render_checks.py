@@ -28,8 +28,8 @@ from _timing import alternating, best_and_median, print_anchor, print_load_at_en
 from bench_rays_local import bundles
 
 from twinsense import Pose
+from twinsense.forksafe import ForkSafeLock
 from twinsense.render.bundle import BundlePicker
-from twinsense.render.forksafe import ForkSafeLock
 from twinsense.render.instanced import one_origin
 from twinsense.render.kernels import rotate_rows
 from twinsense.render.rays import Rays, row_checksum

@@ -16,7 +16,7 @@ from twinsense.robots import xacro_files
 from twinsense.scene import ArticulatedBody, Joint, JointKeyframes, KinematicTree, Link, Pose
 
 sys.path.insert(0, str(Path(__file__).parent / "render"))
-from test_forksafe import held_by_another_thread, in_forked_child  # noqa: E402
+from test_forksafe import held_by_another_thread, in_forked_child
 
 
 def _arm() -> ArticulatedBody:
