@@ -267,23 +267,29 @@ def test_joint_state_definition_is_the_official_one():
     assert M.MSGDEFS["sensor_msgs/msg/JointState"] == text
 
 
-def test_a_body_at_rest_frames_static_joint_states_at_home(tmp_path):
-    # A one-joint arm without a joint motion: its flange (no geometry) is on /tf_static, nothing on /tf,
-    # and its joint states are still published at each frame time, at home (0 clipped into [0.2, 1]).
+def _flange_camera_run(tmp_path, body_name: str, cam_name: str, duration: float, lower=-np.inf, upper=np.inf):
+    """(body, MCAP path): a one-joint arm without a joint motion, 1 m up at x = 1 m, whose flange (no
+    geometry) carries an 8 x 6 depth camera at 10 Hz, run for ``duration`` [s] and written as MCAP."""
     from twinsense.io.recording import open_recording
     from twinsense.scene.articulated import ArticulatedBody, Joint, KinematicTree, Link
 
     tree = KinematicTree("arm", [Link("base", Box((0.2, 0.2, 0.2))), Link("flange", None)],
                          [Joint("j", "revolute", "base", "flange", origin=Pose(position=(0.0, 0.0, 1.0)),
-                                lower=0.2, upper=1.0)])
+                                lower=lower, upper=upper)])
     scene = Scene()
-    body = ArticulatedBody("arm", tree, base=Pose(position=(1.0, 0.0, 0.0)))
+    body = ArticulatedBody(body_name, tree, base=Pose(position=(1.0, 0.0, 0.0)))
     body.add_to(scene)
-    cam = DepthCamera.preset("generic", name="cam", width=8, height=6, frame_rate=10,
-                             mount=Mount(Pose(), parent="arm/flange"))
-    res = simulate(scene, [cam], 0.2, out=tmp_path / "a.h5")
+    cam = DepthCamera.preset("generic", name=cam_name, width=8, height=6, frame_rate=10,
+                             mount=Mount(Pose(), parent=f"{body_name}/flange"))
+    res = simulate(scene, [cam], duration, out=tmp_path / "a.h5")
     with open_recording(res.path) as rec:
-        path = M.write_mcap(rec, tmp_path / "a.mcap", scene)
+        return body, M.write_mcap(rec, tmp_path / "a.mcap", scene)
+
+
+def test_a_body_at_rest_frames_static_joint_states_at_home(tmp_path):
+    # A one-joint arm without a joint motion: its flange (no geometry) is on /tf_static, nothing on /tf,
+    # and its joint states are still published at each frame time, at home (0 clipped into [0.2, 1]).
+    body, path = _flange_camera_run(tmp_path, "arm", "cam", 0.2, lower=0.2, upper=1.0)
     _, msgs = read(path)
     tree_msgs = check_tree(msgs)
     assert "/tf" not in msgs and tree_msgs[-1]["cam_link"][0] == "arm/flange"
@@ -310,18 +316,7 @@ def test_topic_names_are_valid_ros2_names(name, want):
 def test_a_body_and_sensor_with_hyphens_give_valid_topics(tmp_path):
     # Names a scenario allows ("my-arm", "wrist-cam") but ROS 2 refuses in a topic: every topic of the
     # file is a valid ROS 2 name; the frame ids keep the names as they are (tf frames may hold '-').
-    from twinsense.io.recording import open_recording
-    from twinsense.scene.articulated import ArticulatedBody, Joint, KinematicTree, Link
-
-    tree = KinematicTree("arm", [Link("base", Box((0.2, 0.2, 0.2))), Link("flange", None)],
-                         [Joint("j", "revolute", "base", "flange", origin=Pose(position=(0.0, 0.0, 1.0)))])
-    scene = Scene()
-    ArticulatedBody("my-arm", tree, base=Pose(position=(1.0, 0.0, 0.0))).add_to(scene)
-    cam = DepthCamera.preset("generic", name="wrist-cam", width=8, height=6, frame_rate=10,
-                             mount=Mount(Pose(), parent="my-arm/flange"))
-    res = simulate(scene, [cam], 0.1, out=tmp_path / "a.h5")
-    with open_recording(res.path) as rec:
-        path = M.write_mcap(rec, tmp_path / "a.mcap", scene)
+    _, path = _flange_camera_run(tmp_path, "my-arm", "wrist-cam", 0.1)
     types, msgs = read(path)
     assert all(_ROS2_TOPIC.match(t) for t in types), sorted(types)
     assert {"/my_arm/joint_states", "/wrist_cam/depth", "/wrist_cam/camera_info"} <= set(types)
