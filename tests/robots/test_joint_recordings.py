@@ -475,3 +475,21 @@ def test_unset_header_stamps_point_to_the_log_clock(tmp_path):
         read_joint_states(path)
     rec = read_joint_states(path, clock="log")
     np.testing.assert_allclose(rec.times, 0.01 * np.arange(5), rtol=0, atol=1e-15)
+
+
+def test_a_real_panda_log_with_both_fingers_drives_the_first(tmp_path):
+    # franka_ros publishes both finger joints; the URDF's second finger mimics the first. As ROS, the
+    # body warns and the second follows the first; its recorded column is not used.
+    names = [f"panda_joint{i}" for i in range(1, 8)] + ["panda_finger_joint1", "panda_finger_joint2"]
+    arm = [0.0, -0.5, 0.0, -2.0, 0.0, 1.6, 0.8]
+    msgs = [(k * 10**7, _js(10**9 + k * 10**7, names, [*arm, 0.01 + 0.005 * k, 0.03])) for k in range(5)]
+    rec = read_joint_states(write_bag(tmp_path / "panda", msgs))
+    with pytest.warns(UserWarning, match=r"\['panda_finger_joint2'\] are mimic joints"):
+        panda = load_robot("panda", joints=rec, shapes="collision")
+    q, _ = panda.joint_state(0.02)
+    assert panda.tree.joint_names[-1] == "panda_finger_joint1" and q[-1] == rec.q(0.02)[7]
+    st = panda.state(0.02)
+    left, right = st.pose("panda_leftfinger").position, st.pose("panda_rightfinger").position
+    # Both fingers at q1 = 0.02 m from the hand's axis (the recorded 0.03 of finger 2 not used):
+    # 0.04 m apart, to the rounding of the chain (~1e-15 m).
+    assert abs(np.linalg.norm(left - right) - 2 * 0.02) < 1e-12

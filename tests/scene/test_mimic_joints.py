@@ -91,7 +91,25 @@ def test_mimic_errors_name_the_joint():
     with pytest.raises(ConfigError, match=r"joints\[b\]\.mimic.*a twinsense Mimic"):
         Joint("b", "revolute", "x", "y", mimic="a")
     tree = _tree(Mimic("s", -1.0, 0.002))
-    with pytest.raises(ConfigError, match=r"grip\.joints\.joint_names = 'b'.*follows 's' \(mimic\); drive that one"):
-        ArticulatedBody("grip", tree, JointKeyframes([0, 1], [[0.0], [0.01]], joint_names=["b"]))
     with pytest.raises(UnknownNameError):
         tree.joint_index("b")
+
+
+def test_a_motions_mimic_columns_are_not_used():
+    # A recorded /joint_states lists a gripper's mimic finger too: as ROS, the body warns and lets the
+    # finger follow its master; that column's values (here outside b's own limits) are neither used nor
+    # checked, the driven columns are checked as usual.
+    tree = _tree(Mimic("s", -1.0, 0.002))
+    motion = JointKeyframes([0, 1], [[0.5, -0.9, -0.01], [0.5, 0.9, -0.03]], joint_names=["b", "a", "s"])
+    with pytest.warns(UserWarning, match=r"grip: the joint motion's columns \['b'\] are mimic joints"):
+        body = ArticulatedBody("grip", tree, motion)
+    q, qd = body.joint_state(0.5)
+    want_q, want_qd = motion.q_qd(0.5)
+    np.testing.assert_array_equal(q, [want_q[1], want_q[2], tree.home[2]])  # a, s driven; c at home
+    np.testing.assert_array_equal(qd, [want_qd[1], want_qd[2], 0.0])
+    st, ref = body.state(0.5), _tree(None).forward([q[0], -q[1] + 0.002, q[1], q[2]],
+                                                   [qd[0], -qd[1], qd[1], qd[2]])
+    np.testing.assert_array_equal(st.positions, ref.positions)
+    bad = JointKeyframes([0, 1], [[0.5, 0.0, -0.01], [0.5, 0.0, 0.05]], joint_names=["b", "a", "s"])
+    with pytest.raises(ConfigError, match=r"keyframes\.values\[1\]\[2\].*'s'"):
+        ArticulatedBody("grip", tree, bad)  # s above its upper limit 0: still refused

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import bisect
 import math
+import warnings
 from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -692,7 +693,11 @@ class JointMotion:
         return 0
 
     def check(self, tree: KinematicTree, columns: np.ndarray, field_name: str) -> None:
-        """Raise ConfigError if the trajectory is known, at load, to leave the joint limits."""
+        """Raise ConfigError if the trajectory is known, at load, to leave the joint limits.
+
+        ``columns``: the tree's q column of each of this motion's columns; -1 for a column the
+        body does not use (a mimic joint's, which follows its master), which is not checked.
+        """
 
     def to_dict(self) -> dict:  # pragma: no cover - abstract
         raise NotImplementedError
@@ -804,6 +809,8 @@ class JointKeyframes(JointMotion):
 
     def check(self, tree, columns, field_name):
         for k, col in enumerate(columns):
+            if col < 0:
+                continue
             lo, hi = tree.limits[col]
             for i, v in enumerate(self.values[:, k]):
                 if not lo <= v <= hi:
@@ -811,6 +818,8 @@ class JointKeyframes(JointMotion):
                                       _limits_text(tree, col))
         vmin, vmax, tmin, tmax = self.extrema()
         for k, col in enumerate(columns):
+            if col < 0:
+                continue
             lo, hi = tree.limits[col]
             # A spline passing through in-limit keyframes overshoots by far more than rounding when it
             # really leaves the limits; 1e-12 of the range absorbs the rounding of the extremum.
@@ -972,6 +981,8 @@ class JointSamples(JointMotion):
     def check(self, tree, columns, field_name):
         tol = SAMPLES_LIMIT_TOLERANCE
         for k, col in enumerate(columns):
+            if col < 0:
+                continue
             lo, hi = tree.limits[col]
             out = np.flatnonzero((self.positions[:, k] < lo - tol) | (self.positions[:, k] > hi + tol))
             if out.size:
@@ -981,6 +992,8 @@ class JointSamples(JointMotion):
                                   _limits_text(tree, col) + f" (+-{tol:g}: measurement noise at a limit)")
         vmin, vmax, tmin, tmax = self.extrema()
         for k, col in enumerate(columns):
+            if col < 0:
+                continue
             lo, hi = tree.limits[col]
             for v, tv in ((vmin[k], tmin[k]), (vmax[k], tmax[k])):
                 if not lo - tol <= v <= hi + tol:
@@ -988,8 +1001,9 @@ class JointSamples(JointMotion):
                                       _limits_text(tree, col) + f" (+-{tol:g}) along the whole interpolant between "
                                       "the samples (the cubic overshoots here, between two samples near the limit)")
         # Within the tolerance outside: q(t) clips onto the limits (of every body this motion drives).
-        self._lo[:] = np.maximum(self._lo, tree.limits[columns, 0])
-        self._hi[:] = np.minimum(self._hi, tree.limits[columns, 1])
+        used = np.asarray(columns) >= 0
+        self._lo[used] = np.maximum(self._lo[used], tree.limits[np.asarray(columns)[used], 0])
+        self._hi[used] = np.minimum(self._hi[used], tree.limits[np.asarray(columns)[used], 1])
         self._clipping = self._clipping or bool(np.any(vmin < self._lo) or np.any(vmax > self._hi))
 
     def to_dict(self):
@@ -1045,6 +1059,8 @@ class JointConstantVelocity(JointMotion):
 
     def check(self, tree, columns, field_name):
         for k, col in enumerate(columns):
+            if col < 0:
+                continue
             lo, hi = tree.limits[col]
             if not lo <= self.q0[k] <= hi:
                 raise ConfigError(f"{field_name}.constant_velocity.q0[{k}]", float(self.q0[k]),
@@ -1189,19 +1205,27 @@ class ArticulatedBody:
         else:
             cols = []
             for n in names:
+                if n in tree.mimic_joints:
+                    cols.append(-1)  # follows its master: the column is not used (as ROS does)
+                    continue
                 if n not in tree.joint_names:
                     from twinsense.errors import UnknownNameError
 
-                    if n in tree.mimic_joints:
-                        raise ConfigError(f"{name}.joints.joint_names", n, "a driven joint: "
-                                          f"{n!r} follows {tree.joint(n).mimic.joint!r} (mimic); drive that one")
                     raise UnknownNameError(f"{name}.joints.joint_names", n, list(tree.joint_names))
                 cols.append(tree.joint_index(n))
             cols = np.array(cols, dtype=np.intp)
         joint_motion.check(tree, cols, f"{name}.joints")
+        keep = None
+        if np.any(cols < 0):
+            keep = np.flatnonzero(cols >= 0)
+            dropped = [names[k] for k in np.flatnonzero(cols < 0)]
+            warnings.warn(f"{name}: the joint motion's columns {dropped} are mimic joints, which follow their "
+                          "masters; their values are not used", stacklevel=3)
+            cols = cols[keep]
         with self._lock:
             self._joint_motion = joint_motion
             self._cols = cols
+            self._keep = keep
             # Joints the motion does not drive stay at their home value.
             self._q_fixed = tree.home.copy()
             self._forget()
@@ -1246,6 +1270,8 @@ class ArticulatedBody:
     def joint_state(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """(q, qd) of every movable joint at t, in ``tree.joint_names`` order; checked against the limits."""
         qm, qdm = self.joint_motion.q_qd(t)
+        if self._keep is not None:  # columns of mimic joints: not used
+            qm, qdm = qm[self._keep], qdm[self._keep]
         q = self._q_fixed.copy()
         qd = np.zeros(self.tree.n_joints)
         q[self._cols] = qm
@@ -1254,7 +1280,11 @@ class ArticulatedBody:
             when = f" (reached at t = {t:.9g} s)"
             m = self.joint_motion
             if isinstance(m, JointConstantVelocity):
-                te = m.exit_time(self.tree.limits[self._cols, 0], self.tree.limits[self._cols, 1])
+                lo = np.full(m.n_columns, -np.inf)
+                hi = np.full(m.n_columns, np.inf)
+                used = slice(None) if self._keep is None else self._keep
+                lo[used], hi[used] = self.tree.limits[self._cols, 0], self.tree.limits[self._cols, 1]
+                te = m.exit_time(lo, hi)
                 when = f" (the constant velocity leaves them at t = {float(np.min(te)):.9g} s; asked at t = {t:.9g} s)"
             self.tree.check_limits(q, None, when)
         return q, qd
