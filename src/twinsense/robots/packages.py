@@ -8,8 +8,10 @@ package index, so a package's folder is, in this order (the first that applies w
 2. example-robot-data's installed share folder, for the package ``example-robot-data``;
 3. a folder of the package's name among the description file's folder and its parents
    (the description's own package), or inside one of them (a sibling package of a
-   ROS workspace's ``src/``), nearest first: the rule
-   :func:`twinsense.robots.paths.resolve_uri` applies to meshes.
+   ROS workspace's ``src/``), nearest first.
+
+The lookup itself is :func:`twinsense.robots.paths.package_folder`, which
+:func:`~twinsense.robots.paths.resolve_uri` uses for meshes too.
 """
 
 from __future__ import annotations
@@ -18,9 +20,9 @@ import os
 from pathlib import Path
 
 from twinsense.errors import ConfigError
-from twinsense.robots.paths import example_robot_data_share, resolve_uri
+from twinsense.robots.paths import package_folder
 
-_EXAMPLE_ROBOT_DATA = "example-robot-data"
+__all__ = ["check_packages", "package_folder", "where_looked"]
 
 
 def check_packages(packages, base_dir: Path | None = None, field: str = "packages") -> dict[str, Path]:
@@ -45,31 +47,8 @@ def check_packages(packages, base_dir: Path | None = None, field: str = "package
     return out
 
 
-def package_folder(pkg: str, base_dir: Path, packages: dict[str, Path]) -> Path | None:
-    """The folder of package ``pkg`` for a description in ``base_dir`` (None: not found); see the module doc."""
-    if pkg in packages:
-        return packages[pkg]
-    if pkg == _EXAMPLE_ROBOT_DATA:
-        return example_robot_data_share()
-    for parent in (base_dir, *base_dir.parents):  # the same walk as resolve_uri's
-        if parent.name == pkg:
-            return parent
-        if (parent / pkg).is_dir():
-            return parent / pkg
-    return None
-
-
 def where_looked(pkg: str, base_dir: Path, packages: dict[str, Path]) -> str:
     """Where :func:`package_folder` looked for ``pkg``, in words (for an error message)."""
     given = ", ".join(sorted(packages)) if packages else "none given"
     return (f"packages= (names: {given}), then a folder named {pkg!r} at or inside {base_dir} or one of its "
             f"parents; give it as packages={{{pkg!r}: <its folder>}}")
-
-
-def package_path(uri: str, base_dir: Path, packages: dict[str, Path]) -> Path:
-    """A mesh reference as a path: ``package://pkg/rest`` from ``packages`` when named there, else as resolve_uri."""
-    if packages and uri.startswith("package://"):
-        pkg, _, sub = uri[len("package://"):].lstrip("/").partition("/")
-        if pkg in packages:
-            return packages[pkg] / sub
-    return resolve_uri(uri, base_dir)

@@ -39,26 +39,35 @@ def robosuite_robots_dir() -> Path:
     return Path(next(iter(spec.submodule_search_locations))) / "models" / "assets" / "robots"
 
 
-def resolve_uri(uri: str, base_dir: Path) -> Path:
+def package_folder(pkg: str, base_dir: Path, packages: dict[str, Path] | None = None) -> Path | None:
+    """The folder of ROS package ``pkg`` for a description in ``base_dir`` (None: not found): the first of
+    ``packages[pkg]``, example-robot-data's share folder for ``example-robot-data``, and a folder of that
+    name among ``base_dir`` and its parents or inside one of them (the layout of a description repository
+    or a ROS workspace's ``src/``), nearest first. What ``$(find pkg)`` and ``package://pkg/...`` mean."""
+    if packages and pkg in packages:
+        return packages[pkg]
+    if pkg == "example-robot-data":
+        return example_robot_data_share()
+    for parent in (base_dir, *base_dir.parents):
+        if parent.name == pkg:
+            return parent
+        if (parent / pkg).is_dir():
+            return parent / pkg
+    return None
+
+
+def resolve_uri(uri: str, base_dir: Path, packages: dict[str, Path] | None = None) -> Path:
     """A mesh reference of a URDF as a path: ``package://pkg/rest``, ``file://path``, or relative to the URDF.
 
-    ``package://example-robot-data/...`` resolves into example-robot-data's share
-    folder; any other package is looked for as a folder of that name among the
-    URDF's parent folders (the layout of a ROS workspace or a description repository).
+    A package's folder is :func:`package_folder`'s (``packages`` first); a package found
+    nowhere leaves ``rest`` relative to the URDF (the missing file is then reported).
     """
     if uri.startswith("file://"):
         return Path(uri[len("file://"):])
     if uri.startswith("package://"):
         # "package:///pkg/rest" (an empty authority, as some descriptions write it) is "package://pkg/rest".
-        rest = uri[len("package://"):].lstrip("/")
-        pkg, _, sub = rest.partition("/")
-        if pkg == "example-robot-data":
-            return example_robot_data_share() / sub
-        for parent in (base_dir, *base_dir.parents):
-            if parent.name == pkg:
-                return parent / sub
-            if (parent / pkg).is_dir():
-                return parent / pkg / sub
-        return base_dir / sub
+        pkg, _, sub = uri[len("package://"):].lstrip("/").partition("/")
+        folder = package_folder(pkg, base_dir, packages)
+        return (base_dir if folder is None else folder) / sub
     p = Path(uri)
     return p if p.is_absolute() else base_dir / p

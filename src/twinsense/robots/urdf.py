@@ -25,7 +25,8 @@ from twinsense.robots.deps import require
 from twinsense.robots.descriptions import resolve
 from twinsense.robots.materials import link_materials
 from twinsense.robots.meshes import merge, primitive_mesh, read_mesh
-from twinsense.robots.packages import check_packages, package_path
+from twinsense.robots.packages import check_packages
+from twinsense.robots.paths import resolve_uri
 from twinsense.robots.xacro_files import expand_xacro, is_xacro
 from twinsense.scene.articulated import ArticulatedBody, Joint, JointMotion, KinematicTree, Link, Mimic
 from twinsense.scene.geometry import Box, Cylinder, Sphere
@@ -50,7 +51,7 @@ def _shape_parts(link, source: str, base_dir: Path, field: str, packages: dict) 
         origin = _pose(el.origin)
         where = f"{field}.links[{link.name}].{source}[{k}]"
         if g.mesh is not None:
-            path = package_path(g.mesh.filename, base_dir, packages)
+            path = resolve_uri(g.mesh.filename, base_dir, packages)
             v, f = read_mesh(path, f"{where}.mesh", link.name, g.mesh.filename)
             scale = np.ones(3) if g.mesh.scale is None else np.broadcast_to(np.asarray(g.mesh.scale, float), (3,))
             parts.append((v * scale, f, origin))
