@@ -566,7 +566,17 @@ def scenario_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None 
                                                 if "/" in n]
     failed_robots = {r.name for r in spec.robots} - {n.split("/")[0] for n in parents}  # reported once, above
     sensors = []
+    from twinsense.io.mcap import OPTICAL_KINDS  # a sensor's ROS frames: <name>, or <name>_link and _optical_frame
+
+    frames = {o.name: f"object '{o.name}'" for o in spec.objects}
     for i, ss in enumerate(spec.sensors):
+        own = [f"{ss.name}_link", f"{ss.name}_optical_frame"] if ss.kind in OPTICAL_KINDS else [ss.name]
+        taken = [f for f in own if f in frames]
+        if taken:  # one tf frame with two parents
+            problems.append((f"sensors[{i}].name", ss.name, f"a name whose frame {taken[0]!r} is free (it is the "
+                             f"frame of {frames[taken[0]]})"))
+            continue
+        frames.update((f, f"sensor '{ss.name}'") for f in own)
         if ss.mount.parent is not None and ss.mount.parent.split("/")[0] in failed_robots:
             continue
         if ss.mount.parent is not None and ss.mount.parent not in parents:
@@ -611,13 +621,19 @@ def scenario_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None 
 def _add_robots(spec: ScenarioSpec, scene: Scene, base_dir: Path) -> list:
     """Add the ``robots:`` entries to ``scene`` (one object per link, "robot/link"); their problems."""
     problems = []
+    objects = {o.name for o in spec.objects}
     for i, rs in enumerate(spec.robots):
+        if rs.name in objects:  # "table" and "table/base_link" would be frames of unrelated things
+            problems.append((f"robots[{i}].name", rs.name, "a name no object of this scenario uses (its links "
+                             f"are '{rs.name}/<link>')"))
+            continue
         try:
-            from twinsense.robots.spec import robot_from_dict
+            from twinsense.robots.spec import check_joints_over_run, robot_from_dict
 
             body = robot_from_dict(rs.name, rs.description, base=rs.base.build(f"robots[{i}].base"),
                                    joints=rs.joints, materials=rs.materials, base_dir=base_dir, shapes=rs.shapes,
                                    xacro_args=rs.xacro_args, packages=rs.packages)
+            check_joints_over_run(body, spec.duration)  # here, not part-way through the run
             body.add_to(scene)
         except ConfigError as e:
             tail = e.field.removeprefix(f"{rs.name}.")

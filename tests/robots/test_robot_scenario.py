@@ -68,7 +68,7 @@ def test_robot_scenario_builds_links_and_mount_frames(tmp_path):
 @pytest.mark.parametrize(("robot", "field", "text"), [
     ({"joints": {"keyframes": {"times": [0, 1], "values": [[0.1], [0.7]]}}},
      "robots[0].joints.keyframes.values[1][0]", "lift"),
-    ({"joints": {"fixed": {"elbow": 0.1}}}, "robots[0].joints.joint_names", "lift"),
+    ({"joints": {"fixed": {"elbow": 0.1}}}, "robots[0].joints.fixed.elbow", "lift"),
     ({"joints": {"spline": {}}}, "robots[0].joints", "keyframes"),
     ({"description": "ur7"}, "robots[0].description", "ur5"),
     ({"materials": {"arm": "unobtainium"}}, "robots[0]", "aluminium"),

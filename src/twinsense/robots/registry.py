@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+import inspect
 from pathlib import Path
 
-from twinsense.errors import UnknownNameError
+from twinsense.errors import ConfigError, UnknownNameError
 from twinsense.robots.descriptions import ROBOTS, RobotDescription, robot_names, robot_path
 from twinsense.robots.mjcf import load_mjcf
 from twinsense.robots.urdf import load_urdf
@@ -23,12 +24,27 @@ def load_robot(name_or_path, **kwargs) -> ArticulatedBody:
     if isinstance(name_or_path, str) and name_or_path in ROBOTS:
         desc = ROBOTS[name_or_path]
         kwargs.setdefault("name", desc.name.replace("-", "_"))
-        loader = load_urdf if desc.fmt == "urdf" else load_mjcf
-        return loader(desc.path(), **kwargs)
+        return _load(load_urdf if desc.fmt == "urdf" else load_mjcf, desc.path(), kwargs)
     p = Path(name_or_path) if isinstance(name_or_path, (str, Path)) else None
     if p is None or p.suffix.lower() not in (".urdf", ".xacro", ".xml", ".mjcf"):
         raise UnknownNameError("robot", name_or_path, [*robot_names(), "<path>.urdf", "<path>.xacro (xacro URDF)",
                                                        "<path>.xml (MJCF)"])
-    if p.suffix.lower() in (".urdf", ".xacro"):
-        return load_urdf(p, **kwargs)
-    return load_mjcf(p, **kwargs)
+    return _load(load_urdf if p.suffix.lower() in (".urdf", ".xacro") else load_mjcf, p, kwargs)
+
+
+def _load(loader, path: Path, kwargs: dict) -> ArticulatedBody:
+    """``loader(path, **kwargs)``; ``shapes`` is MJCF's ``geoms``; a keyword the loader lacks is a ConfigError."""
+    kwargs = dict(kwargs)
+    if loader is load_mjcf and "shapes" in kwargs:  # the scenario's word for either format
+        if "geoms" in kwargs:
+            raise ConfigError("shapes", kwargs["shapes"], "shapes or geoms (the same for MJCF), not both")
+        kwargs["geoms"] = kwargs.pop("shapes")
+    accepted = [k for k in inspect.signature(loader).parameters if k != "path_or_name"]
+    if loader is load_mjcf:
+        accepted.append("shapes")
+    for key in kwargs:
+        if key not in accepted:
+            fmt = "a URDF" if loader is load_urdf else "an MJCF"
+            raise ConfigError(f"load_robot({key}=...)", kwargs[key],
+                              f"a keyword {fmt} description takes: " + ", ".join(sorted(accepted)))
+    return loader(path, **kwargs)

@@ -16,6 +16,8 @@ value. A recording's ``file`` is relative to the scenario file; its
 
 from __future__ import annotations
 
+import numbers
+import re
 from pathlib import Path
 from typing import Any
 
@@ -33,6 +35,7 @@ from twinsense.scene.articulated import (
     JointSamples,
     JointSetpoints,
 )
+from twinsense.scene.materials import get_material
 from twinsense.scene.motion import Motion
 from twinsense.scene.pose import Pose
 
@@ -59,7 +62,14 @@ def joint_motion_from_dict(data: Any, field: str = "joints", base_dir: Path | No
     if kind == "fixed" and isinstance(value, dict):
         if names is not None:
             raise ConfigError(f"{field}.joint_names", names, "no joint_names when fixed is a {joint: value} mapping")
+        for joint, v in value.items():
+            if not isinstance(joint, str):
+                raise ConfigError(f"{field}.fixed", joint, "joint names as the keys of {joint: value}")
+            _fixed_value(f"{field}.fixed.{joint}", v)
         names, value = list(value), list(value.values())
+    elif kind == "fixed" and isinstance(value, (list, tuple)):
+        for k, v in enumerate(value):
+            _fixed_value(f"{field}.fixed[{k}]", v)
     if kind == "recording":
         return _recording(value, names, f"{field}.recording", base_dir)
     try:
@@ -80,6 +90,66 @@ def joint_motion_from_dict(data: Any, field: str = "joints", base_dir: Path | No
     except ConfigError as e:
         f = e.field if e.field.startswith(f"{field}.") else f"{field}.{e.field.removeprefix('joints.')}"
         raise ConfigError(f, e.value, e.allowed) from None
+
+
+def check_joints_over_run(body: ArticulatedBody, duration: float) -> None:
+    """ConfigError ``joints.constant_velocity.qd[k]`` when a constant joint velocity leaves its joint's limits
+    before ``duration`` [s] (a run would otherwise stop there, part-way through its recording).
+
+    q(t) = q0 + qd t is linear and q0 is checked when the body is built, so a q(duration) within the limits
+    keeps every time of the run within them. A time a sensor asks beyond ``duration`` (a LiDAR frame's last
+    firings) is still checked when it is asked.
+    """
+    m = body.joint_motion
+    if not isinstance(m, JointConstantVelocity) or m.is_static:
+        return
+    joints = list(body.tree.joint_names)
+    names = list(m.joint_names) if m.joint_names is not None else joints
+    lo, hi = np.full(m.n_columns, -np.inf), np.full(m.n_columns, np.inf)
+    for k, j in enumerate(names[:m.n_columns]):
+        if j in joints:  # a mimic joint's column is not used
+            lo[k], hi[k] = body.tree.limits[joints.index(j)]
+    t_exit = m.exit_time(lo, hi)
+    k = int(np.argmin(t_exit))
+    if t_exit[k] < duration:
+        raise ConfigError(f"joints.constant_velocity.qd[{k}]", float(m.qdot[k]),
+                          f"a velocity that keeps joint '{names[k]}' within its limits [{lo[k]:g}, {hi[k]:g}] over "
+                          f"the run (0 to {duration:g} s): it leaves them at t = {t_exit[k]:.9g} s")
+
+
+def _fixed_value(field: str, value: Any) -> None:
+    """A ``fixed:`` joint value: a finite number (true/false and text refused, as YAML gives them)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real) or not np.isfinite(value):
+        raise ConfigError(field, value, "a finite joint value [rad or m]")
+
+
+def _entry_error(e: ConfigError, name: str, joints: Any) -> ConfigError:
+    """An error of the robot's loader named by the scenario entry that caused it.
+
+    A ``fixed:`` entry is built as a constant velocity, so its errors would name
+    ``joints.constant_velocity.q0[k]``; they name ``joints.fixed[k]`` (or ``joints.fixed.<joint>``) here.
+    The loaders' ``urdf.path`` / ``mjcf.path`` is the entry's ``description``, their
+    ``<format>.materials.link`` the ``materials`` key.
+    """
+    tail = e.field.removeprefix(f"{name}.")  # the body's errors start with its name
+    allowed = " ".join(str(e.allowed).split())  # MuJoCo's compiler messages span lines
+    if tail in ("urdf.path", "mjcf.path"):
+        return ConfigError("description", e.value, allowed)
+    if tail.endswith("materials.link"):
+        return ConfigError(f"materials.{e.value}", e.value, allowed)
+    fixed = joints.get("fixed") if isinstance(joints, dict) else None
+    if fixed is None:
+        return e
+    keys = list(fixed) if isinstance(fixed, dict) else None
+    m = re.fullmatch(r"joints\.constant_velocity\.q0\[(\d+)\]", tail)
+    if m:
+        k = int(m.group(1))
+        return ConfigError(f"joints.fixed.{keys[k]}" if keys else f"joints.fixed[{k}]", e.value, allowed)
+    if tail == "joints.joint_names" and keys is not None:
+        return ConfigError(f"joints.fixed.{e.value}", e.value, allowed)
+    if tail.startswith("joints.constant_velocity"):
+        return ConfigError("joints.fixed", e.value, allowed)
+    return e
 
 
 def _recording(value: Any, names: Any, field: str, base_dir: Path | None) -> JointSamples:
@@ -140,4 +210,13 @@ def robot_from_dict(name: str, description: str, *, base: Pose | Motion | None =
         raise ConfigError("packages", packages, "no entry: only a URDF or xacro description names packages")
     if fmt == "urdf":
         kw.update(xacro_args=xacro_args, packages=check_packages(packages, base_dir))
-    return load_robot(target, name=name, joints=motion, materials=materials or None, base=base, **kw)
+    if isinstance(materials, dict):  # before the (slower) load; the loader checks the links
+        for link, mat in materials.items():
+            try:
+                get_material(mat)
+            except ConfigError as e:
+                raise ConfigError(f"materials.{link}", mat, e.allowed) from None
+    try:
+        return load_robot(target, name=name, joints=motion, materials=materials or None, base=base, **kw)
+    except ConfigError as e:
+        raise _entry_error(e, name, joints) from None
