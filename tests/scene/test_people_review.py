@@ -9,8 +9,11 @@ reach's two-link arm and the errors of bad inputs.
 
 
 import numpy as np
+import pytest
 
-from twinsense.scene.human import Turn, Walk, person_body
+from twinsense.errors import ConfigError
+from twinsense.scene import Scene
+from twinsense.scene.human import Turn, Walk, add_person, person_body
 
 HIP = 0.530  # hip-joint height / body height (Winter 2009, fig. 4.1)
 ARM = (0.186, 0.146, 0.108)  # upper arm, forearm, hand / body height (same table)
@@ -92,3 +95,47 @@ def test_velocities_are_exact_around_a_tight_corner():
     stop = body.joint_motion.person.stop_time
     lin, ang = _fd_errors(body, np.linspace(0.0, stop + 0.5, 161))
     assert lin < FD_TOL and ang < FD_TOL
+
+
+# ---------------------------------------------------------------- bad inputs
+@pytest.mark.parametrize(("path", "allowed"), [
+    ([], "(n, 2)"), ((), "(n, 2)"), ("abc", "(n, 2)"), (((1.0, 2.0), (3.0,)), "(n, 2)"), ((1.0, 2.0), "(n, 2)"),
+    (((1.0, float("nan")),), "finite"), (((1.0, 2.0, 0.0, 0.0),), "(n, 2)"),
+])
+def test_walk_refuses_a_malformed_path_when_built(path, allowed):
+    # The Walk itself checks its waypoints (it did not: the error came later, from the person,
+    # as "a finite array of shape (N, N)" about an array the user never wrote).
+    with pytest.raises(ConfigError) as e:
+        Walk(1.0, path=path)
+    assert e.value.field == "walk.path" and e.value.value is path and allowed in str(e.value)
+
+
+@pytest.mark.parametrize("turn_length", ["x", 0.0, -1.0, float("nan"), float("inf"), None])
+def test_walk_refuses_a_bad_turn_length_when_built(turn_length):
+    with pytest.raises(ConfigError) as e:
+        Walk(1.0, path=((2.0, 0.0), (2.0, 2.0)), turn_length=turn_length)
+    assert e.value.field == "walk.turn_length"
+
+
+@pytest.mark.parametrize("path", [((2.0, 0.0), (2.0, 0.0), (2.0, 2.0)), ((0.0, 0.0),), [[1.0, 1.0], [1.0, 1.0]]])
+def test_repeated_waypoints_name_the_path_as_given(path):
+    # Repeated waypoints (or one on the start): the error shows the waypoints the user gave, not
+    # the internal array with the start prepended.
+    with pytest.raises(ConfigError) as e:
+        add_person(Scene(), "p", 1.75, (0.0, 0.0), walk=Walk(1.0, path=path))
+    assert e.value.field == "walk.path" and e.value.value is path and "1 mm apart" in str(e.value)
+
+
+@pytest.mark.parametrize("name", ["", None, 5, "a/b"])
+def test_person_name_errors_name_the_person(name):
+    with pytest.raises(ConfigError) as e:
+        add_person(Scene(), name)
+    assert e.value.field == "person.name" and e.value.value == name
+
+
+def test_a_turn_after_the_walk_starts_is_refused():
+    # A turn on the spot happens while standing; one that would start once the walk is under way
+    # was silently ignored.
+    with pytest.raises(ConfigError) as e:
+        person_body("p", 1.75, turn=Turn(90.0, 3.0, 1.0), walk=Walk(1.0, heading_deg=0.0, start_time=2.0))
+    assert e.value.field == "turn.start_time" and e.value.value == 3.0 and "2" in e.value.allowed

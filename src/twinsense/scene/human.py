@@ -348,8 +348,18 @@ class Walk:
         V.positive("walk.speed", self.speed, "m/s")
         V.choice("walk.body", self.body, BODY_MODES)
         V.time("walk.start_time", self.start_time)
+        V.number("walk.turn_length", self.turn_length, lo=0.05, hi=100.0, unit="m")
         if self.path is None and self.heading_deg is None:
             raise ConfigError("walk.path", None, "a path (waypoints) or a heading_deg")
+        if self.path is not None:
+            try:
+                pts = None if isinstance(self.path, (str, bytes, dict)) else np.asarray(self.path, float)
+            except (TypeError, ValueError):
+                pts = None
+            if pts is None or pts.ndim != 2 or pts.shape[1] not in (2, 3) or len(pts) < 1 \
+                    or not np.all(np.isfinite(pts)) or np.any(np.abs(pts) > V.LENGTH_MAX):
+                raise ConfigError("walk.path", self.path, "waypoints (n, 2) or (n, 3) [m], n >= 1, finite, "
+                                  "within 10 km (the walk starts where the person stands)")
         if self.heading_deg is not None:
             V.number("walk.heading_deg", self.heading_deg, unit="deg")
 
@@ -516,6 +526,11 @@ class PersonMotion(_ReadOnly):
             if obj is not None and not isinstance(obj, cls):
                 raise ConfigError(f"person.{name}", obj, f"a {cls.__name__} or None")
         self.walk, self.turn, self.reach = walk, turn, reach
+        if walk is not None and turn is not None and turn.start_time >= walk.start_time:
+            # A turn on the spot happens while standing; once the walk is under way the path sets the heading.
+            raise ConfigError("turn.start_time", turn.start_time,
+                              f"a time before the walk's start_time {walk.start_time:g} s (a turn on the spot "
+                              "happens while standing; a path's waypoints turn a walker)")
         self.sway = V.number("person.sway", sway, lo=0.0, hi=0.1, unit="m")
         self.leg = leg_geometry(H)
         self._col = {n: i for i, n in enumerate(tree.joint_names)}
@@ -531,10 +546,11 @@ class PersonMotion(_ReadOnly):
         if walk is not None:
             if walk.path is not None:
                 # The walk starts where the person stands and then passes the waypoints.
-                pts = V.array("walk.path", walk.path, (None, None), "m")
-                if pts.shape[1] not in (2, 3) or len(pts) < 1:
-                    raise ConfigError("walk.path", walk.path, "waypoints (n, 2) or (n, 3) [m]")
-                self.path = HeadingPath(np.vstack([start_xy, pts[:, :2]]), None, walk.turn_length)
+                pts = np.asarray(walk.path, float)  # checked by Walk
+                try:
+                    self.path = HeadingPath(np.vstack([start_xy, pts[:, :2]]), None, walk.turn_length)
+                except ConfigError as e:  # name the waypoints as given, not with the start prepended
+                    raise ConfigError(e.field, walk.path if e.field == "walk.path" else e.value, e.allowed) from None
             else:
                 self.path = HeadingPath(start_xy[None], math.radians(walk.heading_deg), walk.turn_length)
             self.cycle = WalkCycle(GaitTiming(walk.speed, self.leg.leg_length), self.leg, walk.body)
@@ -820,7 +836,9 @@ def person_body(name: str, height: float = 1.75, position=(0.0, 0.0), heading_de
                 walk: Walk | None = None, turn: Turn | None = None, reach: Reach | None = None,
                 sway: float = 0.0, clothing: str | None = None) -> ArticulatedBody:
     """A person (standing, turning, walking, reaching) as an :class:`ArticulatedBody`."""
-    tree = human_tree(height, clothing=clothing, name=name if isinstance(name, str) and name else "human")
+    if not isinstance(name, str) or not name or "/" in name:
+        raise ConfigError("person.name", name, "a non-empty name without '/' (it separates person and link names)")
+    tree = human_tree(height, clothing=clothing, name=name)
     motion = PersonMotion(tree, height, position, heading_deg, walk=walk, turn=turn, reach=reach, sway=sway)
     return ArticulatedBody(name, tree, PersonJoints(motion), PersonBase(motion))
 
