@@ -128,7 +128,7 @@ def run(scenario: Path = typer.Argument(..., help="scenario YAML file"),
     else:
         typer.echo(f"wrote {res.path} ({counts} frames)")
         if fmt in ("mcap", "rrd"):
-            _convert(res.path, res.path.with_suffix(f".{fmt}"))
+            _convert(res.path, res.path.with_suffix(f".{fmt}"), base_dir=scenario.parent)
     for p in res.removed:
         typer.echo(f"removed {p} (an earlier run's partial recording, superseded)")
     for p in res.stale:
@@ -187,7 +187,9 @@ def recover(path: Path = typer.Argument(..., help="a killed run's '.<name>.h5.<p
     typer.echo(f"recovered {sum(counts.values())} frames ({kept}) into {dest}")
 
 
-def _convert(src: Path, dest: Path) -> None:
+def _convert(src: Path, dest: Path, base_dir: Path | None = None) -> None:
+    """``base_dir``: where the stored scenario's relative paths (meshes, robot descriptions) are taken from
+    (the scenario file's folder after a run; the working folder when None)."""
     from twinsense.io.mcap import convert as to_mcap
     from twinsense.scenario import scenario_from_dict
 
@@ -197,13 +199,14 @@ def _convert(src: Path, dest: Path) -> None:
         from twinsense.stream.rerun import convert as to_rrd
 
         try:
-            path = to_rrd(src, dest, lambda d: scenario_from_dict(d, source=f"{src} (scenario)").scene)
+            path = to_rrd(src, dest, lambda d: scenario_from_dict(d, source=f"{src} (scenario)",
+                                                                 base_dir=base_dir).scene)
         except TwinsenseError as exc:
             _fail(exc)
         typer.echo(f"wrote {path} (Rerun)")
         return
     try:
-        path = to_mcap(src, dest, lambda d: scenario_from_dict(d, source=f"{src} (scenario)"))
+        path = to_mcap(src, dest, lambda d: scenario_from_dict(d, source=f"{src} (scenario)", base_dir=base_dir))
     except (TwinsenseError, ImportError) as exc:
         _fail(exc)
     typer.echo(f"wrote {path} (ROS 2 MCAP)")

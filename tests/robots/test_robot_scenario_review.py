@@ -504,3 +504,18 @@ def test_demo_separation_matches_exact_closest_points_on_the_link_meshes():
         seen[t] = ref
     # The hand's closest approach to a link, as docs/robots.md gives it (51 mm), within the bounds above.
     assert abs(seen[3.55] - 0.051) < 0.006
+
+
+def test_run_with_mcap_resolves_a_relative_description_from_the_scenario_folder(tmp_path, monkeypatch):
+    # run --format mcap rebuilds the scene for /tf from the stored scenario: a description path relative to
+    # the scenario file must resolve from that file's folder, not from where the command runs.
+    (tmp_path / "cell").mkdir()
+    (tmp_path / "cell" / "spinner.urdf").write_text(SPINNER.format(r=0.4, a=0.1))
+    sonar = {"name": "sonar", "kind": "ultrasonic", "preset": "open_40khz", "mount": {"parent": "sp/paddle"}}
+    p = _write(tmp_path / "cell", _data([{"name": "sp", "description": "spinner.urdf", "base": {"position": [0, 0, 1]},
+                                          "joints": {"constant_velocity": {"q0": [0.0], "qd": [1.0]}}}], [sonar],
+                                        recording="rec.h5"))
+    monkeypatch.chdir(tmp_path)
+    res = CliRunner().invoke(app, ["run", str(p), "-o", "out", "--format", "mcap", "--no-progress"])
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "out" / "rec.mcap").is_file()
