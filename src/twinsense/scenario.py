@@ -562,6 +562,7 @@ def scenario_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None 
             scene.add(SceneObject(os_.name, parts[0], mat, parts[1], frozenset(os_.layers), magnet))
     problems += _add_robots(spec, scene, base_dir)
     problems += _add_people(spec, scene)
+    problems += _topic_clashes(spec)
     parents = [o.name for o in spec.objects] + [n for n in (*[o.name for o in scene.objects], *scene.frame_names)
                                                 if "/" in n]
     failed_robots = {r.name for r in spec.robots} - {n.split("/")[0] for n in parents}  # reported once, above
@@ -638,6 +639,26 @@ def _add_robots(spec: ScenarioSpec, scene: Scene, base_dir: Path) -> list:
         except ConfigError as e:
             tail = e.field.removeprefix(f"{rs.name}.")
             problems.append((e.field if e.field.startswith("robots[") else f"robots[{i}].{tail}", e.value, e.allowed))
+    return problems
+
+
+def _topic_clashes(spec: ScenarioSpec) -> list:
+    """Bodies (robots, people) or sensors whose names give one ROS 2 topic namespace ("my-arm" and "my_arm"
+    both publish /my_arm/joint_states: ROS 2 topic names take letters, digits and _ only)."""
+    from twinsense.io.mcap import ros_topic
+
+    problems = []
+    bodies = [(f"robots[{i}].name", r.name) for i, r in enumerate(spec.robots)]
+    bodies += [(f"people[{i}].name", p.name) for i, p in enumerate(spec.people)]
+    for what, entries in (("robot or person", bodies),
+                          ("sensor", [(f"sensors[{i}].name", s.name) for i, s in enumerate(spec.sensors)])):
+        seen: dict[str, tuple[str, str]] = {}
+        for path, name in entries:
+            topic = ros_topic(name)
+            first = seen.setdefault(topic, (path, name))
+            if first[1] != name:  # the very same name is reported on its own
+                problems.append((path, name, f"a name whose ROS 2 topics ({topic}/...) no other {what} uses "
+                                 f"({first[0]} = {first[1]!r} has them)"))
     return problems
 
 

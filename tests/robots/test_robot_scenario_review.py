@@ -99,6 +99,13 @@ BAD = [
     # Names: a robot's links are "robot/link"; a robot named like an object would make both "table" and
     # "table/base_link" frames of unrelated things.
     ("robot named like an object", _data([{**UR5, "name": "table"}], objects=[TABLE]), "robots[0].name", "table"),
+    # Names that differ only where ROS 2 topic names have no room: both would publish /my_arm/joint_states.
+    ("robot names one topic", _data([{**UR5, "name": "my-arm"}, {**UR5, "name": "my_arm"}]), "robots[1].name",
+     "my-arm"),
+    ("person and robot one topic", _data([{**UR5, "name": "my-arm"}], people=[{"name": "my_arm"}]),
+     "people[0].name", "my-arm"),
+    ("sensor names one topic", _data([UR5], [{**CAM, "name": "cam-1"}, {**CAM, "name": "cam_1"}]),
+     "sensors[1].name", "cam-1"),
     # A constant velocity that leaves a joint's limits during the run is refused when the scenario is built,
     # not in the middle of the run (which would leave a partial recording).
     ("constant velocity leaves limits",
