@@ -54,6 +54,8 @@ _ONE_DOF = (2, 3)
 #: A time this fraction of a step or less before a step's is on that step: MuJoCo's time is a sum of
 #: steps and misses the clock's k dt (a frame time k / frame_rate) by a few ulps, either way.
 STEP_SLACK = 1e-9
+#: MuJoCo's warnings (mjtWarning) for NaN, Inf or huge values in the state or the controls.
+_BAD_STATE = (3, 4, 5, 6)  # mjWARN_BADQPOS, mjWARN_BADQVEL, mjWARN_BADQACC, mjWARN_BADCTRL
 
 
 class MujocoJointSetpoints(JointSetpoints):
@@ -149,13 +151,15 @@ class MujocoCosim:
         self.history = V.positive("cosim.history", history, "s")
         self.data = data
         self.control = control
-        self.timestep = float(model.opt.timestep)
+        self.timestep = V.positive("cosim.model.opt.timestep", float(model.opt.timestep), "s")
         self._scratch = mujoco.MjData(model)
         self._lock = threading.RLock()
         self._times: list[float] = []
         self._snaps: list[tuple] = []
         self._cache: OrderedDict = OrderedDict()
         self._followers: list[MujocoJointSetpoints] = []
+        self._failure: ConfigError | None = None
+        self._check_state()
         mujoco.mj_forward(model, data)
         self._record()
         self.names = [body_name(model, b) for b in range(model.nbody)]
@@ -179,16 +183,89 @@ class MujocoCosim:
             del self._times[:cut], self._snaps[:cut]
 
     def step_to(self, t: float) -> None:
-        """Advance MuJoCo to the last step at or before ``t`` [s] (nothing if it is there already)."""
+        """Advance MuJoCo to the last step at or before ``t`` [s] (nothing if it is there already).
+
+        Raises ConfigError when the control callback raises (naming its error), when the state holds NaN
+        or Inf, when ``data.time`` was moved back behind the co-simulation (a reset: make a new
+        MujocoCosim), and when the physics diverges (MuJoCo's warning and auto-reset; the co-simulation
+        refuses to step on afterwards).
+        """
         t = check_time(t)
         with self._lock:
+            self._sync()
             # A step ends at time + dt; take it when that is not after t (STEP_SLACK of a step absorbs the
             # rounding of MuJoCo's accumulated time).
             while self.data.time + self.timestep * (1 - STEP_SLACK) <= t:
-                if self.control is not None:
-                    self.control(self.model, self.data)
-                self._mj.mj_step(self.model, self.data)
+                if self._failure is not None:
+                    raise self._failure
+                self._step()
                 self._record()
+
+    def _step(self) -> None:
+        """One physics step: the controller, then ``mj_step``; a diverging state raises (and sticks)."""
+        mj, m, d = self._mj, self.model, self.data
+        t0 = float(d.time)
+        if self.control is not None:
+            try:
+                self.control(m, d)
+            except Exception as exc:
+                raise ConfigError("cosim.control", self.control,
+                                  f"a control(model, data) that runs: it raised {type(exc).__name__}: {exc} "
+                                  f"at t = {t0:.9g} s") from exc
+        warned = [int(d.warning[w].number) for w in _BAD_STATE]
+        mj.mj_step(m, d)
+        # MuJoCo meets NaN, Inf or huge values (an unstable step, a NaN control) with a warning and a reset
+        # of the state to the model's initial one (or, with auto-reset disabled, goes on with NaN); either
+        # way the run is over: the time jumping back would otherwise make step_to loop for ever.
+        bad = [w for w, n in zip(_BAD_STATE, warned) if int(d.warning[w].number) != n]
+        if bad or not float(d.time) > t0 or not self._finite():
+            what = ", ".join(mj.mjtWarning(w).name.removeprefix("mjWARN_BAD").lower() for w in bad) or "qpos"
+            self._failure = ConfigError(
+                "cosim.model.opt.timestep", self.timestep,
+                f"a step the model is stable at: MuJoCo found NaN, Inf or huge values in {what} stepping from "
+                f"t = {t0:.9g} s (the simulation is unstable: reduce <option timestep>, check masses, "
+                f"stiffness, damping, controls and data.ctrl / qfrc_applied for NaN); the co-simulation stops "
+                f"there (kept states before {t0:.9g} s can still be read)")
+            # Put the last good state back, so data and the kept history agree.
+            qpos, qvel, mpos, mquat = self._snaps[-1]
+            d.time, d.qpos[:], d.qvel[:] = self._times[-1], qpos, qvel
+            d.mocap_pos[:], d.mocap_quat[:] = mpos, mquat
+            raise self._failure
+
+    def _finite(self) -> bool:
+        d = self.data
+        return all(np.all(np.isfinite(a)) for a in (d.qpos, d.qvel, d.mocap_pos, d.mocap_quat))
+
+    def _sync(self) -> None:
+        """Take in what the user changed in ``data`` since the last step (mocap poses, qpos, qvel, time).
+
+        A change at the last step's time (a mocap body or a joint moved between steps) replaces that
+        step's kept state: a sensor at that time sees it. A time ahead (the user stepped ``data`` without
+        the co-simulation) starts a new kept state there (times in between move the earlier state on).
+        A time moved back (a reset) is refused: the sensors' clock only runs forward in one co-simulation.
+        """
+        d = self.data
+        qpos, qvel, mpos, mquat = self._snaps[-1]
+        if (float(d.time) == self._times[-1] and np.array_equal(d.qpos, qpos) and np.array_equal(d.qvel, qvel)
+                and np.array_equal(d.mocap_pos, mpos) and np.array_equal(d.mocap_quat, mquat)):
+            return
+        self._check_state()
+        if float(d.time) < self._times[-1]:
+            raise ConfigError("cosim.data.time", float(d.time),
+                              f"a time not before the co-simulation's last step ({self._times[-1]:.9g} s): "
+                              "data was reset or moved back; for a new run make a new MujocoCosim(model, data)")
+        if float(d.time) == self._times[-1]:
+            self._cache.pop(self._times[-1], None)
+            del self._times[-1], self._snaps[-1]
+        self._record()
+
+    def _check_state(self) -> None:
+        d = self.data
+        for field, a in (("qpos", d.qpos), ("qvel", d.qvel), ("mocap_pos", d.mocap_pos),
+                         ("mocap_quat", d.mocap_quat)):
+            if not np.all(np.isfinite(a)):
+                raise ConfigError(f"cosim.data.{field}", a.tolist(), "finite values (MuJoCo would reset the "
+                                  "state to the model's initial one)")
 
     def on_step(self, t: float) -> float:
         """The time of the kept step that ``t`` [s] falls on within rounding (what ``step_to`` stepped to), else t.
