@@ -560,7 +560,7 @@ def scenario_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None 
                 continue
         if len(parts) == 2:
             scene.add(SceneObject(os_.name, parts[0], mat, parts[1], frozenset(os_.layers), magnet))
-    problems += _add_robots(spec, scene, base_dir)
+    problems += _add_robots(spec, scene, base_dir, local_mats)
     problems += _add_people(spec, scene)
     problems += _topic_clashes(spec)
     parents = [o.name for o in spec.objects] + [n for n in (*[o.name for o in scene.objects], *scene.frame_names)
@@ -619,8 +619,10 @@ def scenario_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None 
                     spec.processes)
 
 
-def _add_robots(spec: ScenarioSpec, scene: Scene, base_dir: Path) -> list:
-    """Add the ``robots:`` entries to ``scene`` (one object per link, "robot/link"); their problems."""
+def _add_robots(spec: ScenarioSpec, scene: Scene, base_dir: Path, local_mats: dict[str, Material]) -> list:
+    """Add the ``robots:`` entries to ``scene`` (one object per link, "robot/link"); their problems.
+
+    ``local_mats``: the scenario's own materials, which link ``materials`` may name as objects do."""
     problems = []
     objects = {o.name for o in spec.objects}
     for i, rs in enumerate(spec.robots):
@@ -628,11 +630,18 @@ def _add_robots(spec: ScenarioSpec, scene: Scene, base_dir: Path) -> list:
             problems.append((f"robots[{i}].name", rs.name, "a name no object of this scenario uses (its links "
                              f"are '{rs.name}/<link>')"))
             continue
+        unknown = [(link, m) for link, m in rs.materials.items() if m not in local_mats and m not in material_names()]
+        if unknown:
+            problems += [(f"robots[{i}].materials.{link}", m, "one of: " + ", ".join(sorted({*material_names(),
+                                                                                            *local_mats})))
+                         for link, m in unknown]
+            continue
         try:
             from twinsense.robots.spec import check_joints_over_run, robot_from_dict
 
             body = robot_from_dict(rs.name, rs.description, base=rs.base.build(f"robots[{i}].base"),
-                                   joints=rs.joints, materials=rs.materials, base_dir=base_dir, shapes=rs.shapes,
+                                   joints=rs.joints, base_dir=base_dir, shapes=rs.shapes,
+                                   materials={link: local_mats.get(m, m) for link, m in rs.materials.items()},
                                    xacro_args=rs.xacro_args, packages=rs.packages)
             check_joints_over_run(body, spec.duration)  # here, not part-way through the run
             body.add_to(scene)

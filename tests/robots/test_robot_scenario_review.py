@@ -525,3 +525,16 @@ def test_run_with_mcap_resolves_a_relative_description_from_the_scenario_folder(
     res = CliRunner().invoke(app, ["run", str(p), "-o", "out", "--format", "mcap", "--no-progress"])
     assert res.exit_code == 0, res.output
     assert (tmp_path / "out" / "rec.mcap").is_file()
+
+
+def test_robot_links_take_the_scenario_own_materials(tmp_path):
+    # A scenario's materials: entries are for its robots' links as for its objects.
+    data = _data([_ur5(materials={"base_link": "dark_paint", "forearm_link": "mild_steel"})])
+    data["materials"] = [{"name": "dark_paint", "base": "aluminium", "nir_reflectance": 0.05}]
+    sc = scenario_from_dict(data, base_dir=tmp_path)
+    paint = sc.scene.object("ur5/base_link").material
+    assert (paint.name, paint.nir_reflectance) == ("dark_paint", 0.05)
+    assert sc.scene.object("ur5/forearm_link").material.name == "mild_steel"
+    data["robots"][0]["materials"]["base_link"] = "dark_pain"
+    problems = _problems(data, tmp_path)
+    assert [p[0] for p in problems] == ["robots[0].materials.base_link"] and "dark_paint" in problems[0][2]
