@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from twinsense.errors import ConfigError
+from twinsense.scenario import ScenarioError, scenario_from_dict
 from twinsense.scene import Scene
 from twinsense.scene.human import Reach, Turn, Walk, add_person, person_body
 
@@ -387,3 +388,36 @@ def test_people_are_deterministic_and_independent_of_the_order_of_queries():
     c = build()
     for t in reversed(times):
         assert a.state(t).positions.tobytes() == c.state(t).positions.tobytes()
+
+
+_NAN, _INF = float("nan"), float("inf")
+
+
+@pytest.mark.parametrize(("entry", "field"), [
+    ({"hieght": 1.7}, "people[0].hieght"),
+    ({"height": _NAN}, "people[0].height"),
+    ({"height": _INF}, "people[0].height"),
+    ({"height": -1.7}, "people[0].height"),
+    ({"height": "tall"}, "people[0].height"),
+    ({"height": 3.0}, "people[0].height"),
+    ({"walk": {"speed": _NAN, "heading_deg": 0.0}}, "people[0].walk.speed"),
+    ({"walk": {"speed": -1.0, "heading_deg": 0.0}}, "people[0].walk.speed"),
+    ({"walk": {"speed": "fast", "heading_deg": 0.0}}, "people[0].walk.speed"),
+    ({"walk": {"speed": 1.0, "heading_deg": 0.0, "sped": 1}}, "people[0].walk.sped"),
+    ({"walk": {"speed": 1.0, "path": []}}, "people[0].walk.path"),
+    ({"walk": {"speed": 1.0, "path": [[0.0, 0.0]]}}, "people[0].walk.path"),
+    ({"walk": {"speed": 1.0, "path": [[1.0, 0.0], [1.0, 0.0]]}}, "people[0].walk.path"),
+    ({"walk": {"speed": 1.0, "path": [[1.0, 0.0], [1.0]]}}, "people[0].walk.path"),
+    ({"walk": {"speed": 1.0, "path": 3}}, "people[0].walk.path"),
+    ({"reach": {"target": [1.0, 0.0, 1.0], "side": "up"}}, "people[0].reach.side"),
+    ({"reach": {"target": [1.0, 0.0, 1.0], "arm": "left"}}, "people[0].reach.arm"),
+    ({"sway": _INF}, "people[0].sway"),
+    ({"walk": {"speed": 1.0, "heading_deg": 0.0, "start_time": 1.0}, "turn": {"heading_deg": 90.0, "start_time": 2.0}},
+     "people[0].turn.start_time"),
+])
+def test_bad_scenario_people_entries_name_the_field(entry, field):
+    base = {"name": "a", "height": 1.7, "position": [0.0, 0.0]}
+    with pytest.raises(ScenarioError) as e:
+        scenario_from_dict({"people": [{**base, **entry}]})
+    assert field in str(e.value)
+    assert "Traceback" not in str(e.value)
