@@ -5,6 +5,7 @@ import mujoco
 import numpy as np
 import pytest
 
+import twinsense as ts
 from twinsense import ConfigError
 from twinsense.robots import MujocoCosim
 
@@ -84,3 +85,88 @@ def test_time_moved_back_under_the_cosim_is_refused():
     mujoco.mj_resetData(cosim.model, cosim.data)  # a reset behind the co-simulation's back
     with pytest.raises(ConfigError, match=r"cosim.data.time.*new MujocoCosim"):
         cosim.body_state("box", 0.6)
+
+
+# --------------------------------------------------------------------------- closed forms
+def _mujoco_reference(model, t):
+    """MuJoCo's own state at the last step at or before ``t`` (stepped separately), after mj_forward."""
+    data = mujoco.MjData(model)
+    while data.time + model.opt.timestep * (1 - 1e-9) <= t:
+        mujoco.mj_step(model, data)
+    mujoco.mj_forward(model, data)
+    return data
+
+
+@pytest.mark.parametrize("integrator", ["Euler", "RK4"])
+def test_free_fall_between_steps(integrator):
+    dt, z0 = 0.003, 2.0
+    model = drop_model(dt, integrator, z0)
+    cosim = MujocoCosim(model)
+    box, top = model.body("box").id, model.site("top").id
+    for t in np.arange(12) / 30.0:  # a 30 Hz clock on 3 ms steps: 1/30 s is 11.1 steps
+        st = cosim.body_state("box", t)
+        ref = _mujoco_reference(model, t)
+        k = round(ref.time / dt)
+        # A frame time on a step (0.3 s = 100 steps) misses MuJoCo's summed step time by an ulp either way;
+        # the co-simulation reads that step itself (tau = 0).
+        assert -1e-12 < t - ref.time < dt
+        tau = max(t - ref.time, 0.0)
+        # MuJoCo's state at step k moved on by its velocity over tau (no rotation: the box falls flat).
+        vel = np.zeros(6)
+        mujoco.mj_objectVelocity(model, ref, mujoco.mjtObj.mjOBJ_XBODY, box, vel, 0)
+        np.testing.assert_allclose(st.pose.position, ref.xpos[box] + vel[3:] * tau, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(st.pose.rotation, ref.xmat[box].reshape(3, 3), rtol=0, atol=1e-15)
+        np.testing.assert_allclose(st.linear_velocity, vel[3:], rtol=0, atol=1e-15)
+        # The closed form of each integrator. Semi-implicit Euler: v_k = -g k dt, z_k = z0 - g dt^2 k (k+1) / 2,
+        # so z(t) = z_k + v_k tau = z0 - g t^2 / 2 - g (t_k dt - tau^2) / 2 exactly (its drift g t dt / 2,
+        # 4.4 mm after 0.3 s, plus the propagation's g tau^2 / 2). RK4 is exact on the quadratic at the steps:
+        # z(t) = z0 - g t^2 / 2 + g tau^2 / 2. 1e-12 m: float64 rounding of a few operations on 2 m.
+        t_k = k * dt
+        drift = g_drift = G * t_k * dt / 2 if integrator == "Euler" else 0.0
+        assert st.pose.position[2] == pytest.approx(z0 - G * t * t / 2 - drift + G * tau**2 / 2, rel=0, abs=1e-12)
+        assert st.linear_velocity[2] == pytest.approx(-G * t_k, rel=0, abs=1e-12)
+        assert abs(st.pose.position[2] - (z0 - G * t * t / 2)) <= g_drift + G * dt**2 / 2 + 1e-12
+        # A mount on the site follows MuJoCo's site_xpos / site_xmat (at the step; 1e-9 as asked, float64
+        # composition of two poses gives ~1e-16).
+        on_step = cosim.scene.mount_target("top").state_at(ref.time)
+        np.testing.assert_allclose(on_step.pose.position, ref.site_xpos[top], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(on_step.pose.rotation, ref.site_xmat[top].reshape(3, 3), rtol=0, atol=1e-9)
+
+
+def test_tof_and_radar_see_the_falling_box():
+    # The documented few lines: a MuJoCo model, MujocoCosim, sensors from presets, simulate. A 0.6 m wide
+    # slab (0.2 m thick) falls from z0 = 2 m under a ToF camera and a radar 3 m up, looking down.
+    xml = DROP.replace('size="0.1 0.1 0.1"', 'size="0.3 0.3 0.1"')
+    model = mujoco.MjModel.from_xml_string(xml.format(dt=0.003, integrator="Euler", z0=2.0))
+    cosim = MujocoCosim(model)
+    down = ts.Mount(ts.Pose.look_at((0, 0, 3.0), (0, 0, 0), (1, 0, 0)))
+    # Expected values only (no noise, no ADC rounding, no cross-talk), rendered at the frame time, a dimmer
+    # light so that the slab 0.9 m away does not saturate the pixels; 40 x 30 px keep it fast.
+    tof = ts.ToFCamera.preset("pmd_pico_flexx", mode="MODE_9_10FPS_1000", mount=down, name="tof", noise=False,
+                              quantization=False, crosstalk_sigma_px=0.0, motion_artifacts=False,
+                              width=40, height=30, intrinsics_px=None, fov_deg=(40.0, 30.0),
+                              distortion=(0.0,) * 5, supersample=1, illumination_power=0.05)
+    radar = ts.FMCWRadar.preset("paper_bgt60tr13c", mount=down, name="radar", render_width=64, render_height=48)
+    result = ts.simulate(cosim.scene, [tof, radar], duration=0.4, seed=3)
+    assert [round(f.t, 9) for f in result.frames["tof"]] == [0.0, 0.1, 0.2, 0.3]
+    for f in result.frames["tof"]:
+        top = cosim.body_state("box", f.t).pose.position[2] + 0.1
+        h, w = f.depth.shape
+        centre = f.depth[h // 2 - 1:h // 2 + 1, w // 2 - 1:w // 2 + 1]
+        assert not f.invalid[h // 2 - 1:h // 2 + 1, w // 2 - 1:w // 2 + 1].any()
+        # Noise-free, unquantised and without cross-talk, the depth of a fronto-parallel face is exact up to
+        # the float32 phases (1e-7 rad: 3e-8 m at 80 MHz) and the float32 depth (ulp 1.2e-7 m at 1.3 m):
+        # 1e-5 m leaves a margin (<= 1e-7 m seen).
+        np.testing.assert_allclose(centre, 3.0 - top, rtol=0, atol=1e-5)
+    cfg = radar.config
+    for f in result.frames["radar"]:
+        d = f.detections
+        i = int(np.argmax(d.snr_db))
+        mid = f.t + cfg.chirp.num_chirps * cfg.chirp.chirp_repetition_time / 2  # the chirps' middle
+        v = -cosim.body_state("box", mid).linear_velocity[2]  # away from the radar above: positive
+        r = 3.0 - (cosim.body_state("box", mid).pose.position[2] + 0.1)
+        # One Doppler bin (0.52 m/s; <= 0.11 m/s seen). The range within two range bins (2 x 2.5 cm): one
+        # for the bin and the face's spread over pixels, 7 mm for the range-Doppler coupling v f0 / S at
+        # 3 m/s (<= 4.2 cm seen).
+        assert abs(d.velocity[i] - v) <= cfg.velocity_resolution
+        assert abs(d.range[i] - r) <= 2 * cfg.chirp.range_resolution
