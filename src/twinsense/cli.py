@@ -316,6 +316,10 @@ def demo(name: str = typer.Argument(..., help="demo name (see 'twinsense demo li
         for n, (_, _, d) in DEMOS.items():
             typer.echo(f"  {n:22s} {d}")
         return
+    if out.exists() and not out.is_dir():  # the demos make the folder: a file there would end in a traceback
+        from twinsense.errors import ConfigError
+
+        _fail(ConfigError("--out", str(out), "a folder (or a path to create one), not a file"))
     try:
         files = run_demo(name, out, progress=progress)
     except TwinsenseError as exc:

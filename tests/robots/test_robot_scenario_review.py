@@ -538,3 +538,11 @@ def test_robot_links_take_the_scenario_own_materials(tmp_path):
     data["robots"][0]["materials"]["base_link"] = "dark_pain"
     problems = _problems(data, tmp_path)
     assert [p[0] for p in problems] == ["robots[0].materials.base_link"] and "dark_paint" in problems[0][2]
+
+
+def test_demo_output_folder_that_is_a_file_is_a_clear_error(tmp_path):
+    (tmp_path / "afile").write_text("x")
+    res = CliRunner().invoke(app, ["demo", "robot-cell", "-o", str(tmp_path / "afile"), "--no-progress"])
+    assert res.exit_code == 2, res.output
+    assert res.exception is None or isinstance(res.exception, SystemExit)
+    assert "--out" in res.output and "afile" in res.output and "Traceback" not in res.output
