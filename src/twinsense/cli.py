@@ -316,16 +316,21 @@ def demo(name: str = typer.Argument(..., help="demo name (see 'twinsense demo li
         for n, (_, _, d) in DEMOS.items():
             typer.echo(f"  {n:22s} {d}")
         return
-    if out.exists() and not out.is_dir():  # the demos make the folder: a file there would end in a traceback
-        from twinsense.errors import ConfigError
-
-        _fail(ConfigError("--out", str(out), "a folder (or a path to create one), not a file"))
+    _folder_option(out)
     try:
         files = run_demo(name, out, progress=progress)
     except TwinsenseError as exc:
         _fail(exc)
     for key, path in files.items():
         typer.echo(f"{key}: {path}")
+
+
+def _folder_option(out: Path) -> None:
+    """-o/--out of a command that makes the folder itself: a file there would end in a traceback."""
+    if out.exists() and not out.is_dir():
+        from twinsense.errors import ConfigError
+
+        _fail(ConfigError("--out", str(out), "a folder (or a path to create one), not a file"))
 
 
 @app.command()
@@ -349,6 +354,7 @@ def sweep(scenario: Path = typer.Argument(..., help="scenario YAML file"),
 
     from twinsense.sweep import sweep as run_sweep
 
+    _folder_option(out)
     grid = {}
     for item in param:
         if "=" not in item:

@@ -546,3 +546,13 @@ def test_demo_output_folder_that_is_a_file_is_a_clear_error(tmp_path):
     assert res.exit_code == 2, res.output
     assert res.exception is None or isinstance(res.exception, SystemExit)
     assert "--out" in res.output and "afile" in res.output and "Traceback" not in res.output
+
+
+def test_sweep_output_folder_that_is_a_file_is_a_clear_error(tmp_path):
+    (tmp_path / "afile").write_text("x")
+    p = _write(tmp_path, _data([UR5]))
+    res = CliRunner().invoke(app, ["sweep", str(p), "-p", "seed=0,1", "--backend", "serial", "-o",
+                                   str(tmp_path / "afile")])
+    assert res.exit_code == 2, res.output
+    assert res.exception is None or isinstance(res.exception, SystemExit)
+    assert "--out" in res.output and "afile" in res.output
