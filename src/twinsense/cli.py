@@ -187,11 +187,18 @@ def recover(path: Path = typer.Argument(..., help="a killed run's '.<name>.h5.<p
     typer.echo(f"recovered {sum(counts.values())} frames ({kept}) into {dest}")
 
 
-def _convert(src: Path, dest: Path, base_dir: Path | None = None) -> None:
+def _convert(src: Path, dest: Path, base_dir: Path | None = None, hint: bool = False) -> None:
     """``base_dir``: where the stored scenario's relative paths (meshes, robot descriptions) are taken from
-    (the scenario file's folder after a run; the working folder when None)."""
+    (the scenario file's folder after a run; the working folder when None). ``hint``: a stored scenario
+    that cannot be rebuilt names ``--scenario-dir``."""
     from twinsense.io.mcap import convert as to_mcap
-    from twinsense.scenario import scenario_from_dict
+    from twinsense.scenario import ScenarioError, scenario_from_dict
+
+    def failed(exc: Exception) -> None:
+        if hint and isinstance(exc, ScenarioError):
+            typer.echo("note: the stored scenario's relative paths are taken from the working folder; "
+                       "--scenario-dir names the scenario file's folder", err=True)
+        _fail(exc)
 
     if dest.suffix not in (".mcap", ".rrd"):
         _fail(ValueError(f"out = '{dest}': expected a file name ending in .mcap (ROS 2) or .rrd (Rerun)"))
@@ -202,26 +209,30 @@ def _convert(src: Path, dest: Path, base_dir: Path | None = None) -> None:
             path = to_rrd(src, dest, lambda d: scenario_from_dict(d, source=f"{src} (scenario)",
                                                                  base_dir=base_dir).scene)
         except TwinsenseError as exc:
-            _fail(exc)
+            failed(exc)
         typer.echo(f"wrote {path} (Rerun)")
         return
     try:
         path = to_mcap(src, dest, lambda d: scenario_from_dict(d, source=f"{src} (scenario)", base_dir=base_dir))
     except (TwinsenseError, ImportError) as exc:
-        _fail(exc)
+        failed(exc)
     typer.echo(f"wrote {path} (ROS 2 MCAP)")
 
 
 @app.command()
 def convert(recording: Path = typer.Argument(..., help="a twinsense HDF5 recording"),
-            out: Path = typer.Argument(..., help="the file to write: .mcap (ROS 2) or .rrd (Rerun)")) -> None:
+            out: Path = typer.Argument(..., help="the file to write: .mcap (ROS 2) or .rrd (Rerun)"),
+            scenario_dir: Path = typer.Option(None, "--scenario-dir",
+                                              help="the folder the stored scenario's relative paths (robot "
+                                                   "descriptions, meshes) are taken from (default: the working "
+                                                   "folder)")) -> None:
     """Convert a recording into a ROS 2 MCAP file (needs the 'ros2' extra) or a Rerun .rrd file ('rerun' extra).
 
     Topics and frames are described in docs/ros2-mcap.md; the scene's object
     frames on /tf come from the scenario stored in the recording. Rerun
     entities are described in docs/rerun.md.
     """
-    _convert(recording, out)
+    _convert(recording, out, base_dir=scenario_dir, hint=scenario_dir is None)
 
 
 @app.command()

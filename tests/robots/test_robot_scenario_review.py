@@ -556,3 +556,20 @@ def test_sweep_output_folder_that_is_a_file_is_a_clear_error(tmp_path):
     assert res.exit_code == 2, res.output
     assert res.exception is None or isinstance(res.exception, SystemExit)
     assert "--out" in res.output and "afile" in res.output
+
+
+def test_convert_takes_the_scenario_folder_for_relative_descriptions(tmp_path, monkeypatch):
+    # A recording of a robot given as a relative .urdf, converted from another folder: --scenario-dir names
+    # the folder the stored scenario's relative paths are taken from.
+    (tmp_path / "cell").mkdir()
+    (tmp_path / "cell" / "spinner.urdf").write_text(SPINNER.format(r=0.4, a=0.1))
+    sonar = {"name": "sonar", "kind": "ultrasonic", "preset": "open_40khz", "mount": {"parent": "sp/paddle"}}
+    p = _write(tmp_path / "cell", _data([{"name": "sp", "description": "spinner.urdf"}], [sonar], recording="r.h5"))
+    monkeypatch.chdir(tmp_path / "cell")
+    assert CliRunner().invoke(app, ["run", str(p), "-o", str(tmp_path / "out"), "--no-progress"]).exit_code == 0
+    monkeypatch.chdir(tmp_path)
+    res = CliRunner().invoke(app, ["convert", "out/r.h5", "out/r.mcap"])
+    assert res.exit_code == 2 and "--scenario-dir" in res.output  # the error says where the way out is
+    res = CliRunner().invoke(app, ["convert", "out/r.h5", "out/r.mcap", "--scenario-dir", "cell"])
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "out" / "r.mcap").is_file()
