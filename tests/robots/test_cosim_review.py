@@ -170,3 +170,59 @@ def test_tof_and_radar_see_the_falling_box():
         # 3 m/s (<= 4.2 cm seen).
         assert abs(d.velocity[i] - v) <= cfg.velocity_resolution
         assert abs(d.range[i] - r) <= 2 * cfg.chirp.range_resolution
+
+
+# --------------------------------------------------------------------------- geoms
+HFIELD = """<mujoco>
+  <asset><hfield name="hf" nrow="4" ncol="5" size="1.0 0.6 0.3 0.1"
+    elevation="0 1 0 1 0  1 0 1 0 0.5  0 0 1 1 0.2  0.7 0.1 0 1 0.3"/></asset>
+  <worldbody><geom name="terrain" type="hfield" hfield="hf" pos="0.2 -0.1 0.05" euler="0 0 25"/></worldbody>
+</mujoco>"""
+
+
+def test_height_field_is_drawn_where_mujoco_puts_it():
+    import trimesh
+    from trimesh.ray.ray_triangle import RayMeshIntersector
+
+    model = mujoco.MjModel.from_xml_string(HFIELD)
+    cosim = MujocoCosim(model)
+    world = cosim.scene.object("world")
+    st = world.state_at(0.0)
+    mesh = trimesh.Trimesh(st.pose.apply(np.asarray(world.geometry.vertices, float)),
+                           np.asarray(world.geometry.faces), process=False)
+    assert mesh.is_watertight and mesh.volume > 0  # a closed prism down to the base, normals out
+    # Heights under 400 random points against MuJoCo's own ray test of the height field (an independent
+    # implementation: its grid, its cell diagonals). Both are float64 plane intersections: 1e-9 m.
+    rng = np.random.default_rng(5)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    local = np.c_[rng.uniform(-0.99, 0.99, 400), rng.uniform(-0.59, 0.59, 400) * 1.0, np.full(400, 5.0)]
+    origins = local @ data.geom_xmat[0].reshape(3, 3).T + data.geom_xpos[0] * [1, 1, 0]
+    down = np.array([0.0, 0.0, -1.0])
+    geomid = np.zeros(1, np.int32)
+    theirs = np.array([mujoco.mj_ray(model, data, o, down, None, 1, -1, geomid) for o in origins])
+    locs, index_ray, _ = RayMeshIntersector(mesh).intersects_location(origins, np.tile(down, (400, 1)),
+                                                                      multiple_hits=False)
+    ours = np.full(400, np.nan)
+    ours[index_ray] = origins[index_ray, 2] - locs[:, 2]
+    np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-9)
+
+
+def test_sdf_and_flex_are_left_out_with_a_warning():
+    flex = """<mujoco><worldbody><geom name="floor" type="plane" size="1 1 0.1"/>
+      <flexcomp name="cloth" type="grid" count="3 3 1" spacing="0.1 0.1 0.1" pos="0 0 1" dim="2"/>
+      </worldbody></mujoco>"""
+    with pytest.warns(UserWarning, match=r"1 flex object.*not drawn"):
+        cosim = MujocoCosim(mujoco.MjModel.from_xml_string(flex))
+    assert [o.name for o in cosim.scene.objects] == ["world"]
+    assert "cloth_0" in cosim.scene.frame_names  # the flex's vertex bodies stay mount points
+    sdf = """<mujoco>
+      <extension><plugin plugin="mujoco.sdf.torus"><instance name="torus">
+        <config key="radius1" value="0.1"/><config key="radius2" value="0.03"/></instance></plugin></extension>
+      <asset><mesh name="torus"><plugin instance="torus"/></mesh></asset>
+      <worldbody><body name="ring"><freejoint/><geom name="donut" type="sdf" mesh="torus">
+        <plugin instance="torus"/></geom><geom type="box" size="0.01 0.01 0.01" pos="0.2 0 0"/></body>
+      </worldbody></mujoco>"""
+    with pytest.warns(UserWarning, match=r"cosim.bodies\[ring\]: geom donut .*left out"):
+        cosim = MujocoCosim(mujoco.MjModel.from_xml_string(sdf))
+    assert len(cosim.scene.object("ring").geometry.vertices) == 8  # the box alone

@@ -18,6 +18,7 @@ body, is expressed with frame-only intermediate links named
 from __future__ import annotations
 
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -104,7 +105,8 @@ def geom_primitive(model, g: int) -> Geometry | None:
 
 
 def geom_mesh(model, g: int, field: str) -> tuple[np.ndarray, np.ndarray] | None:
-    """Vertices (n, 3) [m] and faces (m, 3) of one geom in the geom frame (None: not drawable)."""
+    """Vertices (n, 3) [m] and faces (m, 3) of one geom in the geom frame (None, with a warning naming
+    ``field`` and the geom: an SDF geom, which has no surface to draw)."""
     t = int(model.geom_type[g])
     if t == GEOM_MESH:
         mid = int(model.geom_dataid[g])
@@ -115,10 +117,45 @@ def geom_mesh(model, g: int, field: str) -> tuple[np.ndarray, np.ndarray] | None
     if t == GEOM_ELLIPSOID:
         v, f = primitive_mesh(Sphere(1.0, subdivisions=3))
         return v * np.asarray(model.geom_size[g], dtype=float), f
+    if t == GEOM_HFIELD:
+        return hfield_mesh(model, int(model.geom_dataid[g]))
     prim = geom_primitive(model, g)
     if prim is None:
-        return None  # height fields and SDFs are left out
+        warnings.warn(f"{field}: geom {model.geom(g).name or g} of MuJoCo type {t} (SDF or plugin) has no surface "
+                      "twinsense can draw; it is left out of the scene", UserWarning, stacklevel=3)
+        return None
     return primitive_mesh(prim)
+
+
+def hfield_mesh(model, h: int) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (n, 3) [m] and faces of MuJoCo height field ``h`` in its geom frame: a closed prism.
+
+    MuJoCo's compiled heights (``hfield_data``, row r at y = (2 r / (nrow - 1) - 1) radius_y, column c at
+    x = (2 c / (ncol - 1) - 1) radius_x, scaled 0..1) times ``elevation_z`` are the top; each grid cell is
+    split along its (c, r) -> (c + 1, r + 1) diagonal, as MuJoCo's ray and contact tests split it; sides
+    drop to the base ``-base_z`` and a fan closes the bottom, so the mesh is watertight.
+    """
+    nr, nc = int(model.hfield_nrow[h]), int(model.hfield_ncol[h])
+    rx, ry, ez, bz = (float(x) for x in model.hfield_size[h])
+    adr = int(model.hfield_adr[h])
+    z = np.asarray(model.hfield_data[adr:adr + nr * nc], dtype=float).reshape(nr, nc) * ez
+    x = (2.0 * np.arange(nc) / (nc - 1) - 1.0) * rx
+    y = (2.0 * np.arange(nr) / (nr - 1) - 1.0) * ry
+    xx, yy = np.meshgrid(x, y)
+    top = np.c_[xx.ravel(), yy.ravel(), z.ravel()]
+    i = np.arange(nr * nc).reshape(nr, nc)
+    a, b, c, d = i[:-1, :-1].ravel(), i[:-1, 1:].ravel(), i[1:, 1:].ravel(), i[1:, :-1].ravel()
+    faces = [np.c_[a, b, c], np.c_[a, c, d]]  # counter-clockwise seen from above: normals up
+    # The boundary loop, counter-clockwise seen from above, and a copy of it on the base.
+    loop = np.r_[i[0, :], i[1:, -1], i[-1, -2::-1], i[-2:0:-1, 0]]
+    n, m = len(top), len(loop)
+    base = np.c_[top[loop, :2], np.full(m, -bz)]
+    centre = np.array([[0.0, 0.0, -bz]])
+    ta, tb = loop, np.roll(loop, -1)
+    ba = n + np.arange(m)
+    bb = np.roll(ba, -1)
+    faces += [np.c_[ta, ba, bb], np.c_[ta, bb, tb], np.c_[np.full(m, n + m), bb, ba]]
+    return np.vstack([top, base, centre]), np.vstack(faces).astype(np.int64)
 
 
 def body_geoms(model, b: int, which: str = "visual") -> list[int]:

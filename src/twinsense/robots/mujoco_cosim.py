@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import bisect
 import threading
+import warnings
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -164,6 +165,10 @@ class MujocoCosim:
         self._record()
         self.names = [body_name(model, b) for b in range(model.nbody)]
         self.scene = self._build_scene(geoms, materials)
+        if model.nflex or model.nskin:
+            # Deformable flex objects and skins have no rigid body frame to move a mesh with.
+            warnings.warn(f"cosim: the model's {model.nflex} flex object(s) and {model.nskin} skin(s) (deformable) "
+                          "are not drawn; their bodies are mount frames", UserWarning, stacklevel=2)
 
     # ------------------------------------------------------------ physics
     @property
