@@ -4,6 +4,7 @@ type, odd time steps, files with relative mesh folders, and the errors a user ca
 import mujoco
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 import twinsense as ts
 from twinsense import ConfigError
@@ -226,3 +227,79 @@ def test_sdf_and_flex_are_left_out_with_a_warning():
     with pytest.warns(UserWarning, match=r"cosim.bodies\[ring\]: geom donut .*left out"):
         cosim = MujocoCosim(mujoco.MjModel.from_xml_string(sdf))
     assert len(cosim.scene.object("ring").geometry.vertices) == 8  # the box alone
+
+
+# --------------------------------------------------------------------------- joints, sites, mocap, names
+ARM = """<mujoco model="arm">
+  <option timestep="0.002" gravity="0 0 -9.81"/>
+  <worldbody>
+    <body name="pendulum" pos="0 0 1.5">
+      <joint name="ball" type="ball" damping="0.01"/>
+      <geom type="capsule" fromto="0 0 0 0 0 -0.4" size="0.03"/>
+      <geom type="sphere" size="0.05" pos="0 0 -0.45"/>
+      <site name="pendulum" pos="0 0.05 -0.45" euler="0 30 0"/>
+      <body name="carriage" pos="0 0 -0.5" euler="0 0 30">
+        <joint name="rail" type="slide" axis="1 0 0" pos="0.02 0 0"/>
+        <geom type="box" size="0.05 0.02 0.02" pos="0.05 0 0"/>
+        <geom type="cylinder" size="0.01 0.03" pos="0 0.03 0" euler="90 0 0"/>
+        <site name="tool" pos="0.1 0 0" euler="0 90 0"/>
+      </body>
+    </body>
+    <body pos="1 0 1"><freejoint/><geom type="sphere" size="0.05"/></body>
+    <body name="body3" pos="1 1 1"><freejoint/><geom type="sphere" size="0.05"/></body>
+    <body name="target" mocap="true" pos="0 -1 1"><geom type="box" size="0.05 0.05 0.05"/>
+      <site name="aim" pos="0 0 0.1"/></body>
+  </worldbody>
+</mujoco>"""
+
+
+def test_ball_slide_nested_sites_and_names():
+    model = mujoco.MjModel.from_xml_string(ARM)
+    data = mujoco.MjData(model)
+    data.qvel[:] = np.random.default_rng(7).uniform(-1, 1, model.nv)  # swinging, sliding, thrown
+    cosim = MujocoCosim(model, data)
+    names = [o.name for o in cosim.scene.objects]
+    # An unnamed body is "body<id>", unless a body is named that: body3 is taken, so "body3_".
+    assert names == ["pendulum", "carriage", "body3_", "body3", "target"]
+    # A site named like a body (MuJoCo keeps them apart) is the frame "<site>:site".
+    assert set(cosim.scene.frame_names) == {"pendulum:site", "tool", "aim"}
+    ref = mujoco.MjData(model)
+    ref.qvel[:] = data.qvel
+    for t in (0.0, 0.1, 0.2503):
+        while ref.time + model.opt.timestep * (1 - 1e-9) <= t:
+            mujoco.mj_step(model, ref)
+        mujoco.mj_forward(model, ref)
+        tau = max(t - ref.time, 0.0)
+        for b in range(1, model.nbody):
+            vel = np.zeros(6)
+            mujoco.mj_objectVelocity(model, ref, mujoco.mjtObj.mjOBJ_XBODY, b, vel, 0)
+            st = cosim.body_state(b, t)
+            # MuJoCo's step state moved on as documented: p + v tau, exp([w tau]x) R. float64 both: 1e-9.
+            np.testing.assert_allclose(st.pose.position, ref.xpos[b] + vel[3:] * tau, rtol=0, atol=1e-9)
+            turn = Rotation.from_rotvec(vel[:3] * tau).as_matrix()
+            np.testing.assert_allclose(st.pose.rotation, turn @ ref.xmat[b].reshape(3, 3), rtol=0, atol=1e-9)
+            np.testing.assert_allclose(st.linear_velocity, vel[3:], rtol=0, atol=1e-9)
+            np.testing.assert_allclose(st.angular_velocity, vel[:3], rtol=0, atol=1e-9)
+        for site, frame in (("pendulum", "pendulum:site"), ("tool", "tool"), ("aim", "aim")):
+            s = model.site(site).id
+            on = ts.Mount(ts.Pose(), frame).state_at(cosim.scene, ref.time)  # on the step: MuJoCo's site
+            np.testing.assert_allclose(on.pose.position, ref.site_xpos[s], rtol=0, atol=1e-9)
+            np.testing.assert_allclose(on.pose.rotation, ref.site_xmat[s].reshape(3, 3), rtol=0, atol=1e-9)
+
+
+def test_mocap_moved_by_the_user_between_steps():
+    model = mujoco.MjModel.from_xml_string(ARM)
+    cosim = MujocoCosim(model)
+    cosim.step_to(0.1)
+    t_k = cosim.time
+    cosim.data.mocap_pos[0] = (0.3, -1.2, 0.8)  # moved by hand between steps
+    cosim.data.mocap_quat[0] = (np.cos(0.2), 0.0, 0.0, np.sin(0.2))  # turned 0.4 rad about z
+    aim = ts.Mount(ts.Pose(), "aim")
+    # At the current step the sensors see the new pose (the kept state of that step is replaced), and
+    # on from there; before it the old one.
+    np.testing.assert_allclose(cosim.body_state("target", t_k).pose.position, (0.3, -1.2, 0.8), rtol=0, atol=0)
+    np.testing.assert_allclose(aim.state_at(cosim.scene, 0.15).pose.position, (0.3, -1.2, 0.9), rtol=0,
+                               atol=1e-15)
+    np.testing.assert_allclose(cosim.body_state("target", 0.05).pose.position, (0, -1, 1), rtol=0, atol=0)
+    rot = cosim.body_state("target", 0.2).pose.rotation
+    np.testing.assert_allclose(rot, Rotation.from_rotvec([0, 0, 0.4]).as_matrix(), rtol=0, atol=1e-12)

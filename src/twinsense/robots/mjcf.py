@@ -82,8 +82,22 @@ def _reference(model, j: int) -> Pose:
 
 
 def body_name(model, b: int) -> str:
+    """Body b's name; an unnamed body is ``"body<b>"`` (``"body<b>_"`` ... if a named body is called that)."""
     n = model.body(b).name
-    return n if n else f"body{b}"
+    if n:
+        return n
+    n = f"body{b}"
+    while _named_body(model, n):
+        n += "_"
+    return n
+
+
+def _named_body(model, name: str) -> bool:
+    try:
+        model.body(name)
+    except KeyError:
+        return False
+    return True
 
 
 def geom_primitive(model, g: int) -> Geometry | None:

@@ -388,7 +388,11 @@ class MujocoCosim:
             if not sname:
                 continue
             if sname in taken:
-                raise ConfigError("cosim.sites", sname, "site names that differ from the body names")
+                # MuJoCo names bodies and sites apart; the scene has one namespace.
+                sname = f"{sname}:site"
+                if sname in taken:
+                    raise ConfigError("cosim.sites", m.site(s).name, "site names that differ from the body names")
+            taken.add(sname)
             b = int(m.site_bodyid[s])
             offset = _pose(m.site_pos[s], m.site_quat[s])
             if self._is_static(b):
