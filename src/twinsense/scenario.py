@@ -681,6 +681,9 @@ def _add_people(spec: ScenarioSpec, scene: Scene) -> list:
         if ps.name in robots:  # a robot's and a person's links are both "name/link": they would mix
             problems.append((f"people[{i}].name", ps.name, "a name no robot of this scenario uses"))
             continue
+        if ps.name in {o.name for o in spec.objects}:  # as for robots: "table" and "table/pelvis"
+            problems.append((f"people[{i}].name", ps.name, "a name no object of this scenario uses"))
+            continue
         try:
             walk = turn = reach = None
             if ps.walk is not None:

@@ -99,6 +99,8 @@ BAD = [
     # Names: a robot's links are "robot/link"; a robot named like an object would make both "table" and
     # "table/base_link" frames of unrelated things.
     ("robot named like an object", _data([{**UR5, "name": "table"}], objects=[TABLE]), "robots[0].name", "table"),
+    ("person named like an object", _data([], objects=[TABLE], people=[{"name": "table"}]), "people[0].name",
+     "object"),
     # Names that differ only where ROS 2 topic names have no room: both would publish /my_arm/joint_states.
     ("robot names one topic", _data([{**UR5, "name": "my-arm"}, {**UR5, "name": "my_arm"}]), "robots[1].name",
      "my-arm"),
