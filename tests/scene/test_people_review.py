@@ -88,6 +88,19 @@ def test_sway_into_the_walk_has_exact_velocities():
     assert lin < FD_TOL and ang < FD_TOL
 
 
+@pytest.mark.parametrize("heading", [180.0, 179.9])
+def test_walking_off_opposite_to_where_the_person_faces_has_no_jump(heading):
+    # Facing west and walking east: the start blend turns the person half round. The turn's
+    # direction was re-chosen at every instant (the yaw difference wrapped to +-pi, and the pelvis
+    # torsion tipped it from one side to the other), so the body flipped between turning left and
+    # right: links jumped 0.55 m between 2 ms samples.
+    body = person_body("p", 1.75, (0.0, 0.0), heading, walk=Walk(1.3, path=((3.0, 0.0), (3.0, 2.0)), start_time=0.2))
+    step, bound = _largest_step(body, np.linspace(0.15, 0.85, 176))
+    assert step <= bound
+    lin, ang = _fd_errors(body, np.linspace(0.15, 0.85, 8))
+    assert lin < FD_TOL and ang < FD_TOL
+
+
 def test_velocities_are_exact_around_a_tight_corner():
     # 2 m out and back to (0.2, 0.3) (a 170 deg turn, the fillet shortened to half the segment): the
     # heading changes fast, and the position spline between its 1 cm nodes bends away from the

@@ -434,12 +434,17 @@ class _Plan:
     q: np.ndarray
     qd: np.ndarray
 
-    def blend(self, other: _Plan, w: float, wd: float) -> _Plan:
-        """(1 - w) self + w other, with the rate of w (``wd`` [1/s]) in the derivatives."""
+    def blend(self, other: _Plan, w: float, wd: float, dyaw_ref: float = 0.0) -> _Plan:
+        """(1 - w) self + w other, with the rate of w (``wd`` [1/s]) in the derivatives.
+
+        The yaw turns by the difference within pi of ``dyaw_ref`` [rad]: a blend that turns the
+        person about half round takes one direction for all of its duration (wrapping each
+        instant's difference to +-pi would flip it with the pelvis torsion).
+        """
         def mix(a, b, ad, bd):
             return (1 - w) * a + w * b, (1 - w) * ad + w * bd + wd * (b - a)
         p, v = mix(self.p, other.p, self.v, other.v)
-        dyaw = float(_wrap(other.yaw - self.yaw))
+        dyaw = dyaw_ref + float(_wrap(other.yaw - self.yaw - dyaw_ref))
         yaw, yaw_d = self.yaw + w * dyaw, (1 - w) * self.yaw_d + w * other.yaw_d + wd * dyaw
         roll, roll_d = mix(self.roll, other.roll, self.roll_d, other.roll_d)
         q, qd = mix(self.q, other.q, self.qd, other.qd)
@@ -560,7 +565,11 @@ class PersonMotion(_ReadOnly):
                 self.stop_time = walk.start_time + self.path.length / walk.speed
         self._reach_q = None
         self._last = None
+        self._start_turn = 0.0
         if walk is not None:
+            # The start blend's turn from the standing heading to the path's [rad], chosen once.
+            t0 = walk.start_time
+            self._start_turn = float(_wrap(self._walking(t0).yaw - self._standing(t0, start_xy, self.heading).yaw))
             self._check_gait_limits()
         self.start_xy.setflags(write=False)
         self._q_rest.setflags(write=False)
@@ -657,7 +666,7 @@ class PersonMotion(_ReadOnly):
                 # velocities are the derivatives of its poses and nothing jumps at the start.
                 w, wd = smoothstep((t - walk.start_time) / START_BLEND)
                 stand = self._standing(t, self.start_xy, self.heading)
-                plan = stand.blend(plan, float(w), float(wd) / START_BLEND)
+                plan = stand.blend(plan, float(w), float(wd) / START_BLEND, self._start_turn)
         else:
             end_xy, _, end_psi, _ = self.path.at(self.path.length)
             stand = self._standing(t, end_xy, end_psi, turning=False)
