@@ -303,3 +303,82 @@ def test_mocap_moved_by_the_user_between_steps():
     np.testing.assert_allclose(cosim.body_state("target", 0.05).pose.position, (0, -1, 1), rtol=0, atol=0)
     rot = cosim.body_state("target", 0.2).pose.rotation
     np.testing.assert_allclose(rot, Rotation.from_rotvec([0, 0, 0.4]).as_matrix(), rtol=0, atol=1e-12)
+
+
+# --------------------------------------------------------------------------- load_mjcf: ball and free joints
+BALLS = """<mujoco model="balls">
+  <worldbody>
+    <body name="upper" pos="0.1 0.2 1.0" euler="10 0 20">
+      <joint name="shoulder" type="ball" pos="0 0 0.05"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+      <body name="lower" pos="0.3 0 0">
+        <joint name="elbow" type="hinge" axis="0 1 0" range="-120 120"/>
+        <joint name="wrist" type="ball"/>
+        <geom type="box" size="0.1 0.02 0.02" pos="0.1 0 0"/>
+      </body>
+    </body>
+    <body name="puck" pos="1 0 0.2"><freejoint name="float"/><geom type="cylinder" size="0.05 0.01"/></body>
+  </worldbody>
+  <keyframe><key name="home" qpos="0.8 0.2 -0.3 0.1  0.5  0.9 0 0.3 0.1  1 0 0.2 1 0 0 0"/></keyframe>
+</mujoco>"""
+
+
+def _ball_qpos(model, tree, q, qd):
+    """MuJoCo's qpos, qvel for the tree's joint values: a ball joint's quaternion from its three Euler
+    angles, its qvel the angular velocity in the child frame (MuJoCo's ball-joint convention)."""
+    qpos, qvel = model.qpos0.copy(), np.zeros(model.nv)
+    names = list(tree.joint_names)
+    for j in range(model.njnt):
+        jn, qa, da = model.joint(j).name, int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j])
+        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE:
+            qpos[qa], qvel[da] = q[names.index(jn)], qd[names.index(jn)]
+        elif model.jnt_type[j] == mujoco.mjtJoint.mjJNT_BALL:
+            i = names.index(f"{jn}:x")
+            a, r = q[i:i + 3], qd[i:i + 3]
+            rot = Rotation.from_euler("XYZ", a)
+            x, y, z, w = rot.as_quat()
+            qpos[qa:qa + 4] = w, x, y, z
+            rx, rxy = Rotation.from_euler("X", a[0]).as_matrix(), Rotation.from_euler("XY", a[:2]).as_matrix()
+            omega = r[0] * np.array([1.0, 0, 0]) + r[1] * rx[:, 1] + r[2] * rxy[:, 2]  # joint frame
+            qvel[da:da + 3] = rot.as_matrix().T @ omega
+    return qpos, qvel
+
+
+def test_load_mjcf_ball_joints_fixed_or_euler():
+    from twinsense.robots import load_mjcf
+
+    model = mujoco.MjModel.from_xml_string(BALLS)
+    with pytest.warns(UserWarning, match=r"ball joint\(s\) shoulder, wrist held fixed"):
+        fixed = load_mjcf(model)
+    assert fixed.tree.joint_names == ("elbow",)
+    with pytest.raises(ConfigError, match=r"mjcf.ball_joints = 'quat'.*fixed, euler"):
+        load_mjcf(model, ball_joints="quat")
+    tree = load_mjcf(model, ball_joints="euler").tree
+    assert tree.joint_names == ("shoulder:x", "shoulder:y", "shoulder:z", "elbow", "wrist:x", "wrist:y", "wrist:z")
+    data = mujoco.MjData(model)
+    vel = np.zeros(6)
+    rng = np.random.default_rng(2)
+    # The home keyframe: its quaternions as Euler angles; the free puck stays at qpos0 (kinematic use).
+    key = np.array(model.key_qpos[0])
+    key[model.jnt_qposadr[model.joint("float").id]:][:7] = model.qpos0[-7:]
+    states = [(tree.home, np.zeros(7), key)]
+    for _ in range(3):
+        q = rng.uniform(-1.5, 1.5, 7)  # within +-1.5 rad: away from the x-y-z Euler angles' gimbal lock at pi/2
+        states.append((q, rng.uniform(-2, 2, 7), None))
+    for q, qd, want in states:
+        qpos, qvel = _ball_qpos(model, tree, q, qd)
+        if want is not None:  # the tree at its home against MuJoCo at the keyframe itself
+            qpos = want
+        data.qpos[:], data.qvel[:] = qpos, qvel
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        mujoco.mj_comVel(model, data)
+        st = tree.forward(q, qd)
+        for b in range(1, model.nbody):
+            i = st.index(model.body(b).name)
+            # Forward kinematics in float64 on both sides: 1e-9 m, rad, m/s, rad/s as for the other MJCF trees.
+            np.testing.assert_allclose(st.pose(i).position, data.xpos[b], rtol=0, atol=1e-9)
+            np.testing.assert_allclose(st.pose(i).rotation, data.xmat[b].reshape(3, 3), rtol=0, atol=1e-9)
+            mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_XBODY, b, vel, 0)
+            np.testing.assert_allclose(st.linear_velocities[i], vel[3:], rtol=0, atol=1e-9)
+            np.testing.assert_allclose(st.angular_velocities[i], vel[:3], rtol=0, atol=1e-9)

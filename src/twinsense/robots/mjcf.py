@@ -22,6 +22,7 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from twinsense.errors import ConfigError
 from twinsense.robots.deps import require
@@ -202,11 +203,42 @@ def body_geometry(model, b: int, which: str = "visual", field: str = "mjcf") -> 
     return merge(parts, body_name(model, b))
 
 
-def mjcf_tree(model_or_path, *, materials=None, geoms: str = "visual", name: str | None = None) -> KinematicTree:
-    """The kinematic tree of an MJCF model (bodies -> links, hinge/slide -> revolute/prismatic)."""
+#: How ``mjcf_tree`` takes MuJoCo ball joints.
+BALL_JOINTS = ("fixed", "euler")
+
+
+def _joint_axes(model, j: int, ball_joints: str) -> list[tuple]:
+    """The tree joints of MuJoCo joint j: (name, kind, axis, reference pose, lower, upper) each; none for a
+    free joint or a ball joint held fixed; a ball joint as ``ball_joints="euler"`` takes it: three revolute
+    joints ``"<joint>:x"``, ``":y"``, ``":z"`` about the joint frame's axes, one after the other (MuJoCo's
+    quaternion = intrinsic x-y-z Euler angles, scipy's ``"XYZ"``; its cone limit is not expressed)."""
+    t = int(model.jnt_type[j])
+    jname = model.joint(j).name or f"joint{j}"
+    if t == JNT_BALL and ball_joints == "euler":
+        return [(f"{jname}:{a}", "revolute", tuple(e), Pose(), -math.inf, math.inf)
+                for a, e in zip("xyz", np.eye(3))]
+    if t not in (JNT_HINGE, JNT_SLIDE):
+        return []
+    lo, hi = -math.inf, math.inf
+    if model.jnt_limited[j]:
+        lo, hi = float(model.jnt_range[j][0]), float(model.jnt_range[j][1])
+    kind = "revolute" if t == JNT_HINGE else "prismatic"
+    return [(jname, kind, tuple(model.jnt_axis[j]), _reference(model, j), lo, hi)]
+
+
+def mjcf_tree(model_or_path, *, materials=None, geoms: str = "visual", name: str | None = None,
+              ball_joints: str = "fixed") -> KinematicTree:
+    """The kinematic tree of an MJCF model (bodies -> links, hinge/slide -> revolute/prismatic).
+
+    ``ball_joints``: "fixed" holds MuJoCo ball joints at qpos0 (with a warning naming them); "euler"
+    drives each by three revolute joints ``"<joint>:x"``, ``":y"``, ``":z"`` (intrinsic x-y-z Euler
+    angles [rad]; the tree's home is the home keyframe's or qpos0's quaternion in those angles).
+    """
     model = load_model(model_or_path)
     if geoms not in GEOM_SETS:
         raise ConfigError("mjcf.geoms", geoms, "one of: " + ", ".join(GEOM_SETS))
+    if ball_joints not in BALL_JOINTS:
+        raise ConfigError("mjcf.ball_joints", ball_joints, "one of: " + ", ".join(BALL_JOINTS))
     names = [body_name(model, b) for b in range(model.nbody)]
     mats = link_materials(names, materials, "mjcf.materials")
     links = [Link(names[0])]
@@ -214,53 +246,61 @@ def mjcf_tree(model_or_path, *, materials=None, geoms: str = "visual", name: str
     for b in range(1, model.nbody):
         parent = names[int(model.body_parentid[b])]
         offset = _quat_pose(model.body_pos[b], model.body_quat[b])
-        jids = [j for j in range(int(model.body_jntadr[b]), int(model.body_jntadr[b] + model.body_jntnum[b]))
-                if model.body_jntadr[b] >= 0 and int(model.jnt_type[j]) in (JNT_HINGE, JNT_SLIDE)]
+        axes = [(j, *axis) for j in range(int(model.body_jntadr[b]), int(model.body_jntadr[b] + model.body_jntnum[b]))
+                if model.body_jntadr[b] >= 0 for axis in _joint_axes(model, j, ball_joints)]
         prev, origin = parent, offset
-        for k, j in enumerate(jids):
-            driven.append(j)
-            jname = model.joint(j).name or f"joint{j}"
+        for k, (j, jname, kind, axis, reference, lo, hi) in enumerate(axes):
+            driven.append((j, k - next(i for i, a in enumerate(axes) if a[0] == j)))
             anchor = np.asarray(model.jnt_pos[j], dtype=float)
-            last = k == len(jids) - 1
+            last = k == len(axes) - 1
             # The body frame itself when this is its only joint and it sits at the body origin.
             child = names[b] if last and not np.any(anchor) else f"{names[b]}:{jname}"
             if child != names[b]:
                 links.append(Link(child))
-            lo, hi = -math.inf, math.inf
-            if model.jnt_limited[j]:
-                lo, hi = float(model.jnt_range[j][0]), float(model.jnt_range[j][1])
-            kind = "revolute" if int(model.jnt_type[j]) == JNT_HINGE else "prismatic"
-            joints.append(Joint(jname, kind, prev, child, origin @ Pose(anchor) @ _reference(model, j),
-                                tuple(model.jnt_axis[j]), lo, hi))
+            joints.append(Joint(jname, kind, prev, child, origin @ Pose(anchor) @ reference, axis, lo, hi))
             prev, origin = child, Pose(-anchor)
         geom = body_geometry(model, b, geoms, f"mjcf.bodies[{names[b]}]")
         links.append(Link(names[b], geom, mats[names[b]]))
         if prev != names[b]:
             joints.append(Joint(f"{names[b]}:fixed", "fixed", prev, names[b], origin))
+    fixed = [model.joint(j).name or f"joint{j}" for j in range(model.njnt)
+             if int(model.jnt_type[j]) == JNT_BALL and ball_joints == "fixed"]
+    if fixed:
+        warnings.warn(f"mjcf: ball joint(s) {', '.join(fixed)} held fixed at qpos0 (the tree's joints are hinge and "
+                      "slide joints; ball_joints='euler' drives each by three revolute joints)", UserWarning,
+                      stacklevel=2)
     return KinematicTree(name or model.names.split(b"\0", 1)[0].decode() or "mjcf", links, joints,
                          home=_home(model, driven))
 
 
-def _home(model, jids: list[int]) -> np.ndarray:
-    """The tree's rest values of hinge/slide joints ``jids`` (its joint order): the model's keyframe
-    named "home" (MuJoCo Menagerie's convention) if it has one, else qpos0 (each joint's ``ref``),
-    clipped into the joint's range (robosuite's Jaco has qpos0 = 0 outside some ranges)."""
+def _home(model, driven: list[tuple[int, int]]) -> np.ndarray:
+    """The tree's rest values of its joints, ``driven`` = (MuJoCo joint, Euler axis of a ball joint) each in
+    the tree's joint order: the model's keyframe named "home" (MuJoCo Menagerie's convention) if it has
+    one, else qpos0 (each joint's ``ref``), clipped into the joint's range (robosuite's Jaco has qpos0 = 0
+    outside some ranges); a ball joint's quaternion as intrinsic x-y-z Euler angles."""
     qpos = model.qpos0
     for k in range(model.nkey):
         if model.key(k).name == "home":
             qpos = model.key_qpos[k]
             break
-    out = np.array([float(qpos[int(model.jnt_qposadr[j])]) for j in jids])
-    for i, j in enumerate(jids):
+    out = np.zeros(len(driven))
+    for i, (j, axis) in enumerate(driven):
+        a = int(model.jnt_qposadr[j])
+        if int(model.jnt_type[j]) == JNT_BALL:
+            w, x, y, z = qpos[a:a + 4]
+            out[i] = Rotation.from_quat([x, y, z, w]).as_euler("XYZ")[axis]
+            continue
+        out[i] = float(qpos[a])
         if model.jnt_limited[j]:
             out[i] = min(max(out[i], float(model.jnt_range[j][0])), float(model.jnt_range[j][1]))
     return out
 
 
 def load_mjcf(path_or_name, *, name: str | None = None, joints: JointMotion | None = None, materials=None,
-              base: Pose | Motion | None = None, geoms: str = "visual") -> ArticulatedBody:
+              base: Pose | Motion | None = None, geoms: str = "visual", ball_joints: str = "fixed") -> ArticulatedBody:
     """A robot from an MJCF file or an installed MJCF robot's name ("panda-mjcf"), ready for
-    ``scene.add_articulated`` (kinematics only; see MujocoCosim for MuJoCo's physics)."""
+    ``scene.add_articulated`` (kinematics only; see MujocoCosim for MuJoCo's physics; ``ball_joints``:
+    see :func:`mjcf_tree`)."""
     model = path_or_name if not isinstance(path_or_name, (str, Path)) else resolve(path_or_name, "mjcf")
-    tree = mjcf_tree(model, materials=materials, geoms=geoms)
+    tree = mjcf_tree(model, materials=materials, geoms=geoms, ball_joints=ball_joints)
     return ArticulatedBody(name or tree.name, tree, joints, base)
