@@ -70,6 +70,9 @@ def joint_motion_from_dict(data: Any, field: str = "joints", base_dir: Path | No
     elif kind == "fixed" and isinstance(value, (list, tuple)):
         for k, v in enumerate(value):
             _fixed_value(f"{field}.fixed[{k}]", v)
+    if kind in ("keyframes", "constant_velocity") and isinstance(value, dict) and "joint_names" in value:
+        raise ConfigError(f"{field}.{kind}.joint_names", value["joint_names"],
+                          f"joint_names beside {kind} ({field}.joint_names), not inside it")
     if kind == "recording":
         return _recording(value, names, f"{field}.recording", base_dir)
     try:
