@@ -382,3 +382,51 @@ def test_load_mjcf_ball_joints_fixed_or_euler():
             mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_XBODY, b, vel, 0)
             np.testing.assert_allclose(st.linear_velocities[i], vel[3:], rtol=0, atol=1e-9)
             np.testing.assert_allclose(st.angular_velocities[i], vel[:3], rtol=0, atol=1e-9)
+
+
+def test_mocap_target_moves_with_its_velocity_and_radar_sees_it():
+    # A mocap plate driven by the controller towards a radar at 1.5 m/s, turning at 0.5 rad/s about the
+    # line of sight; a child body hangs from it on a hinge.
+    xml = """<mujoco><option timestep="0.004" gravity="0 0 0"/><worldbody>
+      <body name="plate" mocap="true" pos="0 3 1"><geom type="box" size="0.2 0.01 0.2"/>
+        <site name="corner" pos="0.2 0 0.2"/>
+        <body name="flap" pos="0 0 -0.25"><joint name="flap" type="hinge" axis="1 0 0"/>
+          <geom type="box" size="0.1 0.01 0.05" pos="0 0 -0.05" mass="0.1"/></body></body>
+      </worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    v, rate, p0 = np.array([0.0, -1.5, 0.0]), 0.5, np.array([0.0, 3.0, 1.0])
+
+    def control(m, d):
+        d.mocap_pos[0] = p0 + v * d.time
+        d.mocap_quat[0] = (np.cos(rate * d.time / 2), 0.0, np.sin(rate * d.time / 2), 0.0)
+
+    cosim = MujocoCosim(model, control=control)
+    dt = model.opt.timestep
+    for t in (0.1, 0.2345):
+        st = cosim.body_state("plate", t)
+        # The controller sets the pose for the step it precedes, so the plate lags one step (MuJoCo's own
+        # order); the finite difference of two steps is exact for constant rates: 1e-12 (float64 rounding).
+        np.testing.assert_allclose(st.pose.position, p0 + v * (t - dt), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(st.linear_velocity, v, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(st.angular_velocity, [0, rate, 0], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(st.pose.rotation, Rotation.from_rotvec([0, rate * (t - dt), 0]).as_matrix(),
+                                   rtol=0, atol=1e-12)
+        corner = ts.Mount(ts.Pose(), "corner").state_at(cosim.scene, t)  # rides on the plate: v + w x r
+        r = corner.pose.position - st.pose.position
+        np.testing.assert_allclose(corner.linear_velocity, v + np.cross([0, rate, 0], r), rtol=0, atol=1e-12)
+    # The flap on its hinge at rest moves with the plate. At a step time (0.1 s = 25 steps): between steps
+    # each body is moved on by its own step velocity, so their offset turns only to first order.
+    st, flap = cosim.body_state("plate", 0.1), cosim.body_state("flap", 0.1)
+    r = flap.pose.position - st.pose.position
+    np.testing.assert_allclose(flap.linear_velocity, v + np.cross([0, rate, 0], r), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(flap.angular_velocity, [0, rate, 0], rtol=0, atol=1e-12)
+    cosim = MujocoCosim(model, control=control)
+    radar = ts.FMCWRadar.preset("paper_bgt60tr13c", mount=ts.Mount(ts.Pose.look_at((0, 0, 1), (0, 3, 1))),
+                                name="radar", render_width=64, render_height=48)
+    result = ts.simulate(cosim.scene, [radar], duration=0.1, seed=1)
+    assert len(result.frames["radar"]) == 3
+    for f in result.frames["radar"][1:]:  # at t = 0 the plate has not been moved yet: at rest
+        i = int(np.argmax(f.detections.snr_db))
+        # Approaching at 1.5 m/s: -1.5 m/s radial, within one Doppler bin (0.52 m/s). The plate's own turn
+        # moves its edges by at most 0.2 m x 0.5 rad/s = 0.1 m/s.
+        assert abs(f.detections.velocity[i] - (-1.5)) <= radar.config.velocity_resolution

@@ -410,11 +410,18 @@ def test_every_geom_type_and_free_and_ball_joints():
         mujoco.mj_step(model, ref)
     mujoco.mj_forward(model, ref)
     assert ref.mocap_pos[0, 0] > 0  # the mocap body has moved
+    # MuJoCo gives the mocap body no velocity; MujocoCosim the finite difference of its last two steps,
+    # exact for the controller's constant glide (0.3 m/s along x) and turn (2 rad/s about z).
+    v_m, w_m, tau = np.array([0.3, 0.0, 0.0]), np.array([0.0, 0.0, 2.0]), t - ref.time
+    turn = Rotation.from_rotvec(w_m * tau).as_matrix()
     for b in range(1, model.nbody):
-        st = _propagated(model, ref, b, t - ref.time)
+        st = _propagated(model, ref, b, tau)
+        if model.body_mocapid[b] >= 0:
+            st = MotionState(Pose(ref.xpos[b] + v_m * tau, turn @ ref.xmat[b].reshape(3, 3)), v_m, w_m)
         _assert_state(cosim.scene.mount_target(cosim.names[b]).state_at(t), st.pose, st.linear_velocity,
                       st.angular_velocity, cosim.names[b])
-    aim = model.site("aim").id
-    np.testing.assert_allclose(cosim.scene.mount_target("aim").state_at(t).pose.position, ref.site_xpos[aim],
-                               rtol=0, atol=TOL)  # a mocap body has no velocity: held between steps
+    aim, target = model.site("aim").id, model.body("target").id
+    np.testing.assert_allclose(cosim.scene.mount_target("aim").state_at(t).pose.position,
+                               ref.xpos[target] + v_m * tau + turn @ (ref.site_xpos[aim] - ref.xpos[target]),
+                               rtol=0, atol=TOL)
     check_geoms(cosim, ref, ref.time)

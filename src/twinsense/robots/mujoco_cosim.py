@@ -304,11 +304,36 @@ class MujocoCosim:
             # flg_local = 0: (angular, linear) in world axes; mjOBJ_XBODY: at the body frame origin.
             mj.mj_objectVelocity(m, d, mj.mjtObj.mjOBJ_XBODY, b, res, 0)
             ang[b], lin[b] = res[:3], res[3:]
+        if m.nmocap and k > 0:
+            self._add_mocap_velocities(k, d.xpos, lin, ang)
         out = (d.xpos.copy(), d.xmat.reshape(-1, 3, 3).copy(), lin, ang)
         self._cache[key] = out
         while len(self._cache) > STATE_CACHE_SIZE:
             self._cache.popitem(last=False)
         return out
+
+    def _add_mocap_velocities(self, k: int, xpos: np.ndarray, lin: np.ndarray, ang: np.ndarray) -> None:
+        """Mocap bodies' velocities from their poses at steps k - 1 and k, added to their subtrees.
+
+        MuJoCo gives a mocap body no velocity (it has no joint), so a target moved by hand or by the
+        controller would show no Doppler and no motion blur. Its velocity is the finite difference of its
+        last two kept poses (exact for constant linear and turn rates; a jump shows as its mean velocity
+        over the step), and the bodies it carries move with it: v += v_m + w_m x (p - p_m), w += w_m.
+        """
+        m = self.model
+        dt = self._times[k] - self._times[k - 1]
+        _, _, pos1, quat1 = self._snaps[k]
+        _, _, pos0, quat0 = self._snaps[k - 1]
+        for b in np.flatnonzero(m.body_mocapid >= 0):
+            i = int(m.body_mocapid[b])
+            if np.array_equal(pos0[i], pos1[i]) and np.array_equal(quat0[i], quat1[i]):
+                continue
+            v = (pos1[i] - pos0[i]) / dt
+            r0, r1 = (Rotation.from_quat(np.roll(q, -1)) for q in (quat0[i], quat1[i]))  # MuJoCo: w first
+            w = (r1 * r0.inv()).as_rotvec() / dt
+            sub = m.body_rootid == b  # a mocap body hangs from the world: its subtree shares its root
+            lin[sub] += v + np.cross(w, xpos[sub] - xpos[b])
+            ang[sub] += w
 
     def body_state(self, body: int | str, t: float) -> MotionState:
         """Pose (body -> world) and velocities of a body at time ``t`` [s], stepping the physics if needed."""
