@@ -142,6 +142,15 @@ def test_repeated_waypoints_name_the_path_as_given(path):
     assert e.value.field == "walk.path" and e.value.value is path and "1 mm apart" in str(e.value)
 
 
+def test_a_walk_with_both_a_path_and_a_heading_is_refused():
+    # The path's waypoints set the heading; a heading_deg given as well was silently ignored.
+    with pytest.raises(ConfigError) as e:
+        Walk(1.0, path=((2.0, 0.0),), heading_deg=90.0)
+    assert e.value.field == "walk.heading_deg" and e.value.value == 90.0 and "path" in e.value.allowed
+    with pytest.raises(ScenarioError, match=r"people\[0\]\.walk\.heading_deg"):
+        scenario_from_dict({"people": [{"name": "a", "walk": {"speed": 1.0, "path": [[2.0, 0.0]], "heading_deg": 90}}]})
+
+
 @pytest.mark.parametrize("name", ["", None, 5, "a/b"])
 def test_person_name_errors_name_the_person(name):
     with pytest.raises(ConfigError) as e:

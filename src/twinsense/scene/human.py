@@ -362,6 +362,9 @@ class Walk:
                                   "within 10 km (the walk starts where the person stands)")
         if self.heading_deg is not None:
             V.number("walk.heading_deg", self.heading_deg, unit="deg")
+            if self.path is not None:
+                raise ConfigError("walk.heading_deg", self.heading_deg,
+                                  "none with a path (its waypoints set the heading), or a heading without a path")
 
 
 @dataclass(frozen=True)
