@@ -430,3 +430,85 @@ def test_mocap_target_moves_with_its_velocity_and_radar_sees_it():
         # Approaching at 1.5 m/s: -1.5 m/s radial, within one Doppler bin (0.52 m/s). The plate's own turn
         # moves its edges by at most 0.2 m x 0.5 rad/s = 0.1 m/s.
         assert abs(f.detections.velocity[i] - (-1.5)) <= radar.config.velocity_resolution
+
+
+# --------------------------------------------------------------------------- files, names, history, time steps
+def test_model_from_a_path_with_mesh_folders(tmp_path, monkeypatch):
+    import trimesh
+
+    (tmp_path / "assets" / "meshes").mkdir(parents=True)
+    trimesh.creation.box((0.2, 0.1, 0.3)).export(tmp_path / "assets" / "meshes" / "brick.stl")
+    xml = """<mujoco model="cell"><compiler meshdir="assets/meshes"/>
+      <asset><mesh name="brick" file="brick.stl"/><mesh name="wedge" vertex="0 0 0 0.1 0 0 0 0.1 0 0 0 0.1"/></asset>
+      <worldbody><body name="part" pos="0 0 0.5"><freejoint/><geom type="mesh" mesh="brick"/>
+        <geom type="mesh" mesh="wedge" pos="0.2 0 0"/></body></worldbody></mujoco>"""
+    (tmp_path / "cell.xml").write_text(xml)
+    (tmp_path / "gone.xml").write_text(xml.replace("brick.stl", "missing.stl"))
+    monkeypatch.chdir(tmp_path.parent)  # the meshes are found from the file's folder, not the working one
+    cosim = MujocoCosim(tmp_path / "cell.xml")
+    part = cosim.scene.object("part")
+    # The STL box (8 vertices) and the inline vertex list (MuJoCo's convex hull: 4) merged in the body frame,
+    # where MuJoCo's compiled geoms put them (mesh re-centring included): float64 poses, 1e-12 m.
+    model = cosim.model
+    assert len(part.geometry.vertices) == 12
+    mujoco.mj_forward(model, data := mujoco.MjData(model))
+    world = part.state_at(0.0).pose.apply(np.asarray(part.geometry.vertices, float))
+    for k, g in enumerate(range(model.body_geomadr[1], model.body_geomadr[1] + 2)):
+        m = model.geom_dataid[g]
+        v = model.mesh_vert[model.mesh_vertadr[m]:model.mesh_vertadr[m] + model.mesh_vertnum[m]]
+        expect = v @ data.geom_xmat[g].reshape(3, 3).T + data.geom_xpos[g]
+        np.testing.assert_allclose(world[[0, 8][k]:[8, 12][k]], expect, rtol=0, atol=1e-12)
+    with pytest.raises(ConfigError, match=r"mjcf.path.*gone.xml.*missing.stl"):
+        MujocoCosim(tmp_path / "gone.xml")
+    with pytest.raises(ConfigError, match=r"mjcf.path.*an existing MJCF"):
+        MujocoCosim(tmp_path / "nowhere.xml")
+    with pytest.raises(ConfigError, match=r"mjcf = 3.*a path to an MJCF file or a mujoco.MjModel"):
+        MujocoCosim(3)
+
+
+def test_unknown_names_and_short_history():
+    from twinsense.errors import UnknownNameError
+
+    cosim = MujocoCosim(drop_model(), history=0.05)
+    with pytest.raises(UnknownNameError, match=r"mount.parent = 'lid'.*box, top, world"):
+        ts.Mount(ts.Pose(), "lid").state_at(cosim.scene, 0.0)
+    with pytest.raises(UnknownNameError, match=r"cosim.body = 'crate'"):
+        cosim.body_state("crate", 0.0)
+    with pytest.raises(ConfigError, match=r"cosim.body = 7.*0..1"):
+        cosim.body_state(7, 0.0)
+    with pytest.raises(ConfigError, match=r"cosim.history = 0"):
+        MujocoCosim(drop_model(), history=0)
+    with pytest.raises(ConfigError, match=r"cosim.geoms = 'visuals'.*visual, collision, all"):
+        MujocoCosim(drop_model(), geoms="visuals")
+    with pytest.raises(ConfigError, match=r"cosim.control"):
+        MujocoCosim(drop_model(), control="pd")
+    with pytest.raises(ConfigError, match=r"^t = nan"):
+        cosim.body_state("box", float("nan"))
+    cosim.step_to(2.0)  # 1000 steps: states older than the 0.05 s of history are dropped
+    with pytest.raises(ConfigError, match=r"t = 0.5.*history.*MujocoCosim\(history=0.05\)"):
+        cosim.body_state("box", 0.5)
+    assert cosim.body_state("box", 1.97).pose.position[2] < 2.0  # within the history: fine
+
+
+@pytest.mark.parametrize("dt", [1e-4, 0.25])
+def test_tiny_and_huge_time_steps(dt):
+    # A sensor clock of 30 Hz on steps of 0.1 ms (333.3 steps per frame) and of 0.25 s (a frame every
+    # 0.13 steps): the body state at every frame time is the step before it moved on as documented.
+    model = drop_model(dt, "RK4", 20.0)
+    cosim = MujocoCosim(model)
+    cam = ts.DepthCamera.preset("generic", name="cam", frame_rate=30, width=9, height=7,  # a pixel on the axis
+                                mount=ts.Mount(ts.Pose.look_at((0, 0, 22.0), (0, 0, 0), (1, 0, 0))))
+    result = ts.simulate(cosim.scene, [cam], 0.6)
+    for f in result.frames["cam"]:
+        z = cosim.body_state("box", f.t).pose.position[2]
+        t_k = np.floor(f.t / dt * (1 + 1e-9)) * dt
+        tau = f.t - t_k
+        # RK4 is exact at the steps for free fall; between them the state moves on by the step's
+        # velocity: z = z0 - g t_k^2 / 2 - g t_k tau. MuJoCo's summed time differs from k dt by rounding
+        # (1e-12 after 6000 steps of 0.1 ms), the depth is float32 (ulp 4.8e-7 at 4 m): 1e-5 m.
+        expect = 20.0 - G * t_k**2 / 2 - G * t_k * tau
+        assert z == pytest.approx(expect, rel=0, abs=1e-9)
+        h, w = f.depth.shape
+        np.testing.assert_allclose(f.depth[h // 2, w // 2], 22.0 - (z + 0.1), rtol=0, atol=1e-5)
+        # Against the closed form: the propagation's g tau^2 / 2, up to g dt^2 / 2 (0.31 m at 0.25 s).
+        assert abs(z - (20.0 - G * f.t**2 / 2)) <= G * min(tau, dt) ** 2 / 2 + 1e-9
