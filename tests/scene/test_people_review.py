@@ -89,6 +89,18 @@ def test_sway_into_the_walk_has_exact_velocities():
     assert lin < FD_TOL and ang < FD_TOL
 
 
+def test_velocities_are_exact_while_reaching_walking_turning_and_swaying():
+    # A reach while walking that runs into the stop blend, and a swaying person who turns on the
+    # spot while reaching with the other hand: API velocities against central differences.
+    walking = person_body("p", 1.7, (0.0, 0.0), 0.0, walk=Walk(1.1, path=((3.0, 0.0),), start_time=0.2),
+                          reach=Reach((3.2, 0.6, 1.3), 1.6, 0.6, 0.3, "left"))
+    standing = person_body("q", 1.7, (0.0, 0.0), 0.0, sway=0.02, turn=Turn(-70.0, 0.4, 1.0),
+                           reach=Reach((0.4, -0.3, 1.1), 0.6, 0.5, 0.2, "right"))
+    for body, times in ((walking, np.linspace(1.5, 3.6, 22)), (standing, np.linspace(0.3, 2.0, 18))):
+        lin, ang = _fd_errors(body, times)
+        assert lin < FD_TOL and ang < FD_TOL
+
+
 @pytest.mark.parametrize("heading", [180.0, 179.9])
 def test_walking_off_opposite_to_where_the_person_faces_has_no_jump(heading):
     # Facing west and walking east: the start blend turns the person half round. The turn's
@@ -261,11 +273,17 @@ def test_planted_stance_foot_and_pelvis_speed(height, speed):
     # a_a H_t sin 2 pi (2u + 2 phi_a), a_a = 0.021, phi_a = 0.625 - D_s / D_c (Boulic appendix A).
     # The stance warp meets it up to its interpolation (docs: max 0.05 m/s): tolerance 0.06 m/s.
     amp = 0.021 * ref["ht"] * 4 * math.pi / dc
-    errs = []
+    errs, on_floor = [], 0
     for u in np.linspace(0.0, 1.0, 40, endpoint=False):
-        vx = body.state((n0 + u) * dc).state("pelvis").linear_velocity[0]
+        st = body.state((n0 + u) * dc)
+        vx = st.state("pelvis").linear_velocity[0]
         errs.append(vx - (speed + amp * math.cos(2 * math.pi * (2 * u + 2 * (0.625 - rs)))))
+        on_floor += float(np.min(st.pose("right_foot").apply(sole)[:, 2])) < 0.005
     assert max(abs(e) for e in errs) < 0.06
+    # The foot is on the floor (lowest sole point within 5 mm) for less than the published stance
+    # (docs/people.md: 0.46-0.55 of a cycle against D_s / D_c = 0.58-0.66; the landing foot reaches
+    # the floor after the published heel strike). 40 samples: +-1/40 either side.
+    assert 0.46 - 0.025 <= on_floor / 40 <= 0.55 + 0.025 < rs
     # That sway is +-(13-23) % of v here: the torso's speed varies as measured gait's does.
     assert 0.12 * speed < amp < 0.24 * speed
 
