@@ -180,6 +180,7 @@ class MujocoCosim:
         d = self.data
         self._times.append(float(d.time))
         self._snaps.append((d.qpos.copy(), d.qvel.copy(), d.mocap_pos.copy(), d.mocap_quat.copy()))
+        self._last_bytes = self._state_bytes()
         for f in getattr(self, "_followers", ()):
             f.push()
         # Drop states older than the history (in batches: deleting the head of a list moves the rest).
@@ -250,9 +251,8 @@ class MujocoCosim:
         A time moved back (a reset) is refused: the sensors' clock only runs forward in one co-simulation.
         """
         d = self.data
-        qpos, qvel, mpos, mquat = self._snaps[-1]
-        if (float(d.time) == self._times[-1] and np.array_equal(d.qpos, qpos) and np.array_equal(d.qvel, qvel)
-                and np.array_equal(d.mocap_pos, mpos) and np.array_equal(d.mocap_quat, mquat)):
+        # Bytes compare in well under a microsecond each (np.array_equal takes 3 us): this runs on every query.
+        if float(d.time) == self._times[-1] and self._state_bytes() == self._last_bytes:
             return
         self._check_state()
         if float(d.time) < self._times[-1]:
@@ -263,6 +263,10 @@ class MujocoCosim:
             self._cache.pop(self._times[-1], None)
             del self._times[-1], self._snaps[-1]
         self._record()
+
+    def _state_bytes(self) -> bytes:
+        d = self.data
+        return d.qpos.tobytes() + d.qvel.tobytes() + d.mocap_pos.tobytes() + d.mocap_quat.tobytes()
 
     def _check_state(self) -> None:
         d = self.data
