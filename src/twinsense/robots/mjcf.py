@@ -5,10 +5,13 @@ compiled arrays, so includes, defaults, mesh scaling and MuJoCo's own mesh
 re-centring are applied exactly as MuJoCo applies them. Bodies become links
 (the world body is the root link ``"world"``), hinge and slide joints become
 revolute and prismatic joints (q is MuJoCo's qpos, also for a joint with a
-reference position ``ref``), free and ball joints are taken as fixed at MuJoCo's
-qpos0 (the kinematic tree has one axis per joint; a robot on a free joint moves
-through the articulated body's base; :class:`~twinsense.robots.mujoco_cosim.MujocoCosim`
-follows free and ball joints through MuJoCo's own state).
+reference position ``ref``), free joints are taken as fixed at MuJoCo's qpos0
+(a robot on a free joint moves through the articulated body's base), ball
+joints too (with a warning) or, with ``ball_joints="euler"``, as three revolute
+joints about the joint frame's x, y and z axes;
+:class:`~twinsense.robots.mujoco_cosim.MujocoCosim` follows free and ball
+joints through MuJoCo's own state. Height fields are closed meshes on MuJoCo's
+grid; SDF geoms are left out with a warning.
 
 A joint anchored away from its body's origin, or a second joint in the same
 body, is expressed with frame-only intermediate links named

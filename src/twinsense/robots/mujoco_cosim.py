@@ -24,6 +24,18 @@ a step before t_k, MuJoCo's sum of steps, is on step k: tau = 0): p = p_k + v_k 
 R = exp([w_k tau]x) R_k, velocities held. For a body under acceleration a the
 position error is |a| tau^2 / 2 <= |a| dt^2 / 2 (4.4e-5 m for gravity at a
 3 ms step) and the velocity error |a| tau <= |a| dt.
+
+MuJoCo gives a mocap body no velocity; here it has the finite difference of
+its last two steps' poses (and carries the bodies below it with it), so a
+target moved by hand or by the controller shows its Doppler.
+
+The user's hand on ``data``
+---------------------------
+Changes to ``data`` between steps (a mocap body or a joint moved by hand) are
+taken in at the next query: at the last step's time they replace that step's
+kept state. A ``data.time`` moved back (``mj_resetData``) is refused, as are
+NaN or Inf in the state; a control callback that raises, or physics that
+diverge (MuJoCo's warning and auto-reset), raise ConfigError naming it.
 """
 
 from __future__ import annotations
