@@ -231,6 +231,10 @@ def test_boulic_timing_and_the_walk_it_gives(height, speed):
     names = body.tree.joint_names
     r, left = names.index("right_hip_flexion"), names.index("left_hip_flexion")
     assert q(t0 + 0.5 * dc)[left] == pytest.approx(q(t0)[r], rel=0, abs=1e-9)
+    # Every joint within its limits through the start blend and a whole cycle.
+    lo, hi = body.tree.limits.T
+    for t in np.linspace(0.0, 0.6 + dc, 16):
+        assert np.all((q(t) >= lo) & (q(t) <= hi))
 
 
 def test_walks_beyond_the_model_range_are_refused():
