@@ -512,3 +512,19 @@ def test_tiny_and_huge_time_steps(dt):
         np.testing.assert_allclose(f.depth[h // 2, w // 2], 22.0 - (z + 0.1), rtol=0, atol=1e-5)
         # Against the closed form: the propagation's g tau^2 / 2, up to g dt^2 / 2 (0.31 m at 0.25 s).
         assert abs(z - (20.0 - G * f.t**2 / 2)) <= G * min(tau, dt) ** 2 / 2 + 1e-9
+
+
+def test_a_child_forked_while_another_thread_holds_the_cosim_lock_steps_on():
+    import sys
+    from pathlib import Path
+
+    from twinsense.forksafe import ForkSafeLock
+
+    sys.path.insert(0, str(Path(__file__).parents[1] / "render"))
+    from test_forksafe import held_by_another_thread, in_forked_child
+
+    cosim = MujocoCosim(drop_model())
+    assert isinstance(cosim._lock, ForkSafeLock)  # simulate(processes=N) forks while capture threads run
+    with held_by_another_thread(cosim._lock):
+        got = in_forked_child(lambda: cosim.body_state("box", 0.25).pose.matrix)  # steps: takes the lock
+    np.testing.assert_array_equal(got, cosim.body_state("box", 0.25).pose.matrix)

@@ -41,7 +41,6 @@ diverge (MuJoCo's warning and auto-reset), raise ConfigError naming it.
 from __future__ import annotations
 
 import bisect
-import threading
 import warnings
 from collections import OrderedDict
 from collections.abc import Callable
@@ -52,6 +51,7 @@ from scipy.spatial.transform import Rotation
 
 from twinsense import validation as V
 from twinsense.errors import ConfigError, UnknownNameError
+from twinsense.forksafe import ForkSafeLock
 from twinsense.robots.deps import require
 from twinsense.robots.materials import link_materials
 from twinsense.robots.mjcf import GEOM_SETS, body_geometry, body_name, load_model
@@ -166,7 +166,8 @@ class MujocoCosim:
         self.control = control
         self.timestep = V.positive("cosim.model.opt.timestep", float(model.opt.timestep), "s")
         self._scratch = mujoco.MjData(model)
-        self._lock = threading.RLock()
+        # Fork-safe: simulate(processes=N) forks while capture threads may be stepping the physics.
+        self._lock = ForkSafeLock()
         self._times: list[float] = []
         self._snaps: list[tuple] = []
         self._cache: OrderedDict = OrderedDict()
@@ -210,14 +211,18 @@ class MujocoCosim:
         """
         t = check_time(t)
         with self._lock:
-            self._sync()
-            # A step ends at time + dt; take it when that is not after t (STEP_SLACK of a step absorbs the
-            # rounding of MuJoCo's accumulated time).
-            while self.data.time + self.timestep * (1 - STEP_SLACK) <= t:
-                if self._failure is not None:
-                    raise self._failure
-                self._step()
-                self._record()
+            self._step_to(t)
+
+    def _step_to(self, t: float) -> None:
+        """step_to with the lock held (a ForkSafeLock is not re-entrant)."""
+        self._sync()
+        # A step ends at time + dt; take it when that is not after t (STEP_SLACK of a step absorbs the
+        # rounding of MuJoCo's accumulated time).
+        while self.data.time + self.timestep * (1 - STEP_SLACK) <= t:
+            if self._failure is not None:
+                raise self._failure
+            self._step()
+            self._record()
 
     def _step(self) -> None:
         """One physics step: the controller, then ``mj_step``; a diverging state raises (and sticks)."""
@@ -295,9 +300,12 @@ class MujocoCosim:
         moved on by a whole step, although the physics has taken the step.
         """
         with self._lock:
-            i = bisect.bisect_right(self._times, t)
-            if i < len(self._times) and self._times[i] - t <= self.timestep * STEP_SLACK:
-                return self._times[i]
+            return self._on_step(t)
+
+    def _on_step(self, t: float) -> float:
+        i = bisect.bisect_right(self._times, t)
+        if i < len(self._times) and self._times[i] - t <= self.timestep * STEP_SLACK:
+            return self._times[i]
         return t
 
     def _evaluate(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -356,8 +364,8 @@ class MujocoCosim:
         b = self.body_id(body)
         t = check_time(t)
         with self._lock:
-            self.step_to(t)
-            t = self.on_step(t)
+            self._step_to(t)
+            t = self._on_step(t)
             k = bisect.bisect_right(self._times, t) - 1
             if k < 0:
                 raise ConfigError("t", t, f"a time within the co-simulation's kept history "
