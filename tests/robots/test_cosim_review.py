@@ -528,3 +528,21 @@ def test_a_child_forked_while_another_thread_holds_the_cosim_lock_steps_on():
     with held_by_another_thread(cosim._lock):
         got = in_forked_child(lambda: cosim.body_state("box", 0.25).pose.matrix)  # steps: takes the lock
     np.testing.assert_array_equal(got, cosim.body_state("box", 0.25).pose.matrix)
+
+
+def test_data_that_starts_late_and_visual_or_collision_geoms():
+    model = drop_model()
+    data = mujoco.MjData(model)
+    data.time = 5.0  # a state the user ran on before: the co-simulation's clock starts there
+    cosim = MujocoCosim(model, data)
+    with pytest.raises(ConfigError, match=r"t = 0.*starts at data.time = 5 s"):
+        cosim.body_state("box", 0.0)
+    assert cosim.body_state("box", 5.1).pose.position[2] < 2.0
+    # MuJoCo's convention: display geoms take no part in contacts (contype = conaffinity = 0).
+    xml = """<mujoco><worldbody><body name="link"><joint/>
+      <geom name="look" type="sphere" size="0.1" contype="0" conaffinity="0" group="2"/>
+      <geom name="touch" type="box" size="0.05 0.05 0.05" pos="0 0 0.2" group="3"/></body></worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    assert isinstance(MujocoCosim(model).scene.object("link").geometry, ts.Sphere)
+    assert len(MujocoCosim(model, geoms="collision").scene.object("link").geometry.vertices) == 8
+    assert len(MujocoCosim(model, geoms="all").scene.object("link").geometry.vertices) > 8

@@ -175,6 +175,7 @@ class MujocoCosim:
         self._failure: ConfigError | None = None
         self._check_state()
         mujoco.mj_forward(model, data)
+        self._start = float(data.time)
         self._record()
         self.names = [body_name(model, b) for b in range(model.nbody)]
         self.scene = self._build_scene(geoms, materials)
@@ -367,6 +368,10 @@ class MujocoCosim:
             self._step_to(t)
             t = self._on_step(t)
             k = bisect.bisect_right(self._times, t) - 1
+            if k < 0 and t < self._start:
+                raise ConfigError("t", t, f"a time at or after the co-simulation's start: it starts at data.time = "
+                                  f"{self._start:.9g} s, the state it was made with (simulate's clock starts at 0: "
+                                  "make it with data at time 0)")
             if k < 0:
                 raise ConfigError("t", t, f"a time within the co-simulation's kept history "
                                   f"[{self._times[0]:.9g}, {self._times[-1]:.9g}] s (MujocoCosim(history="
