@@ -137,7 +137,8 @@ class Elements:
 
 def scene_elements(scene: Scene, t: float, objects=None) -> Elements:
     """Reflecting elements of the objects visible to ultrasonic sensors (or of ``objects``, indices), posed at ``t``."""
-    rect: list[tuple] = []
+    rect: list[tuple] = []  # rows of the primitives since the last mesh
+    rect_parts: list[list[np.ndarray]] = []  # the rectangles' columns, block by block in object order
     sph: list[tuple] = []
     cyl: list[tuple] = []
     for i in (scene.visible(KIND) if objects is None else objects):
@@ -187,12 +188,21 @@ def scene_elements(scene: Scene, t: float, objects=None) -> Elements:
             n = nrm[ok] / area2[ok, None]
             v = np.cross(n, u)
             half = 0.5 * np.sqrt(0.5 * area2[ok])
-            for c_, u_, v_, h_ in zip(tri[ok].mean(axis=1), u, v, half):
-                rect.append((c_, u_, v_, h_, h_, False, i, refl))
-    return Elements(*_stack(rect, 8, (3, 3, 3, 0, 0, 0, 0, 0),
-                            (float, float, float, float, float, bool, np.int32, float)),
+            k = len(half)
+            # A mesh's facets as one block of rows (a Python tuple per facet cost ~4 us each:
+            # 0.6 s for a robot's 135k visual facets).
+            rect_parts.append(_stack(rect, 8, _RECT_WIDTHS, _RECT_TYPES))
+            rect.clear()
+            rect_parts.append([tri[ok].mean(axis=1), u, v, half, half.copy(), np.zeros(k, bool),
+                               np.full(k, i, np.int32), np.full(k, refl)])
+    rect_parts.append(_stack(rect, 8, _RECT_WIDTHS, _RECT_TYPES))
+    return Elements(*(np.concatenate(cols) for cols in zip(*rect_parts)),
                     *_stack(sph, 5, (3, 0, 3, 0, 0), (float, float, float, np.int32, float)),
                     *_stack(cyl, 7, (3, 3, 0, 0, 0, 0, 0), (float, float, float, float, bool, np.int32, float)))
+
+
+_RECT_WIDTHS = (3, 3, 3, 0, 0, 0, 0, 0)
+_RECT_TYPES = (float, float, float, float, float, bool, np.int32, float)
 
 
 def _stack(rows, n, widths, dtypes):

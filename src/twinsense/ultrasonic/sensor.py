@@ -137,7 +137,6 @@ class UltrasonicSensor:
             tx_rows.append(np.broadcast_to(origin[m % n], (count, 3)))
             rx_rows.append(np.broadcast_to(origin, (count, n, 3)))
             fire_rows.append(np.full(count, len(firings) - 1))
-        out: list[list] = [[[], []] for _ in range(n)]
         if not parts:
             return [(np.zeros(0), np.zeros(0)) for _ in range(n)]
         # One call for every firing: rows of all firings, regrouped by element type.
@@ -159,15 +158,16 @@ class UltrasonicSensor:
                * 10.0 ** (-alpha * paths.path / 20.0))
         delay = (m_of - rxj) * dt + paths.path / c
         keep = (np.abs(amp) > floor) & (delay > -span) & (delay < listen) & (rxj >= m_of)
+        heard = []  # echoes with both legs clear, firing by firing
         for fi in np.unique(f_idx[keep]):
             idx = np.flatnonzero(keep & (f_idx == fi))
             pts = paths.point[idx]
             # Both legs must be clear: the render stage casts one ray per leg at the firing time.
             ok = visible(scene, firings[fi][1], np.concatenate([o_tx[idx], o_rx[idx]]), np.concatenate([pts, pts]))
-            for i in idx[ok[:len(idx)] & ok[len(idx):]]:
-                out[rxj[i]][0].append(delay[i])
-                out[rxj[i]][1].append(amp[i])
-        return [(np.asarray(d, float), np.asarray(a, float)) for d, a in out]
+            heard.append(idx[ok[:len(idx)] & ok[len(idx):]])
+        heard = np.concatenate(heard) if heard else np.zeros(0, np.int64)
+        return [(delay[heard[rxj[heard] == j]].astype(float), amp[heard[rxj[heard] == j]].astype(float))
+                for j in range(n)]
 
     def capture(self, scene: Scene, t: float, rng: np.random.Generator | None = None) -> UltrasonicFrame:
         cfg = self.config

@@ -69,20 +69,45 @@ def synthesize(n_samples: int, sample_rate: float, frequency: float, burst_durat
     """Noise-free echo signal (n_samples,) [Pa]: sum of a e2(t - d) cos(2 pi f0 (t - d)) over echoes.
 
     ``delays`` (e,) [s] from the start of the window (negative: an echo that
-    began before the window), ``amplitudes`` (e,) [Pa]. Each echo touches only
-    the samples of its envelope's support.
+    began before the window), ``amplitudes`` (e,) [Pa]. Exact (no truncated
+    tail), in O(n_samples + e) whatever the number of echoes.
+
+    Why it is linear in both: with x = t - d, an echo is Re(A e^{j w t} (g(x) - g(x - T)))
+    with A = a e^{-j w d}, and g(x) = 1 - e^{-x/tau} (1 + x/tau) for x > 0. Each of
+    its two onsets (at d with A, at d + T with -A) adds A to a running sum S, A e^{-x/tau}
+    to a decaying state E and A (x/tau) e^{-x/tau} to a second state F, at its first sample;
+    from one sample to the next E' = rho E and F' = rho (F + delta E) with rho =
+    e^{-delta}, delta = 1 / (f_s tau) (x grows by 1 / f_s). The envelope phasor is then
+    S - E - F at every sample, for every echo at once (two first-order recursions).
     """
+    d = np.asarray(delays, float).reshape(-1)
+    a = np.asarray(amplitudes, float).reshape(-1)
     out = np.zeros(n_samples)
-    span = envelope_support(burst_duration, tau)
+    if len(d) == 0 or n_samples == 0:
+        return out
     w = 2 * math.pi * frequency
-    for d, a in zip(np.asarray(delays, float), np.asarray(amplitudes, float)):
-        lo = max(math.ceil(d * sample_rate), 0)
-        hi = min(math.floor((d + span) * sample_rate) + 1, n_samples)
-        if hi <= lo:
-            continue
-        tt = np.arange(lo, hi) / sample_rate - d
-        out[lo:hi] += a * echo_envelope(tt, burst_duration, tau) * np.cos(w * tt)
-    return out
+    onset = np.concatenate([d, d + burst_duration])
+    amp = np.concatenate([a, -a]) * np.exp(-1j * w * np.concatenate([d, d]))
+    # First sample at or after each onset (before the window: sample 0); g(0) = 0, so an
+    # onset on a sample may take it or the next.
+    k = np.maximum(np.ceil(onset * sample_rate), 0.0)
+    live = k < n_samples
+    k, onset, amp = k[live].astype(np.int64), onset[live], amp[live]
+    x = (k / sample_rate - onset) / tau  # [1] >= 0
+    ex = np.exp(-x)
+
+    def per_sample(values):
+        return (np.bincount(k, values.real, n_samples) + 1j * np.bincount(k, values.imag, n_samples))
+
+    delta = 1.0 / (sample_rate * tau)
+    rho = math.exp(-delta)
+    s = np.cumsum(per_sample(amp))
+    e = lfilter([1.0], [1.0, -rho], per_sample(amp * ex))
+    f_in = per_sample(amp * x * ex)
+    f_in[1:] += rho * delta * e[:-1]
+    f = lfilter([1.0], [1.0, -rho], f_in)
+    carrier = np.exp(1j * w * (np.arange(n_samples) / sample_rate))
+    return (carrier * (s - e - f)).real
 
 
 def ringdown(n_samples: int, sample_rate: float, frequency: float, burst_duration: float, tau: float,
