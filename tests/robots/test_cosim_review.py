@@ -546,3 +546,31 @@ def test_data_that_starts_late_and_visual_or_collision_geoms():
     assert isinstance(MujocoCosim(model).scene.object("link").geometry, ts.Sphere)
     assert len(MujocoCosim(model, geoms="collision").scene.object("link").geometry.vertices) == 8
     assert len(MujocoCosim(model, geoms="all").scene.object("link").geometry.vertices) > 8
+
+
+def test_capacitive_pad_under_a_falling_box():
+    # A pad-grid proximity sensor on a site of a MuJoCo pad, a metal box falling onto it: the run (the
+    # sensor resolves every frame time before it starts, stepping the physics ahead) must equal a capture
+    # of a still scene with the box where MuJoCo has it at that time.
+    xml = """<mujoco><option timestep="0.002"/><worldbody>
+      <body name="box" pos="0 0 0.15"><freejoint/><geom type="box" size="0.05 0.05 0.05"/></body>
+      <body name="pad" pos="0 0 0.02"><geom type="box" size="0.1 0.1 0.01"/><site name="pad_top" pos="0 0 0.011"/>
+      </body></worldbody></mujoco>"""
+    cosim = MujocoCosim(mujoco.MjModel.from_xml_string(xml))
+    cap = ts.CapacitiveSensor.preset("pad-grid", name="cap", mount=ts.Mount(ts.Pose(), "pad_top"), frame_rate=10)
+    frame = ts.simulate(cosim.scene, [cap], duration=0.2, seed=1).frames["cap"][-1]
+    assert frame.t == pytest.approx(0.1, rel=0, abs=1e-12)
+    box = cosim.body_state("box", frame.t).pose
+    assert box.position[2] == pytest.approx(0.15 - G * 0.1**2 / 2, rel=0, abs=G * 0.1 * 0.002)  # Euler drift
+    still = ts.Scene()
+    still.add(ts.SceneObject("box", cosim.scene.object("box").geometry, "aluminium", ts.Static(box)))
+    still.add(ts.SceneObject("pad", cosim.scene.object("pad").geometry, "silicone",
+                             ts.Static(cosim.scene.object("pad").state_at(0.0).pose)))
+    mount = ts.Mount(cosim.scene.mount_target("pad_top").state_at(0.0).pose)
+    ref = ts.CapacitiveSensor.preset("pad-grid", name="cap", mount=mount, frame_rate=10).capture(
+        still, frame.t, np.random.default_rng(0))
+    # Each frame's capacitances lie within the solver's capacitance_atol of a direct solve (the sensor's
+    # contract), so two solves of the same scene within twice that.
+    atol = 2 * cap.frame_solver_config.capacitance_atol
+    assert np.abs(frame.delta).max() > 100 * atol  # the box is seen
+    np.testing.assert_allclose(frame.channels, ref.channels, rtol=0, atol=atol)
