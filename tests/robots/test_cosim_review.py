@@ -574,3 +574,21 @@ def test_capacitive_pad_under_a_falling_box():
     atol = 2 * cap.frame_solver_config.capacitance_atol
     assert np.abs(frame.delta).max() > 100 * atol  # the box is seen
     np.testing.assert_allclose(frame.channels, ref.channels, rtol=0, atol=atol)
+
+
+def test_data_stepped_by_the_user_is_taken_in():
+    model = drop_model(0.002, "RK4", 2.0)
+    cosim = MujocoCosim(model)
+    cosim.step_to(0.1)
+    for _ in range(10):  # the user steps data alone, 20 ms
+        mujoco.mj_step(model, cosim.data)
+    t_user = cosim.time
+    # RK4 free fall is exact at the steps: the state the user reached is kept and read there (1e-12 m).
+    assert cosim.body_state("box", t_user).pose.position[2] == pytest.approx(2.0 - G * t_user**2 / 2, rel=0,
+                                                                            abs=1e-12)
+    # In the gap the step before it moves on (by 15 ms here: error g tau^2 / 2 = 1.1 mm, as documented for
+    # steps that long), and after it the co-simulation steps on as before.
+    z = cosim.body_state("box", 0.115).pose.position[2]
+    t_k = 0.1
+    assert z == pytest.approx(2.0 - G * t_k**2 / 2 - G * t_k * 0.015, rel=0, abs=1e-12)
+    assert cosim.body_state("box", 0.2).pose.position[2] == pytest.approx(2.0 - G * 0.2**2 / 2, rel=0, abs=1e-12)
