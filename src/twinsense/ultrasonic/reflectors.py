@@ -315,9 +315,16 @@ def _rect_echoes(el: Elements, tx, rx, k):
     r2 = np.linalg.norm(rx - p, axis=-1)
     r1s, r2s = np.maximum(r1, 1e-9), np.maximum(r2, 1e-9)
     d1, d2 = (tx - p) / r1s[..., None], (rx - p) / r2s[..., None]
-    fu = fresnel_factor(_q(k, u, d1, d2, r1s, r2s), -hu - us, hu - us)
-    fv = fresnel_factor(_q(k, v, d1, d2, r1s, r2s), -hv - vs, hv - vs)
-    gain = fu * fv / (r1s + r2s)
+    # The Fresnel integrals only where the face can echo (the other half of a mesh's facets
+    # face away: their gains are never read).
+    gain = np.zeros(ok.shape)
+    sel = np.nonzero(ok)
+    hu_, hv_, us_, vs_ = np.broadcast_to(hu, ok.shape)[sel], np.broadcast_to(hv, ok.shape)[sel], us[sel], vs[sel]
+    u_, v_ = np.broadcast_to(u, (*ok.shape, 3))[sel], np.broadcast_to(v, (*ok.shape, 3))[sel]
+    d1_, d2_, r1_, r2_ = d1[sel], d2[sel], r1s[sel], r2s[sel]
+    fu = fresnel_factor(_q(k, u_, d1_, d2_, r1_, r2_), -hu_ - us_, hu_ - us_)
+    fv = fresnel_factor(_q(k, v_, d1_, d2_, r1_, r2_), -hv_ - vs_, hv_ - vs_)
+    gain[sel] = fu * fv / (r1_ + r2_)
     # Outside the face: the echo comes from its nearest point (edge / corner wave).
     e = c + np.clip(us, -hu, hu)[..., None] * u + np.clip(vs, -hv, hv)[..., None] * v
     path = np.linalg.norm(tx - e, axis=-1) + np.linalg.norm(rx - e, axis=-1)
