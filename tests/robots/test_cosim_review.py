@@ -592,3 +592,36 @@ def test_data_stepped_by_the_user_is_taken_in():
     t_k = 0.1
     assert z == pytest.approx(2.0 - G * t_k**2 / 2 - G * t_k * 0.015, rel=0, abs=1e-12)
     assert cosim.body_state("box", 0.2).pose.position[2] == pytest.approx(2.0 - G * 0.2**2 / 2, rel=0, abs=1e-12)
+
+
+def test_mujoco_cameras_are_mounts_in_the_optical_frame():
+    # A camera on a swinging arm and one in the world looking at a box; a tracking camera is left out.
+    xml = """<mujoco><option timestep="0.002" gravity="0 0 0"/><worldbody>
+      <camera name="overview" pos="0 -2 1" xyaxes="1 0 0 0 0.6 0.8"/>
+      <camera name="chase" mode="trackcom" pos="0 -3 1"/>
+      <body name="arm" pos="0 0 1"><joint name="swing" type="hinge" axis="0 0 1"/>
+        <geom type="box" size="0.3 0.02 0.02" pos="0.3 0 0"/>
+        <camera name="arm" pos="0.6 0 0" euler="0 -90 0"/></body>
+      <body name="box" pos="2 0 1"><geom type="box" size="0.2 0.2 0.2"/></body>
+      </worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    data.qvel[0] = 0.7
+    cosim = MujocoCosim(model, data)
+    assert set(cosim.scene.frame_names) == {"overview", "arm:camera"}  # named like a body: "<camera>:camera"
+    ref = mujoco.MjData(model)
+    ref.qvel[0] = 0.7
+    for _ in range(50):
+        mujoco.mj_step(model, ref)
+    mujoco.mj_forward(model, ref)
+    flip = np.diag([1.0, -1.0, -1.0])  # MuJoCo's camera looks along -z with y up; the optical frame z, y down
+    for cam, frame in (("overview", "overview"), ("arm", "arm:camera")):
+        c = model.camera(cam).id
+        st = ts.Mount(ts.Pose(), frame).state_at(cosim.scene, ref.time)
+        np.testing.assert_allclose(st.pose.position, ref.cam_xpos[c], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(st.pose.rotation, ref.cam_xmat[c].reshape(3, 3) @ flip, rtol=0, atol=1e-9)
+    # The arm camera looks along the arm (+x turned by the swing) at the box face 2 - 0.2 m from the hinge
+    # when the swing angle is 0: at t = 0 the ideal depth camera on it reads 1.8 - 0.6 = 1.2 m on its axis.
+    cam = ts.DepthCamera.preset("generic", name="cam", width=9, height=7, mount=ts.Mount(ts.Pose(), "arm:camera"))
+    frame = cam.capture(cosim.scene, 0.0)
+    assert frame.depth[3, 4] == pytest.approx(1.2, rel=0, abs=1e-6)  # float32 depth: ulp 1.2e-7 at 1.2 m

@@ -2,7 +2,8 @@
 
 :class:`MujocoCosim` builds one scene object per MuJoCo body that has geoms
 (the body's geoms merged, in the body frame), a mount frame per body without
-geoms and per named site, and gives each a motion that reads MuJoCo's body
+geoms, per named site and per named fixed camera (in the optical frame), and
+gives each a motion that reads MuJoCo's body
 pose (``xpos``, ``xmat``) and velocity (``mj_objectVelocity``, world-aligned,
 at the body origin) at the physics state of the requested time.
 
@@ -454,6 +455,27 @@ class MujocoCosim:
             else:
                 motion = MujocoBodyMotion(self, b, offset)
             scene.add_frame(Frame(sname, motion))
+        # Named cameras fixed to their body: a mount in the optical frame (x right, y down, z forward; MuJoCo's
+        # camera looks along -z with y up: half a turn about x), so a sensor mounted there sees what it sees.
+        # Tracking cameras move by rules of their own and are left out.
+        flip = Pose(rotation=np.diag([1.0, -1.0, -1.0]))
+        for c in range(m.ncam):
+            cname = m.camera(c).name
+            if not cname or int(m.cam_mode[c]) != 0:  # mjCAMLIGHT_FIXED
+                continue
+            if cname in taken:
+                cname = f"{cname}:camera"
+                if cname in taken:
+                    raise ConfigError("cosim.cameras", m.camera(c).name, "camera names that differ from the body "
+                                      "and site names")
+            taken.add(cname)
+            b = int(m.cam_bodyid[c])
+            offset = _pose(m.cam_pos[c], m.cam_quat[c]) @ flip
+            if self._is_static(b):
+                motion = Static(Pose(pos0[b], rot0[b]) @ offset)
+            else:
+                motion = MujocoBodyMotion(self, b, offset)
+            scene.add_frame(Frame(cname, motion))
         return scene
 
     def __repr__(self) -> str:
