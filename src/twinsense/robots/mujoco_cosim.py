@@ -146,7 +146,8 @@ class MujocoCosim:
     ----------
     scene : Scene
         Objects named after the bodies ("world" for the world body's geoms),
-        frames for bodies without geoms and for named sites.
+        frames for bodies without geoms, named sites ("<site>:site" if a body has
+        the name) and named fixed cameras (optical frame; "<camera>:camera" likewise).
     """
 
     def __init__(self, model_or_path, data=None, *, control: Callable | None = None, geoms: str = "visual",
