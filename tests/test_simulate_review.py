@@ -212,3 +212,19 @@ def test_a_message_cut_short_by_a_dying_child_ends_as_an_end_of_file():
     send.close()
     with pytest.raises(EOFError):
         _receive(recv)
+
+
+@pytest.mark.parametrize("workers,processes", [(1, None), (2, None), (None, 2)])
+def test_a_mount_on_a_frame_the_scene_lacks_is_refused_before_any_file(tmp_path, workers, processes):
+    from twinsense.errors import ConfigError, UnknownNameError
+    from twinsense.presets import make_sensor
+    from twinsense.scene import Pose
+
+    ok = make_sensor("ultrasonic", "open_40khz", name="ok", mount=Mount(Pose((0, 0, 1))))
+    lost = make_sensor("ultrasonic", "open_40khz", name="lost", mount=Mount(Pose(), parent="wal"))
+    with pytest.raises(UnknownNameError, match=r"sensors\[1\]\.mount\.parent.*'wal'.*wall"):
+        simulate(plain_scene(), [ok, lost], 0.2, tmp_path / "run.h5", workers=workers, processes=processes)
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(ConfigError, match="t0"):
+        simulate(plain_scene(), [ok], 0.2, tmp_path / "run.h5", t0=float("nan"))
+    assert list(tmp_path.iterdir()) == []

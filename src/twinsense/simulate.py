@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from twinsense import validation as V
-from twinsense.errors import ConfigError, TwinsenseError
+from twinsense.errors import ConfigError, TwinsenseError, UnknownNameError
 from twinsense.io.recording import RecordingWriter, check_sensor_name
 from twinsense.render.parallel import default_workers
 from twinsense.scene.articulated import LinkMotion
@@ -281,6 +281,16 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
         check_processes(processes)
     if process_timeout is not None:
         V.positive("process_timeout", process_timeout, "s")
+    t0 = V.time("t0", t0)
+    for i, s in enumerate(sensors):
+        # A mount on a frame the scene does not have: its error before any file is written (the first
+        # capture would raise it with the recording open, leaving a partial file of no frames).
+        parent = getattr(getattr(s, "mount", None), "parent", None)
+        if parent is not None:
+            try:
+                scene.mount_target(parent)
+            except UnknownNameError as exc:
+                raise UnknownNameError(f"sensors[{i}].mount.parent", parent, exc.valid) from None
     problems = run_size_problems(sensors, duration, limits)
     if problems:
         raise ConfigError(*problems[0])
