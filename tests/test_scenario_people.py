@@ -52,3 +52,16 @@ def test_people_example_loads():
     st = sc.scene.object("bob/right_hand").state_at(1.5)
     hand = st.pose.apply([0.0, 0.0, -0.5 * 0.108 * 1.85])
     np.testing.assert_allclose(hand, (3.3, -1.1, 1.5), rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize(("entry", "field"), [
+    ({"height": float("nan")}, "people[0].height"),
+    ({"sway": float("nan")}, "people[0].sway"),
+    ({"walk": {"speed": float("nan"), "heading_deg": 0.0}}, "people[0].walk.speed"),
+    ({"reach": {"target": [1, 1, 1], "duration": float("inf")}}, "people[0].reach.duration"),
+])
+def test_nan_and_inf_are_refused_as_not_finite(entry, field):
+    # Not "Input should be greater than 0": the number is refused for what it is.
+    with pytest.raises(ScenarioError, match=field.replace(".", r"\.").replace("[", r"\[").replace("]", r"\]")
+                       + r" = (nan|inf): a finite number"):
+        scenario_from_dict({"people": [{**PERSON, "walk": None, "reach": None, **entry}]})

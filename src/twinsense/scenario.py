@@ -83,8 +83,13 @@ def _number_only(value: Any) -> Any:
 
 Num = Annotated[float, BeforeValidator(_number_only)]
 Int = Annotated[int, BeforeValidator(_number_only)]
-Finite = Annotated[Num, Field(allow_inf_nan=False)]
-Pos = Annotated[Num, Field(gt=0, allow_inf_nan=False)]
+# The constraints before the number check: a BeforeValidator under them makes pydantic test gt/ge on
+# NaN first ("Input should be greater than 0" for .nan) instead of refusing it as not finite.
+Finite = Annotated[float, Field(allow_inf_nan=False), BeforeValidator(_number_only)]
+Pos = Annotated[float, Field(gt=0, allow_inf_nan=False), BeforeValidator(_number_only)]
+NonNeg = Annotated[float, Field(ge=0, allow_inf_nan=False), BeforeValidator(_number_only)]
+Fraction = Annotated[float, Field(ge=0, le=1, allow_inf_nan=False), BeforeValidator(_number_only)]
+AtLeastOne = Annotated[float, Field(ge=1, allow_inf_nan=False), BeforeValidator(_number_only)]
 Vec3 = tuple[Finite, Finite, Finite]
 
 
@@ -158,7 +163,7 @@ class CylinderSpec(_Model):
 class CapsuleSpec(_Model):
     type: Literal["capsule"]
     radius: Pos
-    height: Annotated[Num, Field(ge=0, allow_inf_nan=False)]
+    height: NonNeg
 
 
 class PlaneSpec(_Model):
@@ -219,15 +224,15 @@ MotionSpec = Annotated[StaticSpec | ConstantVelocitySpec | WaypointsSpec | Keyfr
 class MaterialSpec(_Model):
     name: str = Field(min_length=1)
     base: str | None = None
-    nir_reflectance: Annotated[Num, Field(ge=0, le=1, allow_inf_nan=False)] | None = None
-    nir_specular: Annotated[Num, Field(ge=0, le=1, allow_inf_nan=False)] | None = None
+    nir_reflectance: Fraction | None = None
+    nir_specular: Fraction | None = None
     nir_retroreflective: bool | None = None
-    radar_reflectivity: Annotated[Num, Field(ge=0, allow_inf_nan=False)] | None = None
-    radar_specular: Annotated[Num, Field(ge=0, le=1, allow_inf_nan=False)] | None = None
-    permittivity: Annotated[Num, Field(ge=1, allow_inf_nan=False)] | None = None
+    radar_reflectivity: NonNeg | None = None
+    radar_specular: Fraction | None = None
+    permittivity: AtLeastOne | None = None
     conductor: Literal["none", "grounded", "floating"] | None = None
-    sigma: Annotated[Num, Field(ge=0, allow_inf_nan=False)] | None = None
-    mu_r: Annotated[Num, Field(ge=1, allow_inf_nan=False)] | None = None
+    sigma: NonNeg | None = None
+    mu_r: AtLeastOne | None = None
 
 
 class MagnetSpec(_Model):
@@ -279,7 +284,7 @@ class PersonReachSpec(_Model):
     target: Vec3
     start_time: Finite = 0.0
     duration: Pos = 1.0
-    hold: Annotated[Num, Field(ge=0)] = 1.0  # inf: keep the hand there
+    hold: Annotated[float, Field(ge=0), BeforeValidator(_number_only)] = 1.0  # inf: keep the hand there
     side: Literal["right", "left"] = "right"
 
 
@@ -299,7 +304,7 @@ class PersonSpec(_Model):
     walk: PersonWalkSpec | None = None
     turn: PersonTurnSpec | None = None
     reach: PersonReachSpec | None = None
-    sway: Annotated[Num, Field(ge=0, allow_inf_nan=False)] = 0.0
+    sway: NonNeg = 0.0
     clothing: str | None = None
 
 
