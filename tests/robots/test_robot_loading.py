@@ -123,6 +123,10 @@ def test_loader_errors(tmp_path):
     </robot>""")
     with pytest.raises(ConfigError, match=r"links\[tool\].*tool.stl.*'tool'"):
         load_urdf(urdf)
+    # A package found nowhere: the message says where packages are looked up and how to give one.
+    urdf.write_text(urdf.read_text().replace("meshes/tool.stl", "package://tool_pkg/meshes/tool.stl"))
+    with pytest.raises(ConfigError, match=r"package 'tool_pkg' is looked up in packages=\{'tool_pkg': folder\}"):
+        load_urdf(urdf)
     with pytest.raises(ConfigError, match=r"twinsense\[robots\]"):
         require("twinsense_no_such_module", "a test")
 

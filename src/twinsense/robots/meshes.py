@@ -68,6 +68,10 @@ def read_mesh(path: Path, field_name: str, link: str, written: str | None = None
     """
     if not path.is_file():
         ref = f" ({written!r} in the description, resolved to {str(path)!r})" if written else f" ({str(path)!r})"
+        if written and written.startswith("package://"):
+            pkg = written[len("package://"):].lstrip("/").partition("/")[0]
+            ref += (f"; package {pkg!r} is looked up in packages={{{pkg!r}: folder}}, then example-robot-data, "
+                    f"then a folder named {pkg!r} beside or above the description")
         raise ConfigError(field_name, str(path), f"an existing mesh file for link {link!r}{ref}")
     try:
         v, f = _read(str(path), path.stat().st_mtime)
