@@ -625,3 +625,19 @@ def test_mujoco_cameras_are_mounts_in_the_optical_frame():
     cam = ts.DepthCamera.preset("generic", name="cam", width=9, height=7, mount=ts.Mount(ts.Pose(), "arm:camera"))
     frame = cam.capture(cosim.scene, 0.0)
     assert frame.depth[3, 4] == pytest.approx(1.2, rel=0, abs=1e-6)  # float32 depth: ulp 1.2e-7 at 1.2 m
+
+
+def test_robosuite_arena_floor_is_seen():
+    # robosuite's table arena: a collision floor plane (contype 1) and display-only walls in the world body.
+    # A floor or terrain is its own display geom; it was dropped with the walls' "visual" choice, and a
+    # camera looking down saw through the world.
+    import importlib.util
+    from pathlib import Path
+
+    arena = Path(importlib.util.find_spec("robosuite").submodule_search_locations[0]) / "models" / "assets" / \
+        "arenas" / "table_arena.xml"
+    cosim = MujocoCosim(arena)
+    cam = ts.DepthCamera.preset("generic", name="cam", width=9, height=7,
+                                mount=ts.Mount(ts.Pose.look_at((-1.5, 1.0, 2.0), (-1.5, 1.0, 0.0), (1, 0, 0))))
+    frame = cam.capture(cosim.scene, 0.0)
+    assert frame.depth[3, 4] == pytest.approx(2.0, rel=0, abs=1e-6)  # the floor at z = 0; float32 depth

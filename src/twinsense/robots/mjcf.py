@@ -178,14 +178,18 @@ def hfield_mesh(model, h: int) -> tuple[np.ndarray, np.ndarray]:
 
 def body_geoms(model, b: int, which: str = "visual") -> list[int]:
     """Geom ids of body ``b``: "visual" = the geoms that take no part in contacts if there are any
-    (contype = conaffinity = 0, MuJoCo's convention for display geoms), else all; "collision" = the others."""
+    (contype = conaffinity = 0, MuJoCo's convention for display geoms) and the planes and height fields
+    (a floor or terrain is its own display: robosuite's arenas put a contact floor beside display-only
+    walls), else all; "collision" = the geoms that take part in contacts, else all."""
     ids = [g for g in range(int(model.body_geomadr[b]), int(model.body_geomadr[b] + model.body_geomnum[b]))]
-    visual = [g for g in ids if model.geom_contype[g] == 0 and model.geom_conaffinity[g] == 0]
+    display = [g for g in ids if model.geom_contype[g] == 0 and model.geom_conaffinity[g] == 0]
     if which == "all":
         return ids
     if which == "visual":
-        return visual or ids
-    return [g for g in ids if g not in visual] or ids
+        if not display:
+            return ids
+        return [g for g in ids if g in display or int(model.geom_type[g]) in (GEOM_PLANE, GEOM_HFIELD)]
+    return [g for g in ids if g not in display] or ids
 
 
 def body_geometry(model, b: int, which: str = "visual", field: str = "mjcf") -> Geometry | None:
