@@ -641,3 +641,17 @@ def test_robosuite_arena_floor_is_seen():
                                 mount=ts.Mount(ts.Pose.look_at((-1.5, 1.0, 2.0), (-1.5, 1.0, 0.0), (1, 0, 0))))
     frame = cam.capture(cosim.scene, 0.0)
     assert frame.depth[3, 4] == pytest.approx(2.0, rel=0, abs=1e-6)  # the floor at z = 0; float32 depth
+
+
+def test_nan_ctrl_names_the_controller():
+    xml = """<mujoco><option timestep="0.002" gravity="0 0 0"/><worldbody>
+      <body name="cart"><joint name="rail" type="slide" axis="1 0 0"/><geom type="box" size="0.1 0.1 0.1"/></body>
+      </worldbody><actuator><motor joint="rail"/></actuator></mujoco>"""
+
+    def control(m, d):
+        d.ctrl[0] = np.nan if d.time > 0.05 else 1.0  # MuJoCo would warn and zero it, silently
+
+    cosim = MujocoCosim(mujoco.MjModel.from_xml_string(xml), control=control)
+    with pytest.raises(ConfigError, match=r"cosim.control = .*finite data.ctrl.*in ctrl"):
+        cosim.body_state("cart", 0.1)
+    assert cosim.time == pytest.approx(0.05, rel=0, abs=0.002)  # the last good step is kept

@@ -246,16 +246,20 @@ class MujocoCosim:
         bad = [w for w, n in zip(_BAD_STATE, warned) if int(d.warning[w].number) != n]
         if bad or not float(d.time) > t0 or not self._finite():
             what = ", ".join(mj.mjtWarning(w).name.removeprefix("mjWARN_BAD").lower() for w in bad) or "qpos"
+            # Put the last good state back, so data and the kept history agree.
+            qpos, qvel, mpos, mquat = self._snaps[-1]
+            d.time, d.qpos[:], d.qvel[:] = self._times[-1], qpos, qvel
+            d.mocap_pos[:], d.mocap_quat[:] = mpos, mquat
+            if bad == [_BAD_STATE[-1]]:  # only the controls (MuJoCo zeroes them): the controller's error
+                raise ConfigError("cosim.control", self.control,
+                                  f"a control(model, data) that sets finite data.ctrl: MuJoCo found NaN, Inf or "
+                                  f"huge values in ctrl at t = {t0:.9g} s")
             self._failure = ConfigError(
                 "cosim.model.opt.timestep", self.timestep,
                 f"a step the model is stable at: MuJoCo found NaN, Inf or huge values in {what} stepping from "
                 f"t = {t0:.9g} s (the simulation is unstable: reduce <option timestep>, check masses, "
                 f"stiffness, damping, controls and data.ctrl / qfrc_applied for NaN); the co-simulation stops "
                 f"there (kept states before {t0:.9g} s can still be read)")
-            # Put the last good state back, so data and the kept history agree.
-            qpos, qvel, mpos, mquat = self._snaps[-1]
-            d.time, d.qpos[:], d.qvel[:] = self._times[-1], qpos, qvel
-            d.mocap_pos[:], d.mocap_quat[:] = mpos, mquat
             raise self._failure
 
     def _finite(self) -> bool:
