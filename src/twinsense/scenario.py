@@ -277,7 +277,7 @@ class PersonWalkSpec(_Model):
     heading_deg: Finite | None = None
     start_time: Finite = 0.0
     turn_length: Pos = 1.0
-    body: Literal["planted", "smooth"] = "planted"
+    body: Literal["auto", "planted", "smooth"] = "auto"
 
 
 class PersonReachSpec(_Model):

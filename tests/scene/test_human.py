@@ -271,7 +271,7 @@ def test_bad_person_inputs(kwargs, field):
     (lambda: Walk(speed=1.0), "walk.path"),
     (lambda: Walk(speed=1.0, heading_deg=0.0, body="hover"), "walk.body"),
     # A slow walk: the planted body's leg cannot sweep the stance: refused at set-up.
-    (lambda: person_body("p", walk=Walk(0.6, heading_deg=0.0)), "walk.speed"),
+    (lambda: person_body("p", walk=Walk(0.6, heading_deg=0.0, body="planted")), "walk.speed"),
     (lambda: Walker(speed=2.9), "walk.speed"),  # RV = 3.1 /s: beyond the model's range
     (lambda: Reach(target=(1.0, 2.0)), "reach.target"),
     (lambda: Reach(side="middle"), "reach.side"),
@@ -283,3 +283,18 @@ def test_bad_person_inputs(kwargs, field):
 def test_bad_activity_inputs(build, field):
     with pytest.raises(ConfigError, match=field.replace(".", r"\.")):
         build()
+
+
+@pytest.mark.parametrize(("speed", "body"), [(0.2, "planted"), (0.4, "smooth"), (0.6, "smooth"), (2.7, "planted")])
+def test_auto_body_is_planted_where_it_can_walk_else_smooth(speed, body):
+    """Walk's default body: the planted one where it walks (its range for 1.75 m: 0.10-0.30 and 0.70-2.75
+    m/s, docs/people.md), else the smooth one; the same motion as that body asked for by name."""
+    auto = Walker("w", height=1.75, speed=speed)
+    assert auto.joint_motion.person.cycle.body == body
+    named = person_body("w", 1.75, (0.0, 0.0), 0.0, walk=Walk(speed, heading_deg=0.0, body=body))
+    for t in (0.0, 0.4, 1.7, 3.1):
+        a, b = auto.joint_motion.q(t), named.joint_motion.q(t)
+        np.testing.assert_array_equal(a, b)
+    if body == "smooth":  # the planted body alone is refused there, naming the smooth one
+        with pytest.raises(ConfigError, match="body='smooth'|body='planted'"):
+            person_body("w", 1.75, (0.0, 0.0), 0.0, walk=Walk(speed, heading_deg=0.0, body="planted"))

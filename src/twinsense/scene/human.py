@@ -69,6 +69,7 @@ SHOULDER_JOINT_DROP = 0.02
 SHOULDER_JOINT_HALF_WIDTH = SHOULDER_WIDTH / 2 - 0.02
 
 HEIGHT_RANGE = (0.5, 2.5)  # [m] body heights accepted
+WALK_BODIES = ("auto", *BODY_MODES)  # Walk.body: "auto" takes "planted" where it can walk, else "smooth"
 SKIN = "human_skin"
 CLOTHING_LAYERS = ("tof", "camera", "lidar", "ultrasonic")
 SIDES = (("right", -1.0), ("left", 1.0))
@@ -334,19 +335,21 @@ class Walk:
     starting at the first) or, without a path, endlessly along ``heading_deg`` [deg, from +x
     towards +y]. ``turn_length`` [m]: path length over which a corner's heading change ramps.
     ``body``: "planted" (the standing foot stays put and the pelvis moves as published, by a
-    time-warp of the stance leg's curves) or "smooth" (the published timing; the standing foot
-    rocks about its place); see :class:`~twinsense.scene.gait.WalkCycle`."""
+    time-warp of the stance leg's curves), "smooth" (the published timing; the standing foot
+    rocks about its place; see :class:`~twinsense.scene.gait.WalkCycle`) or "auto" (the
+    default: planted where the planted body can walk at this speed, else smooth; the person's
+    ``cycle.body`` says which)."""
 
     speed: float = 1.3
     path: tuple | None = None
     heading_deg: float | None = None
     start_time: float = 0.0
     turn_length: float = 1.0
-    body: str = "planted"
+    body: str = "auto"
 
     def __post_init__(self):
         V.positive("walk.speed", self.speed, "m/s")
-        V.choice("walk.body", self.body, BODY_MODES)
+        V.choice("walk.body", self.body, WALK_BODIES)
         V.time("walk.start_time", self.start_time)
         V.number("walk.turn_length", self.turn_length, lo=0.05, hi=100.0, unit="m")
         if self.path is None and self.heading_deg is None:
@@ -561,7 +564,7 @@ class PersonMotion(_ReadOnly):
                     raise ConfigError(e.field, walk.path if e.field == "walk.path" else e.value, e.allowed) from None
             else:
                 self.path = HeadingPath(start_xy[None], math.radians(walk.heading_deg), walk.turn_length)
-            self.cycle = WalkCycle(GaitTiming(walk.speed, self.leg.leg_length), self.leg, walk.body)
+            self.cycle = self._cycle("planted" if walk.body == "auto" else walk.body)
             if math.isfinite(self.path.length):
                 # Walking covers the path at the mean speed; the last START_BLEND
                 # seconds blend into standing at the path's end.
@@ -572,13 +575,32 @@ class PersonMotion(_ReadOnly):
         if walk is not None:
             # The start blend's turn from the standing heading to the path's [rad], chosen once.
             t0 = walk.start_time
-            self._start_turn = float(_wrap(self._walking(t0).yaw - self._standing(t0, start_xy, self.heading).yaw))
-            self._check_gait_limits()
+            for last in (False, True):
+                self._start_turn = float(_wrap(self._walking(t0).yaw
+                                               - self._standing(t0, start_xy, self.heading).yaw))
+                try:
+                    self._check_gait_limits()
+                    break
+                except ConfigError:
+                    if last or self.cycle.body == "smooth" or walk.body != "auto":
+                        raise
+                    self.cycle = self._cycle("smooth")  # a slow planted walk's swing lift leaves a limit
         self.start_xy.setflags(write=False)
         self._q_rest.setflags(write=False)
         self._seal()
 
     _CACHES = frozenset({"_last", "_reach_q"})  # the state at the last time; the reach's arm angles
+
+    def _cycle(self, body: str) -> WalkCycle:
+        """The walk's cycle with ``body``; "planted" falls back to "smooth" for ``Walk(body="auto")``
+        at speeds the planted body cannot walk (the leg cannot sweep the stance under the pelvis)."""
+        timing = GaitTiming(self.walk.speed, self.leg.leg_length)
+        try:
+            return WalkCycle(timing, self.leg, body)
+        except ConfigError:
+            if body != "planted" or self.walk.body != "auto":
+                raise
+            return WalkCycle(timing, self.leg, "smooth")
 
     def _check_gait_limits(self) -> None:
         """Refuse, at set-up, a walk whose joint curves would leave the joint limits (the swing
@@ -593,7 +615,7 @@ class PersonMotion(_ReadOnly):
                 raise ConfigError("walk.speed", self.walk.speed,
                                   f"a speed whose gait keeps every joint within its limits (joint {j!r} reaches "
                                   f"{math.degrees(q[bad[0]]):.1f} deg, limits [{math.degrees(lo[bad[0]]):.0f}, "
-                                  f"{math.degrees(hi[bad[0]]):.0f}] deg; body={self.walk.body!r})")
+                                  f"{math.degrees(hi[bad[0]]):.0f}] deg; body={self.cycle.body!r})")
 
     # ------------------------------------------------------------ pieces
     def _standing(self, t: float, xy, heading: float, turning: bool = True) -> _Plan:
