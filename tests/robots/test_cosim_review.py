@@ -23,6 +23,13 @@ DROP = """<mujoco model="drop">
 </mujoco>"""
 
 
+@pytest.fixture
+def in_tmp(tmp_path, monkeypatch):
+    """MuJoCo appends its warnings to MUJOCO_LOG.TXT in the working folder: a temporary one here."""
+    monkeypatch.chdir(tmp_path)
+    return tmp_path
+
+
 def drop_model(dt=0.002, integrator="Euler", z0=2.0):
     return mujoco.MjModel.from_xml_string(DROP.format(dt=dt, integrator=integrator, z0=z0))
 
@@ -38,7 +45,7 @@ def test_control_that_raises_is_named():
         cosim.body_state("box", 0.1)
 
 
-def test_diverging_physics_raises_instead_of_hanging():
+def test_diverging_physics_raises_instead_of_hanging(in_tmp):
     # A 1 kg slider on a 1e6 N/m spring, 10 ms steps: omega dt = 10, far beyond the explicit spring's
     # stability limit of 2. MuJoCo warns and resets the state to t = 0 (its auto-reset); the time running
     # back made step_to loop for ever on models like this.
@@ -58,7 +65,7 @@ def test_diverging_physics_raises_instead_of_hanging():
         cosim.step_to(6.0)
 
 
-def test_nan_in_the_state_is_refused():
+def test_nan_in_the_state_is_refused(in_tmp):
     model = drop_model()
     data = mujoco.MjData(model)
     data.qpos[2] = np.nan
@@ -71,7 +78,7 @@ def test_nan_in_the_state_is_refused():
         cosim.body_state("box", 0.1)
 
 
-def test_nan_control_is_refused():
+def test_nan_control_is_refused(in_tmp):
     def control(m, d):
         d.qfrc_applied[2] = np.nan  # MuJoCo would warn and reset the state to t = 0
 
@@ -209,7 +216,7 @@ def test_height_field_is_drawn_where_mujoco_puts_it():
     np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-9)
 
 
-def test_sdf_and_flex_are_left_out_with_a_warning():
+def test_sdf_and_flex_are_left_out_with_a_warning(in_tmp):
     flex = """<mujoco><worldbody><geom name="floor" type="plane" size="1 1 0.1"/>
       <flexcomp name="cloth" type="grid" count="3 3 1" spacing="0.1 0.1 0.1" pos="0 0 1" dim="2"/>
       </worldbody></mujoco>"""
@@ -344,7 +351,7 @@ def _ball_qpos(model, tree, q, qd):
     return qpos, qvel
 
 
-def test_load_mjcf_ball_joints_fixed_or_euler():
+def test_load_mjcf_ball_joints_fixed_or_euler(in_tmp):
     from twinsense.robots import load_mjcf
 
     model = mujoco.MjModel.from_xml_string(BALLS)
@@ -643,7 +650,7 @@ def test_robosuite_arena_floor_is_seen():
     assert frame.depth[3, 4] == pytest.approx(2.0, rel=0, abs=1e-6)  # the floor at z = 0; float32 depth
 
 
-def test_nan_ctrl_names_the_controller():
+def test_nan_ctrl_names_the_controller(in_tmp):
     xml = """<mujoco><option timestep="0.002" gravity="0 0 0"/><worldbody>
       <body name="cart"><joint name="rail" type="slide" axis="1 0 0"/><geom type="box" size="0.1 0.1 0.1"/></body>
       </worldbody><actuator><motor joint="rail"/></actuator></mujoco>"""
