@@ -57,27 +57,23 @@ def _largest_step(body, times):
 
 
 # ---------------------------------------------------------------- continuity and exact velocities
-def test_turn_on_the_spot_then_walk_has_no_jump():
+@pytest.mark.parametrize(("turn", "walk_heading", "walk_start"), [
     # Turn to 120 deg over 0.5-1.5 s, then walk that way from 2 s: the person must not snap back to
     # its first heading when the walk starts (it did: the pelvis yawed 120 deg in one instant and
-    # the hands jumped 0.47 m). A 2 ms grid around the start: no link moves further between
-    # two samples than its speed allows.
-    body = person_body("p", 1.75, (0.0, 0.0), 0.0, turn=Turn(120.0, 0.5, 1.0),
-                       walk=Walk(1.2, heading_deg=120.0, start_time=2.0))
-    step, bound = _largest_step(body, np.linspace(1.9, 2.3, 201))
-    assert step <= bound
-    lin, ang = _fd_errors(body, np.linspace(1.9, 2.7, 17))
-    assert lin < FD_TOL and ang < FD_TOL
-
-
-def test_turn_still_under_way_when_the_walk_starts_blends_out():
+    # the hands jumped 0.47 m).
+    (Turn(120.0, 0.5, 1.0), 120.0, 2.0),
     # A turn that has not ended when the walk starts (0.5-2.5 s, walk from 1 s) fades out over the
-    # start blend: positions continuous and velocities exact throughout.
-    body = person_body("p", 1.75, (0.0, 0.0), 0.0, turn=Turn(90.0, 0.5, 2.0),
-                       walk=Walk(1.2, heading_deg=0.0, start_time=1.0))
-    step, bound = _largest_step(body, np.linspace(0.9, 1.3, 201))
+    # start blend.
+    (Turn(90.0, 0.5, 2.0), 0.0, 1.0),
+])
+def test_a_turn_on_the_spot_into_the_walk_has_no_jump(turn, walk_heading, walk_start):
+    # A 2 ms grid around the start: no link moves further between two samples than its speed
+    # allows; velocities exact throughout.
+    body = person_body("p", 1.75, (0.0, 0.0), 0.0, turn=turn,
+                       walk=Walk(1.2, heading_deg=walk_heading, start_time=walk_start))
+    step, bound = _largest_step(body, np.linspace(walk_start - 0.1, walk_start + 0.3, 201))
     assert step <= bound
-    lin, ang = _fd_errors(body, np.linspace(0.9, 1.7, 17))
+    lin, ang = _fd_errors(body, np.linspace(walk_start - 0.1, walk_start + 0.7, 17))
     assert lin < FD_TOL and ang < FD_TOL
 
 
