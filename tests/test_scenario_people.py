@@ -9,14 +9,14 @@ from twinsense.scene.human import Reach, Walk, add_person
 
 PERSON = {"name": "alice", "height": 1.7, "position": [0.0, -2.0],
           "walk": {"speed": 1.3, "path": [[0.0, 2.0], [3.0, 2.0]], "start_time": 0.5},
-          "reach": {"target": [3.4, 2.2, 1.1], "start_time": 6.0}}
+          "reach": {"target": [3.4, 2.2, 1.1], "start_time": 6.0, "side": "left"}}
 
 
 def test_people_entry_builds_the_python_api_person():
     sc = scenario_from_dict({"duration": 1.0, "people": [PERSON]})
     ref = Scene()
     add_person(ref, "alice", 1.7, (0.0, -2.0), walk=Walk(1.3, ((0.0, 2.0), (3.0, 2.0)), start_time=0.5),
-               reach=Reach((3.4, 2.2, 1.1), start_time=6.0))
+               reach=Reach((3.4, 2.2, 1.1), start_time=6.0, side="left"))
     assert [o.name for o in sc.scene.objects] == [o.name for o in ref.objects]
     for t in (0.0, 1.3, 4.2, 7.0):
         for name in ("alice/head", "alice/left_foot", "alice/right_hand"):

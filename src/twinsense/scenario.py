@@ -26,7 +26,7 @@ Example::
         height: 1.7
         position: [0, -2]
         walk: {speed: 1.3, path: [[0, 2], [3, 2]], start_time: 0.5}
-        reach: {target: [3.4, 2.2, 1.1], start_time: 6.0}
+        reach: {target: [3.4, 2.2, 1.1], start_time: 6.0, side: left}
     sensors:
       - name: tof
         kind: tof

@@ -227,6 +227,7 @@ def test_reach_puts_the_hand_on_a_reachable_point(target_local):
     np.testing.assert_allclose(_hand_centre(body.state(5.0)), rest, rtol=0, atol=1e-12)
 
 
+@pytest.mark.filterwarnings("ignore:reach.target")  # a target out of reach on purpose
 def test_reach_beyond_the_arm_points_it_at_the_target():
     target = np.array([2.0, -0.3, 1.4])
     body = person_body("r", H, (0.0, 0.0), 0.0, reach=Reach(tuple(target), 0.0, 0.5, math.inf))

@@ -32,6 +32,7 @@ the joint trajectory, each with exact time derivatives:
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import FrozenInstanceError, dataclass
 
 import numpy as np
@@ -83,6 +84,7 @@ LIMITS_DEG = {
 }
 ARM_REST_ABDUCTION = 8 * _DEG  # arms hang clear of the chest
 ELBOW_REST = 8 * _DEG
+REACH_MISS = 0.01  # [m] a reach whose hand stops further than this from its target warns
 
 
 def _limits(kind: str) -> tuple[float, float]:
@@ -705,6 +707,22 @@ class PersonMotion(_ReadOnly):
         return plan
 
     # ------------------------------------------------------------ reaching
+    def _warn_short_reach(self, q0, qd0, base) -> None:
+        """Warn once when the solved arm leaves the hand centre more than REACH_MISS from the target at the
+        reach's start (a target beyond the arm, across the body, or beside the shoulder where the arm has
+        no humeral rotation): the best effort is documented, but should not pass unnoticed."""
+        rc = self.reach
+        q = np.array(q0, float)
+        for k, joint in enumerate(("shoulder_flexion", "shoulder_abduction", "elbow")):
+            q[self._col[f"{rc.side}_{joint}"]] = self._reach_q[k]
+        hand = self.tree.forward(q, qd0, base).pose(f"{rc.side}_hand").apply(
+            np.array([[0.0, 0.0, -0.5 * HAND * self.height]]))[0]
+        miss = float(np.linalg.norm(hand - np.asarray(rc.target, float)))
+        if miss > REACH_MISS:
+            warnings.warn(f"reach.target = {tuple(float(v) for v in rc.target)}: the {rc.side} hand stops "
+                          f"{miss:.3f} m from it (beyond the arm, or where its three joints cannot turn; "
+                          "docs/people.md, 'Standing, turning, reaching')", UserWarning, stacklevel=2)
+
     def _arm_ik(self, target_thorax: np.ndarray, side: str) -> np.ndarray:
         """(shoulder_flexion, shoulder_abduction, elbow) [rad] putting the hand centre at a thorax-frame point.
 
@@ -744,9 +762,10 @@ class PersonMotion(_ReadOnly):
         if self._reach_q is None:
             # Solved once, in the thorax frame at the reach's start (exact for a
             # standing person; a walking one carries the arm pose along).
-            st = self.tree.forward(*self._at(rc.start_time, reach=False))
-            thorax = st.pose("thorax")
+            q0, qd0, base = self._at(rc.start_time, reach=False)
+            thorax = self.tree.forward(q0, qd0, base).pose("thorax")
             self._reach_q = self._arm_ik(thorax.inverse().apply(np.asarray(rc.target, float)), rc.side)
+            self._warn_short_reach(q0, qd0, base)
         if t < t1:
             w, wd = smoothstep((t - rc.start_time) / rc.duration)
         elif t <= t2:
