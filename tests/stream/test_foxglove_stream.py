@@ -84,11 +84,14 @@ def _decoder(channel: dict):
     return message_factory.GetMessageClass(pool.FindMessageTypeByName(channel["schemaName"]))
 
 
-def _client(port: int, got: dict, ready: threading.Event, seen: dict) -> None:
+def subscribing_client(port: int, got: dict, ready: threading.Event, seen: dict, wanted=WANTED) -> None:
+    """A Foxglove WebSocket client: subscribes to the ``wanted`` topics as they are advertised and keeps
+    the first decoded message of each in ``got`` {topic: (log time [ns], channel, message)};
+    ``seen`` collects the channels advertised and subscribed."""
     channels, subs = seen.setdefault("advertised", {}), seen.setdefault("subscribed", {})
     with connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1"], open_timeout=10) as ws:
         ready.set()
-        while not all(t in got for t in WANTED):
+        while not all(t in got for t in wanted):
             msg = ws.recv(timeout=10)
             if isinstance(msg, str):
                 m = json.loads(msg)
@@ -96,7 +99,7 @@ def _client(port: int, got: dict, ready: threading.Event, seen: dict) -> None:
                 if m["op"] == "advertise":
                     for ch in m["channels"]:
                         channels[ch["id"]] = ch
-                        if ch["topic"] in WANTED:
+                        if ch["topic"] in wanted:
                             sid = len(subs) + 1
                             subs[sid] = ch
                             ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": sid,
@@ -124,7 +127,7 @@ def test_a_websocket_client_subscribes_and_decodes():
                          "mount": {"pose": {"look_at": {"eye": [0.0, 0.0, 1.0], "target": [4.0, 0.0, 1.0]}}}}])
     got, ready, seen = {}, threading.Event(), {}
     sink, keep = FoxgloveSink(port=0, stats_interval=0.05), Keep()
-    res, stopped = serve_with_client(sc, [keep, sink], sink, _client, (got, ready, seen), WANTED)
+    res, stopped = serve_with_client(sc, [keep, sink], sink, subscribing_client, (got, ready, seen), WANTED)
     if not stopped:
         pytest.fail(f"the client did not get every channel: got {sorted(got)}, advertised "
                     f"{sorted(c['topic'] for c in seen['advertised'].values())}, subscribed "

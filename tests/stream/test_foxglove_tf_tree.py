@@ -4,62 +4,26 @@ client over loopback, as in test_foxglove_stream."""
 
 from __future__ import annotations
 
-import json
-import struct
 import threading
-from pathlib import Path
 
 import numpy as np
-from test_foxglove_stream import _decoder, resubscribe_if_unknown, serve_with_client
-from websockets.sync.client import connect
+from test_foxglove_stream import serve_with_client, subscribing_client
+from ur5_flange import ur5_flange_scenario
 
-from twinsense.scenario import scenario_from_dict
 from twinsense.stream import FoxgloveSink
 
-ROOT = Path(__file__).resolve().parents[2]
 WANTED = ("/tf", "/ur5/joint_states")
 
 
 def _scenario():
-    return scenario_from_dict({
-        "name": "fox_tf", "duration": 10.0, "seed": 1,
-        "robots": [{"name": "ur5", "description": "ur5", "base": {"position": [0.0, 0.0, 0.8]},
-                    "joints": {"keyframes": {"times": [0.0, 10.0],
-                                             "values": [[0.0, -1.57, 1.57, -1.57, -1.57, 0.0],
-                                                        [0.5, -1.30, 1.45, -1.72, -1.57, 0.3]]}}}],
-        "sensors": [{"name": "hall", "kind": "magnetic", "preset": "tle493d", "frame_rate": 10,
-                     "mount": {"parent": "ur5/tool0", "pose": {"position": [0.0, 0.0, 0.02]}}}],
-    }, base_dir=ROOT / "examples")
-
-
-def _client(port: int, got: dict, ready: threading.Event) -> None:
-    subs = {}
-    with connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1"], open_timeout=10) as ws:
-        ready.set()
-        while not all(t in got for t in WANTED):
-            msg = ws.recv(timeout=10)
-            if isinstance(msg, str):
-                m = json.loads(msg)
-                resubscribe_if_unknown(ws, m, subs)
-                if m["op"] == "advertise":
-                    for ch in m["channels"]:
-                        if ch["topic"] in WANTED:
-                            subs[len(subs) + 1] = ch
-                            ws.send(json.dumps({"op": "subscribe",
-                                                "subscriptions": [{"id": len(subs), "channelId": ch["id"]}]}))
-                continue
-            op, sid, log_ns = struct.unpack_from("<BIQ", msg)  # message data: opcode, subscription, log time
-            assert op == 1
-            ch = subs[sid]
-            body = json.loads(msg[13:]) if ch["encoding"] == "json" else _decoder(ch).FromString(msg[13:])
-            got.setdefault(ch["topic"], (log_ns, ch, body))
+    return ur5_flange_scenario("fox_tf", 10.0, 10.0, seed=1)
 
 
 def test_flange_frame_and_joint_states_on_the_stream():
     sc = _scenario()
     got, ready = {}, threading.Event()
     sink = FoxgloveSink(port=0)
-    _, stopped = serve_with_client(sc, [sink], sink, _client, (got, ready), WANTED)
+    _, stopped = serve_with_client(sc, [sink], sink, subscribing_client, (got, ready, {}, WANTED), WANTED)
     assert stopped
     assert set(got) == set(WANTED)
     body = sc.scene.articulated_bodies[0]

@@ -5,10 +5,10 @@ back with Rerun's own reader as in test_rerun_convert."""
 from __future__ import annotations
 
 import numpy as np
-from test_rerun_convert import ROOT, ns, read_rrd, timed
+from test_rerun_convert import ns, read_rrd, timed
+from ur5_flange import ur5_flange_scenario
 
 from twinsense.depthcam import DepthCamera
-from twinsense.scenario import scenario_from_dict
 from twinsense.scene import Mount, Pose
 from twinsense.scene.scene import Frame
 from twinsense.simulate import simulate
@@ -21,15 +21,7 @@ MARKER = Pose(position=(1.5, -0.5, 1.0))
 
 
 def _setup():
-    sc = scenario_from_dict({
-        "name": "rr_frames", "duration": 0.2,
-        "robots": [{"name": "ur5", "description": "ur5", "base": {"position": [0.0, 0.0, 0.8]},
-                    "joints": {"keyframes": {"times": [0.0, 1.0],
-                                             "values": [[0.0, -1.57, 1.57, -1.57, -1.57, 0.0],
-                                                        [0.5, -1.30, 1.45, -1.72, -1.57, 0.3]]}}}],
-        "sensors": [{"name": "hall", "kind": "magnetic", "preset": "tle493d", "frame_rate": 10,
-                     "mount": {"parent": "ur5/tool0", "pose": {"position": [0.0, 0.0, 0.02]}}}],
-    }, base_dir=ROOT / "examples")
+    sc = ur5_flange_scenario("rr_frames", 0.2, 1.0)
     scene = sc.scene
     scene.add_frame(Frame("marker", MARKER))  # a fixed frame without geometry
     cam = DepthCamera.preset("generic", name="cam", width=8, height=6, frame_rate=10,
