@@ -566,7 +566,6 @@ class PersonMotion(_ReadOnly):
                     raise ConfigError(e.field, walk.path if e.field == "walk.path" else e.value, e.allowed) from None
             else:
                 self.path = HeadingPath(start_xy[None], math.radians(walk.heading_deg), walk.turn_length)
-            self.cycle = self._cycle("planted" if walk.body == "auto" else walk.body)
             if math.isfinite(self.path.length):
                 # Walking covers the path at the mean speed; the last START_BLEND
                 # seconds blend into standing at the path's end.
@@ -575,34 +574,27 @@ class PersonMotion(_ReadOnly):
         self._last = None
         self._start_turn = 0.0
         if walk is not None:
-            # The start blend's turn from the standing heading to the path's [rad], chosen once.
-            t0 = walk.start_time
-            for last in (False, True):
-                self._start_turn = float(_wrap(self._walking(t0).yaw
-                                               - self._standing(t0, start_xy, self.heading).yaw))
+            # "auto": the planted body where it can walk (its leg sweeps the stance under the pelvis and
+            # its swing keeps the joints within their limits), else the smooth one.
+            bodies = ("planted", "smooth") if walk.body == "auto" else (walk.body,)
+            timing = GaitTiming(walk.speed, self.leg.leg_length)
+            for k, body in enumerate(bodies):
                 try:
+                    self.cycle = WalkCycle(timing, self.leg, body)
+                    # The start blend's turn from the standing heading to the path's [rad], chosen once.
+                    t0 = walk.start_time
+                    self._start_turn = float(_wrap(self._walking(t0).yaw
+                                                   - self._standing(t0, start_xy, self.heading).yaw))
                     self._check_gait_limits()
                     break
                 except ConfigError:
-                    if last or self.cycle.body == "smooth" or walk.body != "auto":
+                    if k == len(bodies) - 1:
                         raise
-                    self.cycle = self._cycle("smooth")  # a slow planted walk's swing lift leaves a limit
         self.start_xy.setflags(write=False)
         self._q_rest.setflags(write=False)
         self._seal()
 
     _CACHES = frozenset({"_last", "_reach_q"})  # the state at the last time; the reach's arm angles
-
-    def _cycle(self, body: str) -> WalkCycle:
-        """The walk's cycle with ``body``; "planted" falls back to "smooth" for ``Walk(body="auto")``
-        at speeds the planted body cannot walk (the leg cannot sweep the stance under the pelvis)."""
-        timing = GaitTiming(self.walk.speed, self.leg.leg_length)
-        try:
-            return WalkCycle(timing, self.leg, body)
-        except ConfigError:
-            if body != "planted" or self.walk.body != "auto":
-                raise
-            return WalkCycle(timing, self.leg, "smooth")
 
     def _check_gait_limits(self) -> None:
         """Refuse, at set-up, a walk whose joint curves would leave the joint limits (the swing
