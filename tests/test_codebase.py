@@ -27,7 +27,7 @@ TESTS = Path(__file__).parent
 #: the layers below, never from a layer above.
 LAYERS: list[tuple[str, frozenset[str]]] = [
     ("ground", frozenset({"errors", "constants", "validation", "linalg", "compiled", "_version", "data",
-                          "forksafe"})),
+                          "forksafe", "inputs"})),
     ("scene", frozenset({"scene"})),
     ("robots", frozenset({"robots", "safety"})),
     ("render", frozenset({"render"})),

@@ -36,7 +36,7 @@ import shutil
 import socket
 import tempfile
 import traceback
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
@@ -46,6 +46,7 @@ import numpy as np
 import yaml
 
 from twinsense.errors import ConfigError, RecordingError, UnknownNameError
+from twinsense.inputs import noting_inputs
 from twinsense.io.recording import open_recording
 from twinsense.render.parallel import default_workers
 from twinsense.scenario import ScenarioError, scenario_from_dict
@@ -117,7 +118,7 @@ class SweepRun:
     out_dir : Path
         The point's run folder (``run_NNNN/``).
     key : str
-        SHA-256 (hex) of the point's scenario and of the mesh files it reads:
+        SHA-256 (hex) of the point's scenario and of the files its build reads:
         a finished recording is reused only when this matches.
     """
 
@@ -171,30 +172,25 @@ def _canonical(data: Any) -> str:
     return json.dumps(data, sort_keys=True, separators=(",", ":"), allow_nan=True)
 
 
-def _mesh_files(data: dict, base_dir: Path) -> list[tuple[str, Path]]:
-    found = []
-    for i, obj in enumerate(data.get("objects") or []):
-        geom = obj.get("geometry") if isinstance(obj, dict) else None
-        if isinstance(geom, dict) and geom.get("type") == "mesh" and isinstance(geom.get("path"), str):
-            p = Path(geom["path"])
-            found.append((f"objects[{i}].geometry.path", p if p.is_absolute() else base_dir / p))
-    return found
+def point_key(data: dict, inputs: Iterable[Path], _file_hashes: dict | None = None) -> str:
+    """SHA-256 (hex) of a point's scenario data and of the content of the files its build read.
 
-
-def point_key(data: dict, base_dir: Path, _file_hashes: dict | None = None) -> str:
-    """SHA-256 (hex) of a point's scenario data and of the content of the mesh files it names.
-
-    Two points with the same key make the same recording (the seed is part of
-    the scenario), so a finished recording whose key matches is reused.
+    ``inputs``: the files, as :func:`twinsense.inputs.noting_inputs` collects them
+    while the point's scenario is built (object meshes, robot descriptions with
+    their meshes and includes, joint recordings, replayed recordings). Two points
+    with the same key make the same recording (the seed is part of the scenario),
+    so a finished recording whose key matches is reused; an edited input file
+    makes its points run again.
     """
     cache = {} if _file_hashes is None else _file_hashes
     files = {}
-    for field, path in _mesh_files(data, base_dir):
+    for path in sorted(inputs):
         if path not in cache:
             try:
                 cache[path] = hashlib.sha256(path.read_bytes()).hexdigest()
             except OSError as exc:
-                raise ConfigError(field, str(path), f"a readable mesh file ({exc.strerror})") from None
+                raise ConfigError("sweep.inputs", str(path), f"a file the scenario reads, readable while the sweep "
+                                  f"starts ({exc.strerror})") from None
         files[str(path)] = cache[path]
     return hashlib.sha256(_canonical({"scenario": data, "files": files}).encode()).hexdigest()
 
@@ -353,10 +349,11 @@ def sweep(scenario, parameters: Mapping[str, Sequence[Any]], out_dir, *, backend
         for k, v in params.items():
             set_path(data, k, v)
         data = _plain(data, "")
-        # Validate every point before starting any.
-        scenario_from_dict(data, source=f"{source} (sweep run {i}: {params})", base_dir=base_dir)
+        # Validate every point before starting any, noting the files each one reads for its key.
+        with noting_inputs() as inputs:
+            scenario_from_dict(data, source=f"{source} (sweep run {i}: {params})", base_dir=base_dir)
         runs.append((SweepRun(i, _plain(params, "sweep.parameters"), root / f"run_{i:04d}",
-                              point_key(data, base_dir, hashes)), data))
+                              point_key(data, inputs, hashes)), data))
 
     if ray is not None:
         threads = _ray_prepare(ray, threads)

@@ -27,6 +27,7 @@ import numpy as np
 
 from twinsense import validation as V
 from twinsense.errors import ConfigError, RecordingError
+from twinsense.inputs import note_input
 from twinsense.radar.config import RadarConfig
 from twinsense.radar.formats import InfineonConfig, TICfg, read_ti_cfg, save_infineon_config
 
@@ -133,6 +134,8 @@ def load_infineon_recording(path: str | Path) -> InfineonRecording:
     try:
         frames = np.load(folder / "radar.npy", allow_pickle=False)
         doc = json.loads((folder / "config.json").read_text())
+        note_input(folder / "radar.npy")
+        note_input(folder / "config.json")
     except (OSError, ValueError) as exc:
         raise RecordingError(f"{folder}: cannot read the recording: {exc}") from exc
     src = str(folder / "config.json")

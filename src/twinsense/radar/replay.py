@@ -28,6 +28,7 @@ import numpy as np
 from twinsense import validation as V
 from twinsense.data import real_recording
 from twinsense.errors import ConfigError, RecordingError
+from twinsense.inputs import note_input
 from twinsense.radar.captures import load_infineon_recording, load_ti_capture
 from twinsense.radar.config import RadarConfig
 from twinsense.radar.formats import read_ti_cfg
@@ -61,6 +62,8 @@ def load_replay_source(recording) -> tuple[np.ndarray, RadarConfig, str]:
                               "a folder with one DCA1000 .bin and one mmWave .cfg "
                               f"(found {len(bins)} .bin, {len(cfgs)} .cfg)")
         cfg = read_ti_cfg(cfgs[0])
+        note_input(bins[0])
+        note_input(cfgs[0])
         n_words = bins[0].stat().st_size // 2
         per_chirp = len(cfg.rx_channels) * cfg.profiles[0].num_samples * (2 if cfg.adc_format != "real" else 1)
         n_chirps = min(cfg.chirps_per_frame, n_words // per_chirp)

@@ -19,6 +19,7 @@ import trimesh
 from scipy.spatial import ConvexHull
 
 from twinsense.errors import ConfigError
+from twinsense.inputs import note_input
 from twinsense.scene.geometry import Geometry, TriangleMesh
 from twinsense.scene.pose import Pose
 
@@ -73,6 +74,7 @@ def read_mesh(path: Path, field_name: str, link: str, written: str | None = None
             ref += (f"; package {pkg!r} is looked up in packages={{{pkg!r}: folder}}, then example-robot-data, "
                     f"then a folder named {pkg!r} beside or above the description")
         raise ConfigError(field_name, str(path), f"an existing mesh file for link {link!r}{ref}")
+    note_input(path)
     try:
         v, f = _read(str(path), path.stat().st_mtime)
     except Exception as exc:  # trimesh raises many types for damaged or unsupported files

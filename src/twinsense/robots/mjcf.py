@@ -22,12 +22,14 @@ from __future__ import annotations
 
 import math
 import warnings
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from twinsense.errors import ConfigError
+from twinsense.inputs import note_input, noting
 from twinsense.robots.deps import require
 from twinsense.robots.descriptions import resolve
 from twinsense.robots.materials import link_materials
@@ -58,9 +60,57 @@ def load_model(model_or_path):
     if not p.is_file():
         raise ConfigError("mjcf.path", str(model_or_path), "an existing MJCF (MuJoCo XML) file")
     try:
-        return mujoco.MjModel.from_xml_path(str(p))
+        model = mujoco.MjModel.from_xml_path(str(p))
     except Exception as exc:  # MuJoCo reports missing mesh files, bad XML, ... as ValueError
         raise ConfigError("mjcf.path", str(model_or_path), f"an MJCF file MuJoCo can compile: {exc}") from None
+    if noting():
+        for f in model_files(p):
+            note_input(f)
+    return model
+
+
+#: Attributes of MJCF (and MuJoCo-read URDF) elements that name a file: meshes, skins, height
+#: fields, textures (a cube texture's six faces) and URDF ``<mesh filename>``.
+_FILE_ATTRIBUTES = ("file", "filename", "fileright", "fileleft", "fileup", "filedown", "filefront", "fileback")
+
+
+def model_files(path) -> list[Path]:
+    """The files compiling the MJCF model at ``path`` reads: the file, its includes and its assets.
+
+    MuJoCo does not list them, so they are read from the XML as MuJoCo resolves
+    them: includes relative to the main file's folder, assets in the
+    compiler's ``meshdir`` / ``texturedir`` / ``assetdir`` (relative to that
+    folder) or beside the model; a ``package://`` URI of a URDF by its file
+    name, as MuJoCo looks it up. A name found in none of those is left out
+    (the model compiled, so MuJoCo did not need it). Absolute paths, first the
+    model file, without repeats.
+    """
+    top = Path(path).resolve()
+    folder = top.parent
+    files, dirs, assets = [top], [], []
+    stack = [top]
+    while stack:
+        try:
+            tree = ET.parse(stack.pop())
+        except (ET.ParseError, OSError):
+            continue
+        for el in tree.iter():
+            if el.tag == "compiler":
+                dirs += [folder / el.get(a) for a in ("meshdir", "texturedir", "assetdir") if el.get(a)]
+            elif el.tag == "include" and el.get("file"):
+                inc = (folder / el.get("file")).resolve()
+                if inc.is_file() and inc not in files:
+                    files.append(inc)
+                    stack.append(inc)
+                continue
+            assets += [el.get(a) for a in _FILE_ATTRIBUTES if el.get(a)]
+    for name in assets:
+        ref = Path(name.split("://", 1)[-1])
+        where = [ref] if ref.is_absolute() else [d / r for r in (ref, Path(ref.name)) for d in (*dirs, folder)]
+        hit = next((c.resolve() for c in where if c.is_file()), None)
+        if hit is not None and hit not in files:
+            files.append(hit)
+    return files
 
 
 def _quat_pose(pos, quat_wxyz) -> Pose:

@@ -24,6 +24,7 @@ import numpy as np
 
 from twinsense import validation as V
 from twinsense.errors import ConfigError
+from twinsense.inputs import note_input
 from twinsense.scene.articulated import JointSamples
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
@@ -82,6 +83,7 @@ def read_joint_states(path, topic: str = DEFAULT_TOPIC, joint_names: Sequence[st
         p = found[0]
     if not p.is_file():
         raise ConfigError("path", str(p), f"an existing file: {_FORMATS}")
+    note_input(p)
     suffix = p.suffix.lower()
     if suffix == ".csv":
         if topic != DEFAULT_TOPIC:

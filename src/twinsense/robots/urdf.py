@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from twinsense.errors import ConfigError
+from twinsense.inputs import note_input
 from twinsense.robots.deps import require
 from twinsense.robots.descriptions import resolve
 from twinsense.robots.materials import link_materials
@@ -104,6 +105,7 @@ def urdf_tree(path, *, materials=None, shapes: str = "visual", name: str | None 
         raise ConfigError("xacro_args", xacro_args, f"none for {p.name}: only a .xacro file takes arguments")
     else:
         data = p.read_bytes()
+        note_input(p)
     try:
         # yourdfpy falls back to a recovering parser on broken XML and loads what it can: refuse it first.
         root = ET.fromstring(data)

@@ -33,6 +33,7 @@ import numpy as np
 
 from twinsense.errors import ConfigError
 from twinsense.forksafe import ForkSafeLock
+from twinsense.inputs import note_input
 from twinsense.robots.deps import require
 from twinsense.robots.packages import check_packages, package_folder, where_looked
 
@@ -200,6 +201,7 @@ def expand_xacro(path, *, xacro_args=None, packages=None, field: str = "packages
         try:
             doc = xacro.process_file(str(p), mappings=args, verbosity=0)
             text = doc.documentElement.toxml()
+            included = list(xacro.all_includes[len(saved[7]):])  # <xacro:include>d files and load_yaml's
         except Exception as exc:  # xacro raises its own, expat's, OSError, NameError, YAML's, ...
             error = _error(exc, p, list(xacro.filestack or []), args, given, base_dir, pkgs)
         else:
@@ -213,6 +215,8 @@ def expand_xacro(path, *, xacro_args=None, packages=None, field: str = "packages
         warnings.warn(f"xacro[{p.name}]: {note}", stacklevel=2)
     if error is not None:
         raise error from None
+    for f in (p, *included):
+        note_input(f)
     unused = sorted(set(given) - args.seen)
     if unused:
         raise ConfigError("xacro_args", unused[0], f"the arguments {p.name} declares or reads: "

@@ -20,6 +20,7 @@ import trimesh
 
 from twinsense import validation as V
 from twinsense.errors import ConfigError, GeometryError
+from twinsense.inputs import note_input
 
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 MAX_SECTIONS = 4096  # cylinder facets: beyond this the mesh only costs memory
@@ -321,6 +322,7 @@ class MeshFile(TriangleMesh):
             raise ConfigError("mesh.path", str(path), "a mesh file ending in " + ", ".join(MESH_SUFFIXES))
         if not p.is_file():
             raise GeometryError(f"mesh.path: file not found: {str(path)!r}")
+        note_input(p)
         kind = p.suffix.lower().lstrip(".").upper()
         try:
             # Unprocessed first: merging vertices (1e-8 in file units) would hide the true extent.
