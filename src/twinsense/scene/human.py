@@ -9,7 +9,9 @@ ankle 0.039 H, foot 0.152 H long and 0.055 H wide, shoulder 0.818 H, chin
 0.870 H, upper arm 0.186 H, forearm 0.146 H, hand 0.108 H, shoulder width
 0.259 H, hip width 0.191 H. Segment radii are not in that table; they are
 chosen so that widths and depths match an average adult (chest 0.22 H wide,
-0.13 H deep; head 0.11 H wide).
+0.13 H deep; waist and belly 0.19 H wide, 0.12 H deep; head 0.11 H wide, chin
+to crown). Between its horizontal rolls the trunk is filled (a box and two
+upright capsules) so that its front and sides are continuous surfaces.
 
 The motion (:class:`PersonMotion`) gives both the root (pelvis) motion and
 the joint trajectory, each with exact time derivatives:
@@ -68,6 +70,9 @@ HIP_JOINT_HALF_WIDTH = HIP_WIDTH / 4
 HEEL_BEHIND_ANKLE = 0.25 * FOOT_LENGTH
 SHOULDER_JOINT_DROP = 0.02
 SHOULDER_JOINT_HALF_WIDTH = SHOULDER_WIDTH / 2 - 0.02
+# Ours: the trunk between the pelvis and chest rolls (waist and belly) is 0.19 H wide and 0.12 H deep.
+TRUNK_WIDTH = 0.19
+TRUNK_DEPTH = 0.12
 
 HEIGHT_RANGE = (0.5, 2.5)  # [m] body heights accepted
 WALK_BODIES = ("auto", *BODY_MODES)  # Walk.body: "auto" takes "planted" where it can walk, else "smooth"
@@ -160,17 +165,34 @@ def human_tree(height: float = 1.75, *, clothing: str | None = None, clothing_th
         lo, hi = _limits(kind)
         joints.append(Joint(jname, "revolute", parent, child, Pose(np.asarray(xyz, float) * H), axis, lo, hi))
 
+    def fill(parent, z_lo, z_hi):
+        """The trunk between two rolls' axes at heights ``z_lo``, ``z_hi`` [H] of ``parent``'s frame:
+        the rectangle of the rolls' straight parts swept by a sphere of the rolls' radius (a box
+        and two upright capsules). With the rolls it makes one rounded slab, TRUNK_DEPTH deep and
+        TRUNK_WIDTH wide, so the trunk's front and sides have no grooves between the rolls."""
+        r, c = 0.5 * TRUNK_DEPTH * H, (TRUNK_WIDTH - TRUNK_DEPTH) * H  # the abdomen roll's radius, straight part
+        dz, zc = (z_hi - z_lo) * H, 0.5 * (z_lo + z_hi) * H
+        link(f"{parent}_fill", (Box((2 * r, c, dz)), Pose((0.0, 0.0, zc))), True)
+        joints.append(Joint(f"{parent}_fill", "fixed", parent, f"{parent}_fill"))
+        for side, s in SIDES:
+            link(f"{parent}_fill_{side}", (Capsule(radius=r, height=dz), Pose((0.0, s * 0.5 * c, zc))), True)
+            joints.append(Joint(f"{parent}_fill_{side}", "fixed", parent, f"{parent}_fill_{side}"))
+
     trunk = SHOULDER_HEIGHT - HIP_HEIGHT  # 0.288 H from the hip joints to the shoulders
     link("pelvis", _capsule_across(0.20 * H, 0.06 * H, 0.03 * H), True)
     joint("torso_rotation", "torso_rotation", "pelvis", "abdomen", (0, 0, 0.07), (0, 0, 1))
-    link("abdomen", _capsule_across(0.19 * H, 0.06 * H, 0.03 * H), True)
+    link("abdomen", _capsule_across(TRUNK_WIDTH * H, 0.5 * TRUNK_DEPTH * H, 0.03 * H), True)
+    fill("abdomen", -0.04, 0.03)  # pelvis roll axis (0.56 H) to the abdomen's (0.63 H)
     joint("torso_tilt", "torso_tilt", "abdomen", "thorax", (0, 0, 0.06), (0, -1, 0))
+    chest_z = trunk - 0.13 - 0.065  # 0.093 H above the thorax joint (0.753 H above the floor)
     link("thorax", (Capsule(radius=0.065 * H, height=0.09 * H),
-                    Pose((0, 0, (trunk - 0.13 - 0.065) * H), _capsule_across(1, 0.1, 0)[1].rotation)), True)
+                    Pose((0, 0, chest_z * H), _capsule_across(1, 0.1, 0)[1].rotation)), True)
+    fill("thorax", -0.03, chest_z)  # abdomen roll axis (0.63 H) to the chest's (0.753 H)
     joint("neck_flexion", "neck_flexion", "thorax", "neck", (0, 0, trunk - 0.13), (0, -1, 0))
     link("neck", (Capsule(radius=0.03 * H, height=0.0), Pose((0, 0, 0.026 * H))))
     joint("neck_rotation", "neck_rotation", "neck", "head", (0, 0, CHIN_HEIGHT - SHOULDER_HEIGHT), (0, 0, 1))
-    link("head", (Capsule(radius=0.055 * H, height=0.03 * H), Pose((0.01 * H, 0, 0.065 * H))))
+    # Chin (0.870 H) to crown (1.000 H): 0.13 H end to end, centred 0.065 H above the chin.
+    link("head", (Capsule(radius=0.055 * H, height=0.02 * H), Pose((0.01 * H, 0, 0.065 * H))))
     shoulder_z = trunk - 0.13 - SHOULDER_JOINT_DROP
     for side, s in SIDES:
         p = f"{side}_"
