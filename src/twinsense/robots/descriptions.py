@@ -19,6 +19,9 @@ class RobotDescription:
     relpath: str
     fmt: str  # "urdf" or "mjcf"
     description: str
+    # Every link's material unless ``materials=`` names another (None: the rules of robots/materials.py,
+    # which make an unnamed link aluminium): the meshed human is skin to every sensor.
+    material: str | None = None
 
     def path(self) -> Path:
         root = example_robot_data_share() if self.source == "example-robot-data" else robosuite_robots_dir()
@@ -41,7 +44,7 @@ ROBOTS: dict[str, RobotDescription] = {r.name: r for r in (
     RobotDescription("z1", "example-robot-data", "robots/z1_description/urdf/z1.urdf", "urdf",
                      "Unitree Z1, 6 arm joints + gripper (example-robot-data URDF)"),
     RobotDescription("human", "example-robot-data", "robots/human_description/robots/human.urdf", "urdf",
-                     "meshed human body model, 36 joints (example-robot-data URDF)"),
+                     "meshed human body model, 36 joints (example-robot-data URDF)", material="human_skin"),
     RobotDescription("iiwa-mjcf", "robosuite", "iiwa/robot.xml", "mjcf",
                      "KUKA LBR iiwa 7 arm, 7 joints, no gripper (robosuite MJCF)"),
     RobotDescription("jaco-mjcf", "robosuite", "jaco/robot.xml", "mjcf",

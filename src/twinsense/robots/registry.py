@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import inspect
 from pathlib import Path
+from xml.etree import ElementTree
 
 from twinsense.errors import ConfigError, UnknownNameError
 from twinsense.robots.descriptions import ROBOTS, RobotDescription, robot_names, robot_path
@@ -24,6 +25,12 @@ def load_robot(name_or_path, **kwargs) -> ArticulatedBody:
     if isinstance(name_or_path, str) and name_or_path in ROBOTS:
         desc = ROBOTS[name_or_path]
         kwargs.setdefault("name", desc.name.replace("-", "_"))
+        given = kwargs.get("materials")
+        if desc.material is not None and desc.fmt == "urdf" and (given is None or isinstance(given, dict)):
+            # The description's material on every link, the caller's ``materials`` over it (a link
+            # the file lacks is still refused by the loader, naming the links).
+            links = [e.get("name") for e in ElementTree.parse(desc.path()).getroot().findall("link")]
+            kwargs["materials"] = {**dict.fromkeys(links, desc.material), **(given or {})}
         return _load(load_urdf if desc.fmt == "urdf" else load_mjcf, desc.path(), kwargs)
     p = Path(name_or_path) if isinstance(name_or_path, (str, Path)) else None
     if p is None or p.suffix.lower() not in (".urdf", ".xacro", ".xml", ".mjcf"):
