@@ -16,6 +16,15 @@ distance a robot must keep from a person at time t0::
 - ``Z_d``, ``Z_r``: the position uncertainties of the person (the sensing)
   and of the robot (its measurement system).
 
+v_r is "the directed speed of the robot in the direction of the operator". A
+robot is not one point: a part a little farther from the person than the
+closest one can approach it faster (a swinging wrist beside a slow elbow),
+and S_p for the closest point's speed alone then falls short of what that
+part needs. :class:`SeparationMonitor` gives both; ``approach_speed`` (the
+largest speed towards the person of any robot surface point, each along the
+line to its own nearest body point) is the conservative v_r: with it
+``distance >= S_p`` implies ``d_i >= S_p(v_i)`` for every robot point i.
+
 :class:`SeparationMonitor` gives the true minimum distance between a robot's
 links and a person's body segments at any time: the person's capsules,
 spheres and boxes are exact primitives, the robot's link meshes are taken as
@@ -67,10 +76,18 @@ class SeparationParameters:
 
 
 def protective_separation_distance(robot_speed, params: SeparationParameters = SeparationParameters()):
-    """S_p [m] for the robot's speed towards the person ``robot_speed`` [m/s] (scalar or array)."""
-    v_r = np.asarray(robot_speed, dtype=float)
+    """S_p [m] for the robot's speed towards the person ``robot_speed`` [m/s] (scalar or array).
+
+    Use the fastest approach of any robot point (``SeparationSample.approach_speed``), not only the
+    closest point's: see the module docstring."""
+    try:
+        v_r = np.asarray(robot_speed, dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigError("robot_speed", robot_speed, "finite speeds >= 0 m/s (a number or an array)") from None
     if not np.all(np.isfinite(v_r)) or np.any(v_r < 0):
         raise ConfigError("robot_speed", robot_speed, "finite speeds >= 0 m/s")
+    if not isinstance(params, SeparationParameters):
+        raise ConfigError("params", params, "a twinsense.safety.SeparationParameters")
     p = params
     s_h = p.human_speed * (p.reaction_time + p.stopping_time)
     s_r = v_r * p.reaction_time
@@ -79,21 +96,41 @@ def protective_separation_distance(robot_speed, params: SeparationParameters = S
     return float(out) if out.ndim == 0 else out
 
 
-def point_capsule_distance(points, a, b, radius: float) -> np.ndarray:
-    """Signed distance (n,) [m] from points (n, 3) to the capsule of axis a-b (3,) and ``radius`` (< 0 inside)."""
+def point_capsule_distance(points, a, b, radius: float, gradient: bool = False):
+    """Signed distance (n,) [m] from points (n, 3) to the capsule of axis a-b (3,) and ``radius`` (< 0 inside).
+
+    ``gradient``: also the distance's gradient (n, 3) (unit vectors away from the capsule; zero on its axis).
+    """
     p = np.asarray(points, dtype=float)
     a = np.asarray(a, dtype=float)
     ab = np.asarray(b, dtype=float) - a
     den = float(ab @ ab)
     s = np.zeros(len(p)) if den == 0.0 else np.clip((p - a) @ ab / den, 0.0, 1.0)
-    return np.linalg.norm(p - (a + s[:, None] * ab), axis=1) - radius
+    off = p - (a + s[:, None] * ab)
+    r = np.linalg.norm(off, axis=1)
+    if not gradient:
+        return r - radius
+    return r - radius, off / np.maximum(r, 1e-300)[:, None]
 
 
-def point_box_distance(points_local, size) -> np.ndarray:
-    """Signed distance (n,) [m] from points (n, 3) in the box frame to a centred box of ``size`` (3,) (< 0 inside)."""
-    q = np.abs(np.asarray(points_local, dtype=float)) - 0.5 * np.asarray(size, dtype=float)
-    outside = np.linalg.norm(np.maximum(q, 0.0), axis=1)
-    return outside + np.minimum(q.max(axis=1), 0.0)
+def point_box_distance(points_local, size, gradient: bool = False):
+    """Signed distance (n,) [m] from points (n, 3) in the box frame to a centred box of ``size`` (3,) (< 0 inside).
+
+    ``gradient``: also the distance's gradient (n, 3) in the box frame (unit vectors; inside, the normal
+    of the nearest face).
+    """
+    p = np.asarray(points_local, dtype=float)
+    q = np.abs(p) - 0.5 * np.asarray(size, dtype=float)
+    out = np.maximum(q, 0.0)
+    outside = np.linalg.norm(out, axis=1)
+    d = outside + np.minimum(q.max(axis=1), 0.0)
+    if not gradient:
+        return d
+    g = out / np.maximum(outside, 1e-300)[:, None]
+    inside = outside == 0.0
+    g[inside] = 0.0
+    g[inside, np.argmax(q[inside], axis=1)] = 1.0
+    return d, g * np.where(p < 0.0, -1.0, 1.0)
 
 
 @dataclass(frozen=True)
@@ -103,7 +140,10 @@ class SeparationSample:
     ``distance`` [m] (< 0: overlap); ``robot_point`` (3,) [m] the closest robot
     surface point; ``robot_link`` and ``human_link`` the scene object names;
     ``robot_speed`` [m/s] the speed of the robot's closest point towards the
-    person (its velocity along the line to the person's nearest surface, >= 0).
+    person (its velocity along the line to the person's nearest surface, >= 0);
+    ``approach_speed`` [m/s] the largest such speed of any robot surface point
+    (each along the line to its own nearest body point; >= ``robot_speed``):
+    the v_r to give :func:`protective_separation_distance`.
     """
 
     t: float
@@ -112,6 +152,7 @@ class SeparationSample:
     robot_link: str
     human_link: str
     robot_speed: float
+    approach_speed: float
 
 
 def _body(scene, name: str, field: str):
@@ -164,33 +205,39 @@ class SeparationMonitor:
             idx.append(np.full(len(w), i))
         return np.concatenate(pts), np.concatenate(vel), np.concatenate(idx)
 
-    def human_distances(self, points, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """(distance (n,) [m] from points (n, 3) to the nearest body segment, that segment's link index (n,))."""
+    def human_distances(self, points, t: float, gradient: bool = False):
+        """(distance (n,) [m] from points (n, 3) to the nearest body segment, that segment's link index (n,)).
+
+        ``gradient``: also the distance's gradient (n, 3) (unit vectors pointing away from the body: minus
+        the direction from each point to its nearest body point), as a third item.
+        """
         st = self.person.state(t)
-        best = np.full(len(points), np.inf)
-        which = np.full(len(points), -1)
+        pts = np.asarray(points, dtype=float)
+        best = np.full(len(pts), np.inf)
+        which = np.full(len(pts), -1)
+        grad = np.zeros((len(pts), 3))
         for i, g, origin in self._prims:
             pose = st.pose(i) @ origin
             if isinstance(g, Box):
-                d = point_box_distance((np.asarray(points) - pose.position) @ pose.rotation, g.size)
+                d, gr = point_box_distance((pts - pose.position) @ pose.rotation, g.size, gradient=True)
+                gr = gr @ pose.rotation.T
             else:
                 h = 0.0 if isinstance(g, Sphere) else 0.5 * g.height
                 a = pose.apply(np.array([[0.0, 0.0, -h]]))[0]
                 b = pose.apply(np.array([[0.0, 0.0, h]]))[0]
-                d = point_capsule_distance(points, a, b, g.radius)
+                d, gr = point_capsule_distance(pts, a, b, g.radius, gradient=True)
             closer = d < best
-            best[closer], which[closer] = d[closer], i
-        return best, which
+            best[closer], which[closer], grad[closer] = d[closer], i, gr[closer]
+        return (best, which, grad) if gradient else (best, which)
 
     def at(self, t: float) -> SeparationSample:
         """The closest approach between the robot and the person at ``t`` [s]."""
         pts, vel, idx = self.robot_points(t)
-        d, seg = self.human_distances(pts, t)
+        d, seg, grad = self.human_distances(pts, t, gradient=True)
+        # Each point's speed towards the person: its velocity along minus the exact distance field's gradient
+        # (the line to its nearest body point).
+        towards = np.maximum(-np.einsum("ij,ij->i", vel, grad), 0.0)
         k = int(np.argmin(d))
-        # Direction to the person: the numerical gradient of the exact distance field at that point.
-        e = 1e-5
-        grad = np.array([(self.human_distances(pts[k:k + 1] + e * u, t)[0][0] - d[k]) / e for u in np.eye(3)])
-        towards = -grad / max(np.linalg.norm(grad), 1e-12)
         return SeparationSample(float(t), float(d[k]), pts[k], self.robot.object_name(
             self.robot.tree.links[idx[k]].name), self.person.object_name(self.person.tree.links[seg[k]].name),
-            max(0.0, float(vel[k] @ towards)))
+            float(towards[k]), float(towards.max()))

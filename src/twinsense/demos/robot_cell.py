@@ -63,8 +63,8 @@ FOREARM_LINK = "forearm_link"
 #: Wall sensor positions [m] (on the side wall, y = -3 m) and what they look at.
 WALL_TOF_EYE, WALL_TOF_TARGET = (0.3, -2.95, 2.0), (0.5, 0.0, 0.9)
 RADAR_EYE, RADAR_TARGET = (1.0, -2.95, 1.2), (1.1, 0.0, 1.0)
-#: The radar's waveform for micro-Doppler: 64 chirps at 100 us (10 kHz slow time, +-12.5 m/s, above the
-#: feet's ~5 m/s; 0.39 m/s Doppler cells), 64 samples; 96 x 48 rays.
+#: The radar's waveform for micro-Doppler: 64 chirps at 100 us (10 kHz slow time: +-13.1 m/s at the chirp's
+#: 57.4 GHz centre, above the feet's ~5 m/s; 0.41 m/s Doppler bins), 64 samples; 96 x 48 rays.
 RADAR_OVERRIDES = {"num_samples": 64, "num_chirps": 64, "chirp_repetition_time": 1.0e-4,
                    "ramp_end_time": 4.0e-5, "render_width": 96, "render_height": 48}
 #: The skin: flat, tangent to the forearm (radius 58 mm) 20 cm along it, its normal along the link's -y.
@@ -186,12 +186,29 @@ def torso_line(velocity_axis, power) -> np.ndarray:
 
 @dataclass(frozen=True)
 class SeparationTrace:
-    """Separations [m] per time (n,): true, per sensor (NaN when the sensor sees nobody), S_p."""
+    """Per time ``times`` (n,) [s]: the true separation ``true`` (n,) [m], the robot's speed towards the
+    person ``robot_speed`` (n,) [m/s] (its fastest approaching surface point: ISO/TS 15066's v_r) and the
+    protective separation distance S_p for it, ``protective`` (n,) [m]."""
 
     times: np.ndarray
     true: np.ndarray
     robot_speed: np.ndarray
     protective: np.ndarray
+
+
+def separation_trace(monitor: SeparationMonitor, times, params: SeparationParameters = SeparationParameters()
+                     ) -> SeparationTrace:
+    """The true separation and S_p at ``times`` (n,) [s].
+
+    v_r is the fastest approach of any robot surface point towards the person
+    (``SeparationSample.approach_speed``), not the closest point's: while the
+    hand holds by the forearm (3.6 s) the closest point moves away and a part
+    of the forearm 11 cm from the body approaches at 0.33 m/s, which S_p must
+    cover (+0.08 m)."""
+    samples = [monitor.at(float(t)) for t in times]
+    speed = np.array([s.approach_speed for s in samples])
+    return SeparationTrace(np.asarray(times, dtype=float), np.array([s.distance for s in samples]), speed,
+                           np.asarray(protective_separation_distance(speed, params)))
 
 
 def _robot_distance(monitor: SeparationMonitor, points, t: float, exclude) -> float:
@@ -268,11 +285,7 @@ def run_robot_cell_demo(out_dir, duration: float = CYCLE, progress: bool = False
     written["micro_doppler_png"] = _doppler_figure(t_md, vel, power, truth, out / "micro_doppler.png")
 
     monitor = SeparationMonitor(scene, ROBOT, PERSON)
-    times = np.arange(0.0, duration, 0.05)
-    samples = [monitor.at(float(t)) for t in times]
-    true = np.array([s.distance for s in samples])
-    speed = np.array([s.robot_speed for s in samples])
-    trace = SeparationTrace(times, true, speed, protective_separation_distance(speed, params))
+    trace = separation_trace(monitor, np.arange(0.0, duration, 0.05), params)
     cell = np.diff(vel[:2])[0] if len(vel) > 1 else 0.1
     tof = [(f.t, tof_separation(monitor, f)) for f in frames["wall_tof"]]
     radar = [(f.t, radar_separation(monitor, f, min_speed=cell)) for f in frames["radar"]]
@@ -337,8 +350,8 @@ def _separation_figure(trace: SeparationTrace, tof, radar, skin, monitor, params
     fig, (ax, ax2) = plt.subplots(2, 1, figsize=(8.0, 6.4), sharex=True, height_ratios=(3, 1))
     ax.plot(trace.times, trace.true, "k-", lw=2, label="true minimum distance (robot surface to body)")
     ax.plot(trace.times, trace.protective, "r--", lw=1.5,
-            label=f"ISO/TS 15066 S_p (v_h {params.human_speed} m/s, T_r {params.reaction_time} s, "
-                  f"T_s {params.stopping_time} s, C {params.intrusion_distance} m)")
+            label=f"ISO/TS 15066 S_p (v_r: fastest robot point towards the person; v_h {params.human_speed} m/s,"
+                  f"\nT_r {params.reaction_time} s, T_s {params.stopping_time} s, C {params.intrusion_distance} m)")
     stop = trace.true < trace.protective
     ax.fill_between(trace.times, 0, 1, where=stop, color="r", alpha=0.1, transform=ax.get_xaxis_transform(),
                     label="protective stop required")
