@@ -71,5 +71,5 @@ def test_limb_envelope_repeats_every_step(spectrogram):
     # Sub-frame peak: the vertex of the parabola through the peak and its neighbours.
     y0, y1, y2 = ac[best - 1], ac[best], ac[best + 1]
     peak = best + 0.5 * (y0 - y2) / (y0 - 2 * y1 + y2)
-    # Within one frame (0.05 s) of the step period (measured 10.3 frames = 0.517 s).
+    # Within one frame (0.05 s) of the step period (measured 10.7 frames = 0.534 s).
     assert abs(peak / FPS - step) <= 1.0 / FPS
