@@ -87,6 +87,17 @@ def test_protective_distance_rejects_bad_input_by_name():
         SeparationParameters(intrusion_distance=float("inf"))
 
 
+def test_separation_monitor_refuses_a_spacing_beyond_the_memory():
+    # A spacing that would subdivide the bar (0.016 m^2) into ~1e11 points: refused up front with the
+    # smallest spacing allowed (the subdivision would exhaust the memory otherwise).
+    bar = _one_link("robot", Box((1.0, 0.004, 0.004)))
+    scene = Scene()
+    scene.add_articulated(bar)
+    scene.add_articulated(_one_link("person", Sphere(0.1), base=Pose((0.0, 1.0, 0.0))))
+    with pytest.raises(ConfigError, match=r"spacing = 1e-06.*a spacing >= .* m for this robot"):
+        SeparationMonitor(scene, "robot", "person", spacing=1e-6)
+
+
 # A walker the radar tests do not use: 1.60 m tall, 1.0 m/s, walking away at 40 deg to the radar's boresight,
 # 3.4-6.0 m out, the radar 0.9 m up (below the thorax).
 HEIGHT, SPEED, HEADING, FPS, N_FRAMES = 1.6, 1.0, 40.0, 20.0, 60
