@@ -566,7 +566,7 @@ def scenario_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None 
         if len(parts) == 2:
             scene.add(SceneObject(os_.name, parts[0], mat, parts[1], frozenset(os_.layers), magnet))
     problems += _add_robots(spec, scene, base_dir, local_mats)
-    problems += _add_people(spec, scene)
+    problems += _add_people(spec, scene, local_mats, failed_mats)
     problems += _topic_clashes(spec)
     parents = [o.name for o in spec.objects] + [n for n in (*[o.name for o in scene.objects], *scene.frame_names)
                                                 if "/" in n]
@@ -676,8 +676,11 @@ def _topic_clashes(spec: ScenarioSpec) -> list:
     return problems
 
 
-def _add_people(spec: ScenarioSpec, scene: Scene) -> list:
-    """Add the ``people:`` entries to ``scene`` (one object per body link, "name/link"); their problems."""
+def _add_people(spec: ScenarioSpec, scene: Scene, local_mats: dict[str, Material], failed_mats: set) -> list:
+    """Add the ``people:`` entries to ``scene`` (one object per body link, "name/link"); their problems.
+
+    ``clothing`` may name one of the scenario's own materials (``local_mats``, which shadow the
+    library's names as for objects and robot links)."""
     from twinsense.scene import human as Hu
 
     problems = []
@@ -688,6 +691,13 @@ def _add_people(spec: ScenarioSpec, scene: Scene) -> list:
             continue
         if ps.name in {o.name for o in spec.objects}:  # as for robots: "table" and "table/pelvis"
             problems.append((f"people[{i}].name", ps.name, "a name no object of this scenario uses"))
+            continue
+        clothing = local_mats.get(ps.clothing, ps.clothing) if ps.clothing is not None else None
+        if ps.clothing in failed_mats:
+            continue  # the material's own entry is reported
+        if isinstance(clothing, str) and clothing not in material_names():
+            problems.append((f"people[{i}].clothing", ps.clothing,
+                             "one of: " + ", ".join(sorted({*material_names(), *local_mats}))))
             continue
         try:
             walk = turn = reach = None
@@ -701,7 +711,7 @@ def _add_people(spec: ScenarioSpec, scene: Scene) -> list:
                 r = ps.reach
                 reach = Hu.Reach(tuple(r.target), r.start_time, r.duration, r.hold, r.side)
             Hu.add_person(scene, ps.name, ps.height, tuple(ps.position), ps.heading_deg, walk=walk, turn=turn,
-                          reach=reach, sway=ps.sway, clothing=ps.clothing)
+                          reach=reach, sway=ps.sway, clothing=clothing)
         except ConfigError as e:
             problems.append((f"people[{i}].{e.field.removeprefix('person.')}", e.value, e.allowed))
     return problems

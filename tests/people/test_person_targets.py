@@ -210,3 +210,36 @@ def test_skin_is_as_good_a_mirror_at_60_ghz_as_fresnel_says():
     assert fresnel == pytest.approx(0.378, abs=0.001)
     assert get_material("human_skin").radar_specular == pytest.approx(fresnel, rel=0, abs=0.005)
     assert get_material("human").radar_specular == get_material("human_skin").radar_specular
+
+
+def test_scenario_clothing_may_be_one_of_the_scenarios_own_materials():
+    # Objects and robot links may use a scenario's materials (which shadow the library's names
+    # for that scenario); clothing was looked up in the library only: "denim" was refused and a
+    # scenario's own "fabric" ignored.
+    from twinsense.scenario import ScenarioError, scenario_from_dict
+
+    mats = [{"name": "denim", "base": "fabric", "nir_reflectance": 0.3},
+            {"name": "fabric", "base": "fabric", "nir_reflectance": 0.2}]
+    sc = scenario_from_dict({"duration": 0.1, "materials": mats,
+                             "people": [{"name": "a", "clothing": "denim"}, {"name": "b", "clothing": "fabric"},
+                                        {"name": "c", "clothing": "glass"}]})
+    assert sc.scene.object("a/thorax_clothing").material.nir_reflectance == 0.3
+    assert sc.scene.object("b/left_thigh_clothing").material.nir_reflectance == 0.2
+    assert sc.scene.object("c/abdomen_fill_clothing").material == get_material("glass")
+    assert sc.scene.object("a/thorax").material == get_material("human_skin")
+    with pytest.raises(ScenarioError, match=r"people\[0\]\.clothing = 'velvet': one of: .*denim"):
+        scenario_from_dict({"materials": mats, "people": [{"name": "a", "clothing": "velvet"}]})
+    # A broken material is reported once, at its own entry.
+    with pytest.raises(ScenarioError, match=r"1 problem\s+materials\[0\]\.nir_reflectance"):
+        scenario_from_dict({"materials": [{"name": "denim", "nir_reflectance": 3.0}],
+                            "people": [{"name": "a", "clothing": "denim"}]})
+
+
+def test_python_clothing_takes_a_material():
+    from twinsense.scene.materials import Material
+
+    denim = Material("denim_test", nir_reflectance=0.3)
+    tree = human_tree(H, clothing=denim)
+    assert tree.link("thorax_clothing").material == denim
+    with pytest.raises(ConfigError, match=r"person\.clothing"):
+        human_tree(H, clothing=3)

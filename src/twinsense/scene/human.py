@@ -45,7 +45,7 @@ from twinsense.errors import ConfigError, UnknownNameError
 from twinsense.scene.articulated import ArticulatedBody, Joint, JointMotion, KinematicTree, Link
 from twinsense.scene.gait import BODY_MODES, GaitTiming, LegGeometry, WalkCycle, smoothstep
 from twinsense.scene.geometry import Box, Capsule
-from twinsense.scene.materials import material_names
+from twinsense.scene.materials import Material, material_names
 from twinsense.scene.motion import Motion, MotionState, check_time
 from twinsense.scene.pose import Pose
 
@@ -120,17 +120,18 @@ def leg_geometry(height: float = 1.75) -> LegGeometry:
                        (FOOT_LENGTH - HEEL_BEHIND_ANKLE) * h, HIP_JOINT_HALF_WIDTH * h)
 
 
-def human_tree(height: float = 1.75, *, clothing: str | None = None, clothing_thickness: float = 0.004,
+def human_tree(height: float = 1.75, *, clothing: str | Material | None = None, clothing_thickness: float = 0.004,
                name: str = "human") -> KinematicTree:
     """An articulated human of ``height`` [m] standing at q = 0.
 
     The root link "pelvis" has its origin at the midpoint of the hip joints,
     x forward, y left, z up; at q = 0 the soles lie 0.530 H below it. All
     links are ``human_skin``. ``clothing`` (a material name such as
-    "fabric") adds a layer ``clothing_thickness`` [m] over the trunk, arms
-    and legs, seen only by ToF, camera, LiDAR and ultrasonic sensors (fabric
-    is nearly transparent to mm-wave radar, and capacitive and inductive
-    sensors respond to the body beneath).
+    "fabric", or a :class:`~twinsense.scene.materials.Material`) adds a layer
+    ``clothing_thickness`` [m] over the trunk, arms and legs, seen only by
+    ToF, camera, LiDAR and ultrasonic sensors (fabric is nearly transparent
+    to mm-wave radar, and capacitive and inductive sensors respond to the
+    body beneath).
 
     Joints (revolute, angles > 0): torso_rotation (left), torso_tilt
     (forward lean), neck_flexion (chin down), neck_rotation (left), and per
@@ -141,9 +142,9 @@ def human_tree(height: float = 1.75, *, clothing: str | None = None, clothing_th
     fixed to the forearms.
     """
     H = check_height(height)
-    if clothing is not None and not isinstance(clothing, str):
-        raise ConfigError("person.clothing", clothing, "a material name (e.g. 'fabric') or None")
-    if clothing is not None and clothing not in material_names():
+    if clothing is not None and not isinstance(clothing, (str, Material)):
+        raise ConfigError("person.clothing", clothing, "a material name (e.g. 'fabric'), a Material or None")
+    if isinstance(clothing, str) and clothing not in material_names():
         raise UnknownNameError("person.clothing", clothing, material_names())
     V.number("person.clothing_thickness", clothing_thickness, lo=0.0005, hi=0.05, unit="m")
     links: list[Link] = []
@@ -885,7 +886,8 @@ class PersonBase(Motion):
 
 def Walker(name: str = "person", height: float = 1.75, speed: float = 1.3, start=(0.0, 0.0),
            heading_deg: float | None = 0.0, path=None, start_time: float = 0.0, *,
-           reach: Reach | None = None, clothing: str | None = None, turn_length: float = 1.0) -> ArticulatedBody:
+           reach: Reach | None = None, clothing: str | Material | None = None,
+           turn_length: float = 1.0) -> ArticulatedBody:
     """A walking person as an :class:`ArticulatedBody` (add it with ``body.add_to(scene)``).
 
     Walks at ``speed`` [m/s] from ``start`` (floor point [m]) from
@@ -901,7 +903,7 @@ def Walker(name: str = "person", height: float = 1.75, speed: float = 1.3, start
 
 def person_body(name: str, height: float = 1.75, position=(0.0, 0.0), heading_deg: float = 0.0, *,
                 walk: Walk | None = None, turn: Turn | None = None, reach: Reach | None = None,
-                sway: float = 0.0, clothing: str | None = None) -> ArticulatedBody:
+                sway: float = 0.0, clothing: str | Material | None = None) -> ArticulatedBody:
     """A person (standing, turning, walking, reaching) as an :class:`ArticulatedBody`."""
     if not isinstance(name, str) or not name or "/" in name:
         raise ConfigError("person.name", name, "a non-empty name without '/' (it separates person and link names)")
@@ -912,7 +914,7 @@ def person_body(name: str, height: float = 1.75, position=(0.0, 0.0), heading_de
 
 def add_person(scene, name: str = "person", height: float = 1.75, position=(0.0, 0.0), heading_deg: float = 0.0,
                *, walk: Walk | None = None, turn: Turn | None = None, reach: Reach | None = None,
-               sway: float = 0.0, clothing: str | None = None) -> ArticulatedBody:
+               sway: float = 0.0, clothing: str | Material | None = None) -> ArticulatedBody:
     """Build a person (see :func:`person_body`) and add its links to ``scene`` as ``f"{name}/{link}"``."""
     body = person_body(name, height, position, heading_deg, walk=walk, turn=turn, reach=reach, sway=sway,
                        clothing=clothing)
