@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from twinsense.demos.robot_cell import PERSON, ROBOT, build_arm_cell_scene, separation_trace
+from twinsense.demos.robot_cell import PERSON, ROBOT, build_arm_cell_scene, run_robot_cell_demo, separation_trace
 from twinsense.errors import ConfigError
 from twinsense.radar import make_radar
 from twinsense.safety import SeparationMonitor, SeparationParameters, protective_separation_distance
@@ -96,6 +96,20 @@ def test_separation_monitor_refuses_a_spacing_beyond_the_memory():
     scene.add_articulated(_one_link("person", Sphere(0.1), base=Pose((0.0, 1.0, 0.0))))
     with pytest.raises(ConfigError, match=r"spacing = 1e-06.*a spacing >= .* m for this robot"):
         SeparationMonitor(scene, "robot", "person", spacing=1e-6)
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"radar_rate": -1.0}, r"radar_rate = -1.0.*> 0 \[Hz\]"),
+    ({"skin_rate": 0.0}, r"skin_rate = 0.0.*> 0 \[Hz\]"),
+    ({"seed": "x"}, r"seed = 'x'"),
+    ({"params": {"human_speed": 2.0}}, r"params = .*SeparationParameters"),
+])
+def test_demo_names_a_bad_argument_and_writes_nothing(tmp_path, kwargs, message):
+    # Each argument is named as given (not as the preset override or readout field it becomes), before the
+    # output folder is made: no empty folder, no recording without its figures.
+    with pytest.raises(ConfigError, match=message):
+        run_robot_cell_demo(tmp_path / "out", duration=0.05, fast=True, **kwargs)
+    assert not (tmp_path / "out").exists()
 
 
 # A walker the radar tests do not use: 1.60 m tall, 1.0 m/s, walking away at 40 deg to the radar's boresight,

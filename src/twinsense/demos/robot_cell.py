@@ -264,12 +264,18 @@ def run_robot_cell_demo(out_dir, duration: float = CYCLE, progress: bool = False
     ``processes``: capture processes of ``simulate`` (default 2 where processes can be forked, else 1;
     the same outputs either way).
     """
-    V.positive("duration", duration, "s")  # before the cell is built or any file written
+    # Every argument checked, and the cell built, before the output folder or any file is written.
+    V.positive("duration", duration, "s")
+    for name, rate in (("tof_rate", tof_rate), ("radar_rate", radar_rate), ("skin_rate", skin_rate)):
+        V.positive(name, rate, "Hz")
+    V.integer("seed", seed, lo=0)
+    if not isinstance(params, SeparationParameters):
+        raise ConfigError("params", params, "a twinsense.safety.SeparationParameters")
     if processes is not None:
-        check_processes(processes)  # before the cell is built or any file written
+        check_processes(processes)
+    scene, sensors = build_arm_cell(tof_rate=tof_rate, radar_rate=radar_rate, skin_rate=skin_rate, fast=fast)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    scene, sensors = build_arm_cell(tof_rate=tof_rate, radar_rate=radar_rate, skin_rate=skin_rate, fast=fast)
     if processes is None:
         # The cell's lanes in 2 processes: 0.86 s per scene second from 0.9 s on 2 idle cores, against 1.03-1.15
         # one after another (bench_robot_cell.py, docs/simulate.md).
