@@ -113,7 +113,7 @@ def test_demo_names_a_bad_argument_and_writes_nothing(tmp_path, kwargs, message)
 
 
 # A walker the radar tests do not use: 1.60 m tall, 1.0 m/s, walking away at 40 deg to the radar's boresight,
-# 3.4-6.0 m out, the radar 0.9 m up (below the thorax).
+# 3.7-6.5 m out, the radar 0.9 m up (below the thorax).
 HEIGHT, SPEED, HEADING, FPS, N_FRAMES = 1.6, 1.0, 40.0, 20.0, 60
 START = np.array([2.0, -0.3])
 T_START = -2.0  # walking since -2 s: the start blend (0.6 s) is over
