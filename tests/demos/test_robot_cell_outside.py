@@ -180,7 +180,7 @@ def test_walker_limbs_repeat_at_the_step_period_and_reach_the_feet_speed(walker_
     spec = np.abs(np.fft.rfft(x * np.hanning(len(x)), 4096))
     freqs = np.fft.rfftfreq(4096, 1.0 / FPS)
     period = 1.0 / freqs[1:][np.argmax(spec[1:])]
-    assert period == pytest.approx(step, rel=0, abs=1.0 / FPS)  # measured 0.626 s
+    assert period == pytest.approx(step, rel=0, abs=1.0 / FPS)  # measured 0.632 s
     # The limb envelope (the fastest bin 10 dB above the noise) reaches beyond 2.5 v, and no bin stands out
     # faster than the limbs' true fastest radial speed (4.2 v here) plus one bin.
     extent = np.array([np.abs(vel[r > 10 * n]).max(initial=0.0) for r, n in zip(power, noise)])
