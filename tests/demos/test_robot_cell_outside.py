@@ -9,12 +9,13 @@ import math
 
 import numpy as np
 import pytest
+import trimesh
 
 from twinsense.demos.robot_cell import PERSON, ROBOT, build_arm_cell_scene, run_robot_cell_demo, separation_trace
 from twinsense.errors import ConfigError
 from twinsense.radar import make_radar
 from twinsense.safety import SeparationMonitor, SeparationParameters, protective_separation_distance
-from twinsense.scene import Box, JointConstantVelocity, Mount, Pose, Scene, Sphere
+from twinsense.scene import Box, Capsule, JointConstantVelocity, Mount, Pose, Scene, Sphere
 from twinsense.scene.articulated import ArticulatedBody, Joint, KinematicTree, Link
 from twinsense.scene.human import Walk, add_person
 
@@ -59,6 +60,34 @@ def test_protective_distance_takes_the_fastest_approaching_robot_point():
     # S_p for that v_r: 1.6 (0.1 + 0.3) + v_r (0.1 + 0.3 / 2) + 0.26 = 0.9 + 0.25 v_r [m].
     assert protective_separation_distance(s.approach_speed) == pytest.approx(0.9 + 0.25 * v_max, rel=0,
                                                                                abs=0.25 * tol)
+
+
+@pytest.mark.parametrize("person, centre, radius", [("sphere", (0.7, 0.4, 1.0), 0.15),
+                                                    ("touching capsule", (0.3, 0.2, 1.0), 0.15),
+                                                    ("overlapping capsule", (0.3, 0.15, 1.0), 0.2)])
+def test_separation_of_a_rotating_box_link_matches_trimesh(person, centre, radius):
+    # A 0.6 x 0.1 x 0.1 m box link turning about z at 1 rad/s from its end; a person's sphere, or a vertical
+    # capsule that touches (then overlaps by 0.1 m) the box's +y face at t = 0. Reference: trimesh's exact
+    # closest point on the box mesh to the sphere's centre (or to the capsule's axis point at the box's
+    # height, its nearest), minus the radius. The monitor's subdivided vertices overestimate by at most
+    # spacing / sqrt(3) and never underestimate; on a box the vertices lie on the faces, so closer still.
+    scene = Scene()
+    scene.add_articulated(_one_link("robot", Box((0.6, 0.1, 0.1)), JointConstantVelocity([0.0], [1.0]),
+                                    Pose((0.0, 0.0, 1.0)), kind="revolute", axis=(0.0, 0.0, 1.0),
+                                    origin=Pose((0.3, 0.0, 0.0))))
+    geometry = Sphere(radius) if person == "sphere" else Capsule(radius, 0.6)
+    scene.add_articulated(_one_link("person", geometry, base=Pose(centre)))
+    monitor = SeparationMonitor(scene, "robot", "person", spacing=0.01)
+    for t in (0.0, 0.3, 0.6) if person == "sphere" else (0.0,):
+        box = trimesh.creation.box((0.6, 0.1, 0.1))
+        box.apply_transform(trimesh.transformations.rotation_matrix(t, (0, 0, 1)) @
+                            trimesh.transformations.translation_matrix((0.3, 0.0, 0.0)))
+        box.apply_translation((0.0, 0.0, 1.0))
+        _, gap, _ = trimesh.proximity.closest_point(box, [centre])
+        inside = box.contains([centre])[0]
+        true = (-gap[0] if inside else gap[0]) - radius
+        d = monitor.at(t).distance
+        assert true - 1e-9 <= d <= true + monitor.spacing / math.sqrt(3), (t, d, true)
 
 
 def test_robot_cell_trace_draws_s_p_for_the_fastest_approach():
