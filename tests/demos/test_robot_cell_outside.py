@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import trimesh
 
+from twinsense.demos import robot_cell
 from twinsense.demos.robot_cell import PERSON, ROBOT, build_arm_cell_scene, run_robot_cell_demo, separation_trace
 from twinsense.errors import ConfigError
 from twinsense.radar import make_radar
@@ -139,6 +140,23 @@ def test_demo_names_a_bad_argument_and_writes_nothing(tmp_path, kwargs, message)
     with pytest.raises(ConfigError, match=message):
         run_robot_cell_demo(tmp_path / "out", duration=0.05, fast=True, **kwargs)
     assert not (tmp_path / "out").exists()
+
+
+def test_spectrogram_rows_sit_on_their_doppler_bins(tmp_path, monkeypatch):
+    # 64 Doppler bins of 0.408 m/s centred on -13.06 ... +12.65 m/s: the image must span the bins' edges,
+    # centre -/+ half a bin, so that row k is drawn centred on velocity k (and frame j on time j).
+    vel = (np.arange(64) - 32) * 0.408
+    t = np.arange(5) * 0.05
+    shown, save = {}, robot_cell.save_figure
+
+    def keep(fig, path):
+        shown["extent"] = fig.axes[0].images[0].get_extent()
+        return save(fig, path)
+
+    monkeypatch.setattr(robot_cell, "save_figure", keep)
+    robot_cell._doppler_figure(t, vel, np.ones((5, 64)), np.zeros(5), tmp_path / "md.png")
+    np.testing.assert_allclose(shown["extent"], [-0.025, 0.225, vel[0] - 0.204, vel[-1] + 0.204], rtol=0,
+                               atol=1e-12)
 
 
 # A walker the radar tests do not use: 1.60 m tall, 1.0 m/s, walking away at 40 deg to the radar's boresight,
