@@ -151,12 +151,15 @@ def test_spectrogram_rows_sit_on_their_doppler_bins(tmp_path, monkeypatch):
 
     def keep(fig, path):
         shown["extent"] = fig.axes[0].images[0].get_extent()
+        shown["labels"] = [ax.get_ylabel() for ax in fig.axes]
         return save(fig, path)
 
     monkeypatch.setattr(robot_cell, "save_figure", keep)
     robot_cell._doppler_figure(t, vel, np.ones((5, 64)), np.zeros(5), tmp_path / "md.png")
     np.testing.assert_allclose(shown["extent"], [-0.025, 0.225, vel[0] - 0.204, vel[-1] + 0.204], rtol=0,
                                atol=1e-12)
+    # The colours are labelled too: power in dB relative to the strongest bin.
+    assert shown["labels"] == ["radial velocity [m/s] (> 0 away)", "power [dB re the strongest bin]"]
 
 
 # A walker the radar tests do not use: 1.60 m tall, 1.0 m/s, walking away at 40 deg to the radar's boresight,

@@ -343,8 +343,9 @@ def _doppler_figure(t, vel, power, truth, path: Path) -> Path:
     dv = np.diff(vel).mean() if len(vel) > 1 else 0.1
     # The image's edges are the bins' edges, half a bin beyond the first and last centres on both axes (from
     # centre to centre, each Doppler row was drawn 63/64 of a bin high: up to half a bin off at the ends).
-    ax.imshow(db.T, origin="lower", aspect="auto", cmap="magma", vmin=-40, vmax=0,
-              extent=(t[0] - dt / 2, t[-1] + dt / 2, vel[0] - dv / 2, vel[-1] + dv / 2))
+    im = ax.imshow(db.T, origin="lower", aspect="auto", cmap="magma", vmin=-40, vmax=0,
+                   extent=(t[0] - dt / 2, t[-1] + dt / 2, vel[0] - dv / 2, vel[-1] + dv / 2))
+    fig.colorbar(im, ax=ax, label="power [dB re the strongest bin]", fraction=0.04)
     ax.plot(t, truth, "c-", lw=1.5, label="thorax radial speed (truth)")
     ax.set_xlabel("time [s]")
     ax.set_ylabel("radial velocity [m/s] (> 0 away)")
