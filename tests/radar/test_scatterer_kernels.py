@@ -13,13 +13,12 @@ tolerance is zero: every array is compared byte for byte.
 
 from __future__ import annotations
 
-import math
-import types
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from libm_numpy import use_libm
 from twinsense.errors import ConfigError
 from twinsense.radar import FMCWRadar, ScatterRenderer, preset_config
 from twinsense.radar.scatterer_kernels import count_weighted, moving_mask
@@ -29,33 +28,12 @@ ROOT = Path(__file__).resolve().parents[2]
 FIELDS = ("points", "velocities", "rcs", "object_id", "bounces")
 
 
-class _LibmNumpy(types.ModuleType):
-    """NumPy, but ``arccos`` and ``exp`` through libm (``math``), as the compiled kernel calls them."""
-
-    def __getattr__(self, name):
-        return getattr(np, name)
-
-    @staticmethod
-    def _libm(f, x, out):
-        y = np.frompyfunc(f, 1, 1)(x).astype(float)
-        if out is None:
-            return y
-        out[...] = y
-        return out
-
-    def arccos(self, x, out=None):
-        return self._libm(math.acos, x, out)
-
-    def exp(self, x, out=None):
-        return self._libm(math.exp, x, out)
-
-
 @pytest.fixture(autouse=True)
 def _reference_lobe_through_libm(monkeypatch):
     """The NumPy form's specular lobe (``radiometry.backscatter_rcs``) with libm's acos and exp."""
     import twinsense.radar.radiometry as radiometry
 
-    monkeypatch.setattr(radiometry, "np", _LibmNumpy("numpy"))
+    use_libm(monkeypatch, radiometry)
 
 
 def _same_bytes(a, b) -> bool:

@@ -54,3 +54,14 @@ def _small_config_fixture():
 @pytest.fixture(name="look_x")
 def _look_x_fixture():
     return LOOK_X
+
+
+@pytest.fixture
+def libm_reference(monkeypatch):
+    """The ToF chain's NumPy reference (phase and amplitude, beam profile, specular power) with
+    libm's arctan2, hypot, power and exp, as the compiled kernels call them (``tests/libm_numpy.py``)."""
+    import twinsense.tof.demodulation as demodulation
+    import twinsense.tof.signal as signal
+    from libm_numpy import use_libm
+
+    use_libm(monkeypatch, demodulation, signal)

@@ -17,6 +17,9 @@ from twinsense.tof.effects import crosstalk
 from twinsense.tof.pipeline import expected_raw, finish_geometry, run_chain
 from twinsense.tof.signal import beam_profile, pixel_phasors
 
+#: The NumPy reference with libm's transcendental functions, as the compiled kernels call them.
+pytestmark = pytest.mark.usefixtures("libm_reference")
+
 
 def test_plane_depth_is_exact_without_noise_pico_flexx_with_distortion(wall_scene, look_x):
     """Plane at a known distance through the full device model (calibrated distortion, 2x2 SS)."""

@@ -23,6 +23,9 @@ from twinsense.tof.frame import FrameProducts, InvalidReason, ToFFrame
 from twinsense.tof.normals import standard_normals
 from twinsense.tof.pipeline import NOISE_BLOCK_ROWS, draw_noise_slabs, noise_rows, noise_seeds, slab_noise
 
+#: The NumPy reference with libm's transcendental functions, as the compiled kernels call them.
+pytestmark = pytest.mark.usefixtures("libm_reference")
+
 LOOK_X = Pose.look_at((0.0, 0.0, 0.0), (1.0, 0.0, 0.0))
 FIELDS = ("raw", "gray", "amplitude", "distance", "depth", "noise", "confidence", "invalid",
           "points_sensor", "points_world")

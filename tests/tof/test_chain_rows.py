@@ -18,6 +18,9 @@ from twinsense.tof import ToFCamera, ToFConfig
 from twinsense.tof.chain_kernels import ChainRows, chain_frame
 from twinsense.tof.pipeline import NOISE_BLOCK_ROWS, draw_noise_slabs, noise_seeds
 
+#: The NumPy reference with libm's transcendental functions, as the compiled kernels call them.
+pytestmark = pytest.mark.usefixtures("libm_reference")
+
 FIELDS = ("raw", "gray", "amplitude", "distance", "depth", "noise", "confidence", "invalid",
           "points_sensor", "points_world")
 LOOK_X = Pose.look_at((0.0, 0.0, 0.0), (1.0, 0.0, 0.0))

@@ -15,6 +15,9 @@ from twinsense.tof.kernels import hits_to_phasors
 from twinsense.tof.rendering import material_table, surface_samples
 from twinsense.tof.signal import pixel_phasors
 
+#: The NumPy reference with libm's transcendental functions, as the compiled kernels call them.
+pytestmark = pytest.mark.usefixtures("libm_reference")
+
 # Cameras: conftest.py's make_camera / small_config (31 x 23 px, no noise unless overridden) at look_x.
 
 

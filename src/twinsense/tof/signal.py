@@ -100,7 +100,7 @@ def radiance_factor(albedo: np.ndarray, specular: np.ndarray, retroreflective: n
 def _power(x: np.ndarray, exponent: float) -> np.ndarray:
     """x ** exponent; whole exponents up to 256 by repeated squaring (5-10x faster than powf)."""
     if exponent != int(exponent) or not 1 <= exponent <= 256:
-        return x ** np.float32(exponent)
+        return np.power(x, np.float32(exponent))  # x ** e, by name: the tests swap in libm's powf
     e = int(exponent)
     result = None
     base = x
