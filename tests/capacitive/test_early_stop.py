@@ -81,13 +81,13 @@ def test_same_bytes_as_the_classic_rule_where_no_column_stops_at_step_three():
         assert a.full.tobytes() == b.full.tobytes()
 
 
-def test_warm_frames_of_a_moving_hand_stop_earlier_and_stay_within_the_tolerance():
-    # The FDC1004 at 20 frames/s (0.21 fF rms; the frames may err by a tenth of it, capacitance_atol),
-    # a grounded hand crossing two pads; each warm frame against a cold tight solve of the same state.
+def _warm_frames(velocity) -> tuple[dict, dict, float]:
+    """CG steps over 8 warm frames and the worst Maxwell error against a cold tight solve of each
+    state, with the early rule off and on ({early: value}); and capacitance_atol [F]."""
     ro = ReadoutConfig(sample_rate=20.0, noise_rms=30e-12 / 2**16, noise_rate=100.0)
     mesh = dataclasses.replace(two_pad_config().mesh, object_cells=0.0)
     hand = SceneObject("hand", HAND, Material("hand", conductor="grounded"),
-                       ConstantVelocity(Pose((-0.02, 0.0, 0.02)), velocity=(0.2, 0.0, -0.05)))
+                       ConstantVelocity(Pose((-0.02, 0.0, 0.02)), velocity=velocity))
     scene = Scene([hand])
     times = [0.02 * k for k in range(8)]
     cold = CapacitiveSensor(two_pad_config(mesh, readout=ro), name="skin")
@@ -107,12 +107,27 @@ def test_warm_frames_of_a_moving_hand_stop_earlier_and_stay_within_the_tolerance
             frame = warm.capture(scene, t)
             steps[early] += int(frame.iterations.sum())
             worst[early] = max(worst[early], float(np.max(np.abs(frame.maxwell - ref))))
+    return steps, worst, atol
+
+
+def test_warm_frames_of_a_moving_hand_stop_earlier_and_stay_within_the_tolerance():
+    # The FDC1004 at 20 frames/s (0.21 fF rms; the frames may err by a tenth of it, capacitance_atol),
+    # a grounded hand crossing two pads at 0.2 and at 0.05 m/s.
+    saved = 0
+    for velocity in ((0.2, 0.0, -0.05), (0.05, 0.0, -0.0125)):
+        steps, worst, atol = _warm_frames(velocity)
         # Every Maxwell entry within capacitance_atol of the direct solve (the per-terminal tolerance;
         # off-diagonals by Cauchy-Schwarz within the diagonal errors' geometric mean). Measured: 0.31 x
-        # atol both, 67 and 65 CG steps over the 8 frames; the rule is deterministic, so the bound
-        # holds with the margin measured here, not by luck of a draw.
-        assert worst[early] <= atol
-    assert steps[True] < steps[False]
+        # atol at 0.2 m/s; the rule is deterministic, so the bound holds with the margin measured here,
+        # not by luck of a draw.
+        assert worst[False] <= atol and worst[True] <= atol, (velocity, worst, atol)
+        assert steps[True] <= steps[False], velocity
+        saved += steps[False] - steps[True]
+    # A column stops early only where its third step already meets the rule, so how many steps are
+    # saved depends on the machine's rounding: over the 8 frames, 67 -> 65 CG steps at 0.2 m/s on one
+    # machine; 73 -> 73 at 0.2 m/s and 60 -> 57 at 0.05 m/s on another (AVX-512). Never more steps,
+    # and fewer over the two speeds.
+    assert saved > 0
 
 
 @pytest.mark.parametrize("bad", ["yes", 1, None, np.bool_(True)])

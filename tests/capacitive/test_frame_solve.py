@@ -82,6 +82,17 @@ def _base_hierarchy(system) -> tuple[BlockAMG, sp.csr_matrix]:
 
 def test_refreshed_coarse_operators_are_the_restricted_galerkin_products(frame):
     ml, _ = _base_hierarchy(frame)
+    # The grounded blob plus the whole support of the coarse unknown it covers most, so at least one
+    # coarse unknown loses all its support (which nodes the aggregation groups varies with the AMG
+    # build's rounding: on one machine the blob alone covered whole aggregates, on another none).
+    support = ml.P[0].tocsc()
+    support.data[:] = 1.0
+    covered = np.asarray(support.T @ frame.dyn_ground.astype(float)).ravel()
+    per_unknown = np.diff(support.indptr)
+    j = int(np.argmax(covered / np.maximum(per_unknown, 1)))
+    grounded = frame.dyn_ground.copy()
+    grounded[support.indices[support.indptr[j]:support.indptr[j + 1]]] = True
+    frame.set_conductors(grounded, frame.floating)
     A, _, _, fixed, _ = split_system(frame)
     free = ~fixed
     ref = _restricted_galerkin(ml, A, free)
