@@ -191,7 +191,10 @@ def _cameras(scene, t):
     objs = {o.name: o for o in scene.objects}
     thorax = objs["person/thorax"]
     mesh = thorax.geometry.mesh
-    inside = thorax.pose_at(t).apply(0.5 * (mesh.vertices.min(axis=0) + mesh.vertices.max(axis=0)))
+    # 1 cm below the chest roll's centre: the top face of the trunk's fill (person/thorax_fill) passes
+    # through that centre, and rays starting on a surface hit it at 1e-16 m or not at all by rounding.
+    centre = 0.5 * (mesh.vertices.min(axis=0) + mesh.vertices.max(axis=0))
+    inside = thorax.pose_at(t).apply(centre - (0.0, 0.0, 0.01))
     table = objs["table"]
     tm = table.geometry.mesh
     in_table = table.pose_at(t).apply(0.5 * (tm.vertices.min(axis=0) + tm.vertices.max(axis=0)))
