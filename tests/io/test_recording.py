@@ -40,6 +40,28 @@ def test_round_trip(tmp_path):
     assert not list(tmp_path.glob(".*tmp"))  # no temporary file left behind
 
 
+def test_a_sensor_indexed_by_frame_gives_every_stream_of_that_frame(tmp_path):
+    p = tmp_path / "rec.h5"
+    write(p)
+    with open_recording(p) as rec:
+        cam = rec["cam"]
+        for i, k in ((3, 3), (-1, 4), (np.int64(0), 0)):
+            frame = cam[i]
+            assert sorted(frame) == ["depth", "ids", "timestamps"]
+            assert frame["timestamps"] == pytest.approx(k / 10, rel=0, abs=1e-15)
+            np.testing.assert_array_equal(frame["depth"], np.full((3, 4), k, np.float32))
+            np.testing.assert_array_equal(frame["ids"], np.arange(4) + k)
+        with pytest.raises(IndexError, match=r"cam\[5\]: the sensor has 5 frames \(indices -5\.\.4\)"):
+            cam[5]
+        with pytest.raises(IndexError, match="5 frames"):
+            cam[-6]
+        for bad in (1.5, True, None, slice(0, 2)):
+            with pytest.raises(TypeError, match="a stream name .*depth, ids.* or a frame index"):
+                cam[bad]
+        with pytest.raises(ConfigError, match="depht"):
+            cam["depht"]
+
+
 def test_interrupted_run_keeps_previous_output_and_marks_partial(tmp_path):
     p = tmp_path / "rec.h5"
     write(p, n=2)

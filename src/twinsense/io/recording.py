@@ -513,10 +513,21 @@ class SensorRecording:
     def stream_names(self) -> list[str]:
         return sorted(k for k in self._g if k != "timestamps")
 
-    def __getitem__(self, stream: str) -> StreamDataset:
-        if stream not in self._g:
-            raise UnknownNameError(f"{self.name} stream", stream, ["timestamps", *self.stream_names])
-        return StreamDataset(self._g[stream], self._path)
+    def __getitem__(self, key: str | int) -> StreamDataset | dict:
+        """``rec["tof"]["depth"]``: a stream (read lazily); ``rec["tof"][10]``: frame 10 of every
+        stream as ``{"timestamps": t [s], stream: array}`` (negative indices count from the end)."""
+        if isinstance(key, (int, np.integer)) and not isinstance(key, (bool, np.bool_)):
+            n = len(self)
+            if not -n <= key < n:
+                raise IndexError(f"{self.name}[{key}]: the sensor has {n} frames (indices {-n}..{n - 1})")
+            i = int(key) % n
+            return {name: StreamDataset(self._g[name], self._path)[i] for name in ["timestamps", *self.stream_names]}
+        if not isinstance(key, str):
+            raise TypeError(f"{self.name}[{key!r}]: a stream name (one of: timestamps, "
+                            f"{', '.join(self.stream_names)}) or a frame index (int), not {type(key).__name__}")
+        if key not in self._g:
+            raise UnknownNameError(f"{self.name} stream", key, ["timestamps", *self.stream_names])
+        return StreamDataset(self._g[key], self._path)
 
     def __len__(self) -> int:
         return int(self._g["timestamps"].shape[0])
