@@ -4,7 +4,7 @@ Messages are ROS 2 messages (``ros2msg`` schemas, CDR encoding) written with
 the ``mcap`` and ``mcap-ros2-support`` libraries (the ``ros2`` extra). The
 converter reads only the recording: each sensor's streams and its
 ``config`` JSON, and, for the poses of the scene's objects and mount frames
-on ``/tf``, the joint states of its robots and people, and radar
+on ``/tf``, their geometry on ``/scene_markers``, the joint states of its robots and people, and radar
 detections (derived from the recorded ADC codes), the scene and
 sensors the caller rebuilds from the recording's scenario (``twinsense
 convert`` does this). One builder per sensor kind makes its messages
@@ -86,6 +86,25 @@ ROS_MSGDEFS: dict[str, str] = {
     "sensor_msgs/msg/JointState": _with_deps(
         "std_msgs/Header header\nstring[] name\nfloat64[] position\nfloat64[] velocity\nfloat64[] effort\n",
         *_HEADER_DEPS),
+    "visualization_msgs/msg/MarkerArray": _with_deps(
+        "visualization_msgs/Marker[] markers\n",
+        ("visualization_msgs/Marker",
+         "int32 ARROW=0\nint32 CUBE=1\nint32 SPHERE=2\nint32 CYLINDER=3\nint32 LINE_STRIP=4\nint32 LINE_LIST=5\n"
+         "int32 CUBE_LIST=6\nint32 SPHERE_LIST=7\nint32 POINTS=8\nint32 TEXT_VIEW_FACING=9\nint32 MESH_RESOURCE=10\n"
+         "int32 TRIANGLE_LIST=11\nint32 ADD=0\nint32 MODIFY=0\nint32 DELETE=2\nint32 DELETEALL=3\n"
+         "std_msgs/Header header\nstring ns\nint32 id\nint32 type\nint32 action\ngeometry_msgs/Pose pose\n"
+         "geometry_msgs/Vector3 scale\nstd_msgs/ColorRGBA color\nbuiltin_interfaces/Duration lifetime\n"
+         "bool frame_locked\ngeometry_msgs/Point[] points\nstd_msgs/ColorRGBA[] colors\nstring texture_resource\n"
+         "sensor_msgs/CompressedImage texture\nvisualization_msgs/UVCoordinate[] uv_coordinates\nstring text\n"
+         "string mesh_resource\nvisualization_msgs/MeshFile mesh_file\nbool mesh_use_embedded_materials\n"),
+        *_HEADER_DEPS,
+        ("geometry_msgs/Pose", "geometry_msgs/Point position\ngeometry_msgs/Quaternion orientation\n"),
+        ("geometry_msgs/Point", _VEC), ("geometry_msgs/Quaternion", _QUAT), ("geometry_msgs/Vector3", _VEC),
+        ("std_msgs/ColorRGBA", "float32 r\nfloat32 g\nfloat32 b\nfloat32 a\n"),
+        ("builtin_interfaces/Duration", _TIME),
+        ("sensor_msgs/CompressedImage", "std_msgs/Header header\nstring format\nuint8[] data\n"),
+        ("visualization_msgs/UVCoordinate", "float32 u\nfloat32 v\n"),
+        ("visualization_msgs/MeshFile", "string filename\nuint8[] data\n")),
 }
 
 _RADAR_CUBE = ("std_msgs/Header header\nuint32 n_rx\nuint32 n_chirps\nuint32 n_samples\n"
@@ -212,6 +231,70 @@ def scene_transforms(scene: Scene) -> tuple[list[tuple[str, str, Pose]], list]:
         else:
             moving.append(item)
     return static, moving
+
+
+#: Colour (r, g, b, a in 0..1) of a scene object's geometry by its material's name, on the Foxglove
+#: ``/scene`` topic and the MCAP ``/scene_markers`` topic (docs/streaming.md lists them). Metals are greys
+#: (aluminium lightest), copper and brass their own hues, glass translucent; a material not listed (a
+#: user's) is :data:`OTHER_COLOR`.
+MATERIAL_COLORS: dict[str, tuple[float, float, float, float]] = {
+    "metal": (0.50, 0.52, 0.55, 1.0), "mild_steel": (0.50, 0.52, 0.55, 1.0),
+    "floating_metal": (0.45, 0.47, 0.62, 1.0), "stainless_steel": (0.66, 0.68, 0.70, 1.0),
+    "aluminium": (0.78, 0.80, 0.83, 1.0), "brass": (0.78, 0.64, 0.28, 1.0), "copper": (0.72, 0.44, 0.20, 1.0),
+    "wood": (0.60, 0.42, 0.24, 1.0), "drywall": (0.92, 0.91, 0.87, 1.0), "concrete": (0.58, 0.58, 0.56, 1.0),
+    "plastic": (0.25, 0.45, 0.80, 1.0), "glass": (0.70, 0.85, 0.95, 0.35), "fabric": (0.55, 0.30, 0.45, 1.0),
+    "human_skin": (0.90, 0.72, 0.60, 1.0), "human": (0.90, 0.72, 0.60, 1.0),
+    "ir_reflector": (0.95, 0.90, 0.30, 1.0), "corner_reflector": (0.85, 0.20, 0.20, 1.0),
+    "radar_corner_reflector": (0.85, 0.20, 0.20, 1.0), "silicone": (0.85, 0.85, 0.80, 1.0),
+    "air": (1.0, 1.0, 1.0, 0.1),
+}
+#: Colour of a material :data:`MATERIAL_COLORS` does not list.
+OTHER_COLOR = (0.70, 0.70, 0.70, 1.0)
+
+
+def material_color(material) -> tuple[float, float, float, float]:
+    """(r, g, b, a) in 0..1 of a material (a ``Material`` or its name): :data:`MATERIAL_COLORS`."""
+    return MATERIAL_COLORS.get(getattr(material, "name", material), OTHER_COLOR)
+
+
+def scene_triangles(obj) -> np.ndarray:
+    """(3 m, 3) float64 [m]: the corners of each of an object's m mesh triangles, in the object's frame.
+
+    Triangle after triangle (faces' vertices in order), as ``TRIANGLE_LIST`` markers list them: the same
+    mesh the sensors see (``obj.geometry.mesh``), vertex values copied as they are.
+    """
+    mesh = obj.geometry.mesh
+    return np.asarray(mesh.vertices, dtype=np.float64)[np.asarray(mesh.faces).ravel()]
+
+
+#: ``ns`` of the scene's markers.
+SCENE_MARKER_NS = "twinsense/scene"
+
+
+def scene_markers(scene: Scene, ns: int) -> dict:
+    """A ``visualization_msgs/MarkerArray`` of every scene object's geometry, stamped ``ns``.
+
+    One ``TRIANGLE_LIST`` marker per object (``id`` its index in ``scene.objects``, ``ns``
+    :data:`SCENE_MARKER_NS`), in the object's own frame (``frame_id`` = its name, the child frame
+    ``/tf`` and ``/tf_static`` publish) at the identity pose, ``frame_locked`` so that it follows that
+    frame; ``points`` the triangles' corners (:func:`scene_triangles`), ``scale`` 1, ``color`` the
+    material's (:data:`MATERIAL_COLORS`), ``lifetime`` 0 (for ever).
+    """
+    zero = {"x": 0.0, "y": 0.0, "z": 0.0}
+    empty_header = _header(0, "")
+    markers = []
+    for i, o in enumerate(scene.objects):
+        r, g, b, a = material_color(o.material)
+        markers.append({
+            "header": _header(ns, o.name), "ns": SCENE_MARKER_NS, "id": i, "type": 11, "action": 0,
+            "pose": {"position": zero, "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
+            "scale": {"x": 1.0, "y": 1.0, "z": 1.0}, "color": {"r": r, "g": g, "b": b, "a": a},
+            "lifetime": {"sec": 0, "nanosec": 0}, "frame_locked": True,
+            "points": [{"x": x, "y": y, "z": z} for x, y, z in scene_triangles(o).tolist()], "colors": [],
+            "texture_resource": "", "texture": {"header": empty_header, "format": "", "data": b""},
+            "uv_coordinates": [], "text": "", "mesh_resource": "", "mesh_file": {"filename": "", "data": b""},
+            "mesh_use_embedded_materials": False})
+    return {"markers": markers}
 
 
 def body_frame(body) -> str:
@@ -527,7 +610,8 @@ def write_mcap(rec: Recording, out, scene: Scene | None = None, sensors: dict[st
     ``/tf`` (moving ones at each frame time) and ``/tf_static`` (static
     ones), and one ``/<body>/joint_states`` per articulated body (robots,
     people) at each frame time (a body at rest too); without it only the
-    sensors' frames are published.
+    sensors' frames are published. With a scene of objects, ``/scene_markers`` carries their geometry
+    once, at the first frame time (:func:`scene_markers`).
     ``sensors`` (name -> sensor, rebuilt from the same scenario) lets a
     builder derive what the recording does not store: radar detections.
     The file is written under a temporary name beside ``out`` and renamed
@@ -570,6 +654,9 @@ def _write(writer, rec: Recording, scene: Scene | None, sensors: dict[str, Any])
         bodies = scene.articulated_bodies
     emit("/tf_static", "tf2_msgs/msg/TFMessage",
          {"transforms": [_transform(t_first, p, c, pose) for p, c, pose in static]}, t_first)
+    if scene is not None and len(scene):
+        # The geometry once, at the start: each marker is frame-locked to its object's /tf frame.
+        emit("/scene_markers", "visualization_msgs/msg/MarkerArray", scene_markers(scene, t_first), t_first)
 
     last_ns = None
     for ns, name, k in events:
