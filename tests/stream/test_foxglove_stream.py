@@ -89,7 +89,8 @@ def subscribing_client(port: int, got: dict, ready: threading.Event, seen: dict,
     the first decoded message of each in ``got`` {topic: (log time [ns], channel, message)};
     ``seen`` collects the channels advertised and subscribed."""
     channels, subs = seen.setdefault("advertised", {}), seen.setdefault("subscribed", {})
-    with connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1"], open_timeout=10) as ws:
+    # No frame-size limit (websockets takes 1 MiB by default): /scene carries whole meshes in one message.
+    with connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1"], open_timeout=10, max_size=None) as ws:
         ready.set()
         while not all(t in got for t in wanted):
             msg = ws.recv(timeout=10)

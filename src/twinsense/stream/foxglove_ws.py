@@ -9,6 +9,10 @@ topic                           type                  content
 ``/tf``                         FrameTransforms       sensor frames (REP 103, as in the MCAP
                                                       output), scene objects and mount frames
                                                       (robot flanges, sites) at each frame time
+``/scene``                      SceneUpdate           the scene's geometry: one entity per object in
+                                                      its own /tf frame (frame-locked), latched: sent
+                                                      to each client as it subscribes, again when
+                                                      objects are added
 ``/<body>/joint_states``        JSON                  robots, people: sensor_msgs/JointState's
                                                       fields (header, name, position, velocity,
                                                       effort) at each frame time
@@ -36,6 +40,7 @@ counted when it is full.
 from __future__ import annotations
 
 import json
+import threading
 import time
 from typing import Any
 
@@ -48,6 +53,7 @@ from twinsense.io.mcap import (
     body_frame,
     camera_info,
     lidar_columns,
+    material_color,
     pack_columns,
     radar_detection_columns,
     scene_transforms,
@@ -55,6 +61,7 @@ from twinsense.io.mcap import (
     stamp_ns,
     static_sensor_transforms,
 )
+from twinsense.scene.geometry import Box
 from twinsense.stream.sinks import QUEUE_SIZE, QueuedSink
 
 #: Messages the server holds per client before it drops the oldest.
@@ -68,6 +75,8 @@ STATS_INTERVAL = 1.0
 LINGER = 0.25
 # dB maps: 10 log10 of zero would be -inf.
 _DB_FLOOR = 1e-30
+#: The topic of the scene's geometry (``foxglove.SceneUpdate``).
+SCENE_TOPIC = "/scene"
 
 
 def require_foxglove():
@@ -87,6 +96,25 @@ class _TimeState(list):
     simulation thread."""
 
     joints: list
+    #: (objects, static transforms) when the scene's objects changed since the last time state, else None.
+    scene: tuple | None = None
+
+
+def _scene_listener(sink: FoxgloveSink):
+    """A foxglove-sdk server listener that hands the scene to each client subscribing to ``/scene``.
+
+    foxglove-sdk keeps no last message per channel, and its Python ``Client`` has no sink id to aim a
+    message at one client: the scene goes to every client subscribed to ``/scene``; those that had it
+    already get the same entities again, which replace themselves (same ids) without a visible change.
+    """
+    from foxglove.websocket import ServerListener
+
+    class Listener(ServerListener):
+        def on_subscribe(self, client, channel) -> None:
+            if channel.topic == SCENE_TOPIC:
+                sink._send_scene()
+
+    return Listener()
 
 
 def _plain(obj: Any) -> Any:
@@ -132,29 +160,46 @@ class FoxgloveSink(QueuedSink):
         self._channel_names: dict[str, list] = {}
         self._camera_info: dict[str, dict | None] = {}
         self._posed_t: float | None = None
+        # The latched scene: its encoded SceneUpdate (the only copy kept), its entity ids, the scene
+        # version it shows, and the simulation time [ns] of the last frame published (its log time).
+        self._scene_bytes: bytes | None = None
+        self._scene_ids: tuple[str, ...] = ()
+        self._scene_version: int | None = None
+        self._scene_lock = threading.Lock()
+        self._last_ns = 0
 
     # --- transport ---------------------------------------------------------------
     def _start(self) -> None:
         fg = require_foxglove()
         self._fg, self._m = fg, fg.messages
         self._ctx = fg.Context()  # its own channels, never the process-wide default context
-        try:
-            self.server = fg.start_server(name="twinsense", host=self.host, port=self.port, context=self._ctx,
-                                          message_backlog_size=self.backlog)
-        except Exception as err:
-            raise ConfigError("foxglove_port", self.port, f"a free TCP port on {self.host} ({err})") from None
-        self.port = int(self.server.port)
+        self._sensor_static = []
         self._static = []
         self._moving = []
         self._bodies = ()
         for s in self.sensors:
             cfg = _plain(s.config_dict()) if hasattr(s, "config_dict") else {}
-            self._static += static_sensor_transforms(s.name, s.kind, cfg)
+            self._sensor_static += static_sensor_transforms(s.name, s.kind, cfg)
+        self._static = list(self._sensor_static)
+        listener = None
         if self.scene is not None:
             # Objects and mount frames (flanges, frame-only links, sites), as in the MCAP output.
             static, self._moving = scene_transforms(self.scene)
             self._static += static
             self._bodies = self.scene.articulated_bodies
+            # The geometry is encoded once, before any client can subscribe; the channel is made now,
+            # so that it is advertised to every client as it connects.
+            self._scene_version = self.scene.version
+            self._set_scene(self.scene.objects, 0)
+            self._channels[SCENE_TOPIC] = self._fg.Channel(SCENE_TOPIC, schema=self._m.SceneUpdate.get_schema(),
+                                                           message_encoding="protobuf", context=self._ctx)
+            listener = _scene_listener(self)
+        try:
+            self.server = fg.start_server(name="twinsense", host=self.host, port=self.port, context=self._ctx,
+                                          message_backlog_size=self.backlog, server_listener=listener)
+        except Exception as err:
+            raise ConfigError("foxglove_port", self.port, f"a free TCP port on {self.host} ({err})") from None
+        self.port = int(self.server.port)
         self._next_stats = time.monotonic() + self.stats_interval
 
     def _stop(self) -> None:
@@ -202,6 +247,48 @@ class FoxgloveSink(QueuedSink):
     def _stamp(self, ns: int):
         return self._fg.messages.Timestamp(ns // 1_000_000_000, ns % 1_000_000_000)
 
+    # --- the scene's geometry ------------------------------------------------------
+    def _entity(self, obj, ns: int):
+        """One object as a frame-locked SceneEntity in its own /tf frame (id and frame id: its name).
+
+        A box is a CubePrimitive of its edge lengths (exactly the box the sensors see); any other
+        geometry a TriangleListPrimitive of its mesh (the one the sensors ray-cast): the mesh's vertices
+        [m] in the object's frame and its faces as indices. Colour: the material's (MATERIAL_COLORS).
+        """
+        m = self._m
+        r, g, b, a = material_color(obj.material)
+        color = m.Color(r=r, g=g, b=b, a=a)
+        ident = m.Pose(position=m.Vector3(x=0.0, y=0.0, z=0.0), orientation=m.Quaternion(x=0.0, y=0.0, z=0.0, w=1.0))
+        geom = obj.geometry
+        if isinstance(geom, Box):
+            sx, sy, sz = geom.size
+            shape = {"cubes": [m.CubePrimitive(pose=ident, size=m.Vector3(x=sx, y=sy, z=sz), color=color)]}
+        else:
+            mesh = geom.mesh
+            pts = [m.Point3(x=x, y=y, z=z) for x, y, z in np.asarray(mesh.vertices, dtype=np.float64).tolist()]
+            shape = {"triangles": [m.TriangleListPrimitive(pose=ident, points=pts, color=color,
+                                                           indices=np.asarray(mesh.faces).ravel().tolist())]}
+        return m.SceneEntity(timestamp=self._stamp(ns), frame_id=obj.name, id=obj.name,
+                             lifetime=m.Duration(sec=0, nsec=0), frame_locked=True,
+                             metadata=[m.KeyValuePair(key="material", value=obj.material.name),
+                                       m.KeyValuePair(key="geometry", value=geom.kind)], **shape)
+
+    def _set_scene(self, objects, ns: int) -> list[str]:
+        """Encode ``objects`` as the latched SceneUpdate (entities stamped ``ns``); the ids that went."""
+        ids = tuple(o.name for o in objects)
+        data = self._m.SceneUpdate(entities=[self._entity(o, ns) for o in objects]).encode() if ids else None
+        with self._scene_lock:
+            gone = [i for i in self._scene_ids if i not in set(ids)]
+            self._scene_bytes, self._scene_ids = data, ids
+        return gone
+
+    def _send_scene(self) -> None:
+        """Log the latched scene on ``/scene`` to the clients subscribed to it (a no-op without objects)."""
+        with self._scene_lock:
+            data = self._scene_bytes
+            if data is not None:
+                self._channels[SCENE_TOPIC].log(data, log_time=self._last_ns)
+
     def _image(self, a: np.ndarray, ns: int, frame_id: str):
         a = np.ascontiguousarray(a, dtype="<f4")
         h, w = a.shape
@@ -222,17 +309,30 @@ class FoxgloveSink(QueuedSink):
     def send(self, sensor, t: float, frame) -> bool:
         # The moving objects' poses are taken here, on the simulation thread: the sender thread never
         # reads the scene (a motion may keep per-time state that is not safe to share between threads).
+        # An added object (the scene's version changes) is seen here too: its transforms join the lists
+        # and its geometry rides, with this time's poses, to the sender thread, which re-sends the scene.
         t = float(t)
         poses = None
-        if t != self._posed_t:
+        scene = getattr(self, "scene", None)
+        changed = scene is not None and scene.version != self._scene_version
+        if t != self._posed_t or changed:
+            if changed:
+                static, self._moving = scene_transforms(scene)
+                self._bodies = scene.articulated_bodies
+                self._scene_version = scene.version
             poses = _TimeState((WORLD_FRAME, o.name, o.pose_at(t)) for o in getattr(self, "_moving", ()))
             poses.joints = [(b.name, body_frame(b), b.tree.joint_names, *b.joint_state(t))
                             for b in getattr(self, "_bodies", ())]
+            if changed:
+                poses.scene = (scene.objects, static)
             self._posed_t = t
         queued = super().send(sensor, t, (frame, poses))
         if not queued and poses is not None:
-            # The frame that carried this time's transforms was dropped: the next frame at this time carries them.
+            # The frame that carried this time's transforms was dropped: the next frame at this time carries them
+            # (and the scene's change, if it carried one).
             self._posed_t = None
+            if poses.scene is not None:
+                self._scene_version = None
         return queued
 
     def _transforms(self, poses: list, ns: int):
@@ -251,6 +351,18 @@ class FoxgloveSink(QueuedSink):
         ns = stamp_ns(t)
         name, kind = sensor.name, sensor.kind
         fid = sensor_frame(name, kind)
+        self._last_ns = ns
+        change = getattr(poses, "scene", None)
+        if change is not None:
+            objects, static = change
+            self._static = self._sensor_static + static
+            gone = self._set_scene(objects, ns)
+            if gone:
+                m = self._m
+                self._channels[SCENE_TOPIC].log(m.SceneUpdate(deletions=[
+                    m.SceneEntityDeletion(timestamp=self._stamp(ns), type=m.SceneEntityDeletionType.MatchingId, id=i)
+                    for i in gone]).encode(), log_time=ns)
+            self._send_scene()
         if poses is not None:
             # Every transform at every new frame time: a client that joins late has them at once.
             self._log("/tf", "FrameTransforms", self._transforms(poses, ns), ns)

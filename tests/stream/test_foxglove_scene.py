@@ -1,0 +1,183 @@
+"""The scene's geometry on the Foxglove stream (``/scene``, foxglove.SceneUpdate), read by real WebSocket
+clients over loopback (the protocol client of test_foxglove_stream, decoding the protobuf schema the
+server advertises).
+
+Checked against the scene itself: one entity per object, in the frame /tf publishes for it, the mesh's
+vertices and faces value for value (float64 copied into double fields, tolerance 0), boxes as cubes of
+their edge lengths; a client joining late gets the scene too, and an added object is sent again.
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+import threading
+from pathlib import Path
+
+import numpy as np
+from test_foxglove_stream import _decoder, resubscribe_if_unknown, serve_with_client, subscribing_client
+from websockets.sync.client import connect
+
+from twinsense.io.mcap import MATERIAL_COLORS
+from twinsense.scenario import scenario_from_dict
+from twinsense.scene import Box, Cylinder, Pose, Scene, Sphere
+from twinsense.stream import FoxgloveSink
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _scenario():
+    """A floor, a crate (box), a rolling ball and a UR5 whose joints move, a magnetic sensor on its flange."""
+    return scenario_from_dict({
+        "name": "fox_scene", "duration": 10.0, "seed": 2,
+        "objects": [{"name": "floor", "geometry": {"type": "plane", "size": [6.0, 6.0]}, "material": "concrete"},
+                    {"name": "crate", "geometry": {"type": "box", "size": [0.4, 0.3, 0.2]}, "material": "wood",
+                     "pose": {"position": [1.0, 0.5, 0.1]}},
+                    {"name": "ball", "geometry": {"type": "sphere", "radius": 0.1}, "material": "metal",
+                     "motion": {"type": "waypoints", "points": [[2.0, 0.0, 0.1], [1.0, 0.0, 0.1]], "speed": 0.5}}],
+        "robots": [{"name": "ur5", "description": "ur5", "base": {"position": [0.0, 0.0, 0.8]},
+                    "joints": {"keyframes": {"times": [0.0, 10.0],
+                                             "values": [[0.0, -1.57, 1.57, -1.57, -1.57, 0.0],
+                                                        [0.5, -1.30, 1.45, -1.72, -1.57, 0.3]]}}}],
+        "sensors": [{"name": "hall", "kind": "magnetic", "preset": "tle493d", "frame_rate": 10,
+                     "mount": {"parent": "ur5/tool0", "pose": {"position": [0.0, 0.0, 0.02]}}}],
+    }, base_dir=ROOT / "examples")
+
+
+def check_scene(update, scene: Scene) -> None:
+    """``update`` (a decoded SceneUpdate) is ``scene``'s geometry, object for object."""
+    assert len(update.deletions) == 0
+    assert [e.id for e in update.entities] == [o.name for o in scene.objects]
+    for e, obj in zip(update.entities, scene.objects, strict=True):
+        assert e.frame_id == obj.name and e.frame_locked and (e.lifetime.seconds, e.lifetime.nanos) == (0, 0)
+        assert {kv.key: kv.value for kv in e.metadata} == {"material": obj.material.name, "geometry": obj.geometry.kind}
+        # The palette's values, through float64 fields: equal.
+        (prim,) = list(e.cubes) + list(e.triangles)
+        assert [prim.color.r, prim.color.g, prim.color.b, prim.color.a] == list(MATERIAL_COLORS[obj.material.name])
+        p, q = prim.pose.position, prim.pose.orientation
+        assert [p.x, p.y, p.z, q.x, q.y, q.z, q.w] == [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]
+        if isinstance(obj.geometry, Box):
+            assert len(e.triangles) == 0 and [prim.size.x, prim.size.y, prim.size.z] == list(obj.geometry.size)
+            continue
+        mesh = obj.geometry.mesh
+        pts = np.array([[v.x, v.y, v.z] for v in prim.points])
+        # The mesh the sensors see, in the object's frame: vertices and faces equal (tolerance 0).
+        assert pts.shape == mesh.vertices.shape and len(e.cubes) == 0 and len(prim.colors) == 0
+        np.testing.assert_array_equal(pts, mesh.vertices)
+        np.testing.assert_array_equal(np.asarray(prim.indices).reshape(-1, 3), mesh.faces)
+
+
+def test_the_scene_reaches_a_client_in_the_frames_of_tf():
+    sc = _scenario()
+    wanted = ("/scene", "/tf")
+    got, ready, seen = {}, threading.Event(), {}
+    sink = FoxgloveSink(port=0)
+    _, stopped = serve_with_client(sc, [sink], sink, subscribing_client, (got, ready, seen, wanted), wanted)
+    assert stopped, sorted(got)
+    _, ch, update = got["/scene"]
+    assert ch["schemaName"] == "foxglove.SceneUpdate" and ch["encoding"] == "protobuf"
+    names = {o.name for o in sc.scene.objects}
+    assert {"floor", "crate", "ball", "ur5/base_link", "ur5/wrist_3_link"} <= names
+    check_scene(update, sc.scene)
+    _, _, tf = got["/tf"]
+    # Every entity's frame is a frame /tf publishes (static objects and moving links alike), a child of world.
+    parents = {x.child_frame_id: x.parent_frame_id for x in tf.transforms}
+    assert all(parents.get(e.frame_id) == "world" for e in update.entities)
+
+
+class _Probe:
+    """A sensor of a kind without its own topics: its frames go to /probe/frame as JSON."""
+
+    name, kind = "probe", "probe"
+
+
+class _Frame:
+    def streams(self):
+        return {"v": np.zeros(1)}
+
+
+def collecting_client(port: int, topics, out: list, ready: threading.Event, stop: threading.Event) -> None:
+    """Subscribes to ``topics`` and appends every decoded message to ``out`` as (topic, log ns, message)."""
+    subs: dict = {}
+    with connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1"], open_timeout=10, max_size=None) as ws:
+        ready.set()
+        while not stop.is_set():
+            try:
+                msg = ws.recv(timeout=0.05)
+            except TimeoutError:
+                continue
+            if isinstance(msg, str):
+                m = json.loads(msg)
+                resubscribe_if_unknown(ws, m, subs)
+                if m["op"] == "advertise":
+                    for ch in m["channels"]:
+                        if ch["topic"] in topics:
+                            sid = len(subs) + 1
+                            subs[sid] = ch
+                            ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": sid,
+                                                                                     "channelId": ch["id"]}]}))
+                continue
+            _, sid, log_ns = struct.unpack_from("<BIQ", msg)
+            ch = subs[sid]
+            body = json.loads(msg[13:]) if ch["encoding"] == "json" else _decoder(ch).FromString(msg[13:])
+            out.append((ch["topic"], log_ns, body))
+
+
+def _wait(pred, what: str, timeout: float = 10.0) -> None:
+    ev = threading.Event()
+    for _ in range(int(timeout / 0.02)):
+        if pred():
+            return
+        ev.wait(0.02)
+    raise AssertionError(f"timed out waiting for {what}")
+
+
+def test_a_late_client_gets_the_scene_and_an_added_object_is_sent_again():
+    scene = Scene()
+    scene.add_object("floor", Box((4.0, 4.0, 0.01)), material="concrete", pose=Pose(position=(0.0, 0.0, -0.005)))
+    scene.add_object("ball", Sphere(0.1), material="plastic", pose=Pose(position=(1.0, 0.0, 0.5)))
+    sink = FoxgloveSink(port=0)
+    sink.open(scene, [_Probe()])
+    a_msgs, a_ready, a_stop = [], threading.Event(), threading.Event()
+    a = threading.Thread(target=collecting_client, args=(sink.port, ("/scene", "/tf"), a_msgs, a_ready, a_stop))
+    a.start()
+    threads = [a]
+    try:
+        assert a_ready.wait(10)
+        # Sent when the client subscribes, before any frame.
+        _wait(lambda: any(t == "/scene" for t, _, _ in a_msgs), "the scene on subscription")
+        # /tf is advertised with its first message: the client subscribes then, and gets the later ones.
+        sink.send(_Probe(), 0.0, _Frame())
+        _wait(lambda: sink.subscribed == 2, "the subscription to /tf")
+        for k in (1, 2):
+            sink.send(_Probe(), k * 0.1, _Frame())
+        _wait(lambda: any(t == "/tf" and ns == round(0.2e9) for t, ns, _ in a_msgs), "/tf at 0.2 s")
+        # Not again with the frames: only on subscription (and on a change).
+        assert [t for t, _, _ in a_msgs].count("/scene") == 1
+
+        lamp = scene.add_object("lamp", Cylinder(0.05, 0.3), material="brass", pose=Pose(position=(0.0, 1.0, 0.15)))
+        sink.send(_Probe(), 0.3, _Frame())
+        _wait(lambda: [t for t, _, _ in a_msgs].count("/scene") == 2, "the scene again after the change")
+        scenes = [(ns, m) for t, ns, m in a_msgs if t == "/scene"]
+        check_scene(scenes[0][1], Scene(scene.objects[:2]))
+        assert scenes[1][0] == round(0.3e9)  # logged at the frame time of the change
+        check_scene(scenes[1][1], scene)
+        _wait(lambda: any(t == "/tf" and ns == round(0.3e9) for t, ns, _ in a_msgs), "/tf at 0.3 s")
+        tf = next(m for t, ns, m in a_msgs if t == "/tf" and ns == round(0.3e9))
+        assert "lamp" in {x.child_frame_id for x in tf.transforms}  # the new object's frame joins /tf
+        assert lamp.name == scenes[1][1].entities[-1].frame_id
+
+        # A client joining now gets the scene as it is (latched), not only frames from now on.
+        got, ready = {}, threading.Event()
+        b = threading.Thread(target=subscribing_client, args=(sink.port, got, ready, {}, ("/scene",)))
+        b.start()
+        threads.append(b)
+        b.join(20)
+        assert "/scene" in got
+        check_scene(got["/scene"][2], scene)
+    finally:
+        a_stop.set()
+        for th in threads:
+            th.join(20)
+        sink.close()
+    assert sink.error is None
