@@ -18,9 +18,10 @@ import numpy as np
 from test_foxglove_stream import _decoder, resubscribe_if_unknown, serve_with_client, subscribing_client
 from websockets.sync.client import connect
 
-from twinsense.io.mcap import MATERIAL_COLORS
+from twinsense.io.mcap import MATERIAL_COLORS, OTHER_COLOR
 from twinsense.scenario import scenario_from_dict
 from twinsense.scene import Box, Cylinder, Pose, Scene, Sphere
+from twinsense.scene.materials import Material
 from twinsense.stream import FoxgloveSink
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -53,7 +54,8 @@ def check_scene(update, scene: Scene) -> None:
         assert {kv.key: kv.value for kv in e.metadata} == {"material": obj.material.name, "geometry": obj.geometry.kind}
         # The palette's values, through float64 fields: equal.
         (prim,) = list(e.cubes) + list(e.triangles)
-        assert [prim.color.r, prim.color.g, prim.color.b, prim.color.a] == list(MATERIAL_COLORS[obj.material.name])
+        assert [prim.color.r, prim.color.g, prim.color.b, prim.color.a] == list(
+            MATERIAL_COLORS.get(obj.material.name, OTHER_COLOR))
         p, q = prim.pose.position, prim.pose.orientation
         assert [p.x, p.y, p.z, q.x, q.y, q.z, q.w] == [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]
         if isinstance(obj.geometry, Box):
@@ -181,3 +183,26 @@ def test_a_late_client_gets_the_scene_and_an_added_object_is_sent_again():
             th.join(20)
         sink.close()
     assert sink.error is None
+
+
+def test_clients_subscribing_together_all_get_the_scene():
+    # Subscriptions within SCENE_RESEND_INTERVAL of a send are served together at its end: none is lost.
+    scene = Scene()
+    scene.add_object("ball", Sphere(0.1), material="copper", pose=Pose(position=(1.0, 0.0, 0.5)))
+    # A user's material, not in the palette: OTHER_COLOR.
+    paint = Material("my_paint", 0.3, 0.1, False, 0.05, 0.2, 3.0, "none")
+    scene.add_object("post", Cylinder(0.02, 1.0), material=paint, pose=Pose(position=(0.0, 1.0, 0.5)))
+    sink = FoxgloveSink(port=0)
+    sink.open(scene, [])
+    gots = [{} for _ in range(4)]
+    threads = [threading.Thread(target=subscribing_client, args=(sink.port, g, threading.Event(), {}, ("/scene",)))
+               for g in gots]
+    try:
+        for th in threads:
+            th.start()
+        for th in threads:
+            th.join(20)
+    finally:
+        sink.close()
+    for g in gots:
+        check_scene(g["/scene"][2], scene)

@@ -11,7 +11,8 @@ topic                           type                  content
                                                       (robot flanges, sites) at each frame time
 ``/scene``                      SceneUpdate           the scene's geometry: one entity per object in
                                                       its own /tf frame (frame-locked), latched: sent
-                                                      to each client as it subscribes, again when
+                                                      as a client subscribes (sends at least
+                                                      SCENE_RESEND_INTERVAL apart), again when
                                                       objects are added
 ``/<body>/joint_states``        JSON                  robots, people: sensor_msgs/JointState's
                                                       fields (header, name, position, velocity,
@@ -77,6 +78,10 @@ LINGER = 0.25
 _DB_FLOOR = 1e-30
 #: The topic of the scene's geometry (``foxglove.SceneUpdate``).
 SCENE_TOPIC = "/scene"
+#: [s] Shortest time between two sends of the scene for subscribing clients: those subscribing sooner are
+#: served together at its end, so clients subscribing in a burst (or one resubscribing in a loop) cannot
+#: fill the others' backlogs with copies of a multi-megabyte message.
+SCENE_RESEND_INTERVAL = 0.5
 
 
 def require_foxglove():
@@ -112,7 +117,7 @@ def _scene_listener(sink: FoxgloveSink):
     class Listener(ServerListener):
         def on_subscribe(self, client, channel) -> None:
             if channel.topic == SCENE_TOPIC:
-                sink._send_scene()
+                sink._scene_subscribed()
 
     return Listener()
 
@@ -166,6 +171,8 @@ class FoxgloveSink(QueuedSink):
         self._scene_ids: tuple[str, ...] = ()
         self._scene_version: int | None = None
         self._scene_lock = threading.Lock()
+        self._scene_sent_at = -np.inf
+        self._scene_timer: threading.Timer | None = None
         self._last_ns = 0
 
     # --- transport ---------------------------------------------------------------
@@ -203,6 +210,10 @@ class FoxgloveSink(QueuedSink):
         self._next_stats = time.monotonic() + self.stats_interval
 
     def _stop(self) -> None:
+        with self._scene_lock:
+            if self._scene_timer is not None:
+                self._scene_timer.cancel()
+                self._scene_timer = None
         if self.server is not None:
             self._log_stats()
             if self.subscribed > 0:
@@ -288,6 +299,27 @@ class FoxgloveSink(QueuedSink):
             data = self._scene_bytes
             if data is not None:
                 self._channels[SCENE_TOPIC].log(data, log_time=self._last_ns)
+            self._scene_sent_at = time.monotonic()
+
+    def _scene_subscribed(self) -> None:
+        """A client subscribed to ``/scene`` (the server's thread): send the scene now, or, within
+        :data:`SCENE_RESEND_INTERVAL` of the last send, once at the end of it for all who subscribed."""
+        with self._scene_lock:
+            wait = self._scene_sent_at + SCENE_RESEND_INTERVAL - time.monotonic()
+            if wait > 0:
+                if self._scene_timer is None:
+                    self._scene_timer = threading.Timer(wait, self._scene_deferred)
+                    self._scene_timer.daemon = True
+                    self._scene_timer.start()
+                return
+        self._send_scene()
+
+    def _scene_deferred(self) -> None:
+        with self._scene_lock:
+            self._scene_timer = None
+            if self.server is None:
+                return
+        self._send_scene()
 
     def _image(self, a: np.ndarray, ns: int, frame_id: str):
         a = np.ascontiguousarray(a, dtype="<f4")
