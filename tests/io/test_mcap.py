@@ -108,9 +108,11 @@ def test_every_topic_and_type(run):
         "/hall/frame": "twinsense_msgs/msg/MagneticFrame", "/hall/magnetic_field": "sensor_msgs/msg/MagneticField",
         "/lidar/points": "sensor_msgs/msg/PointCloud2", "/sonar/frame": "twinsense_msgs/msg/UltrasonicFrame",
         "/prox/frame": "twinsense_msgs/msg/InductiveFrame",
+        "/scene_markers": "visualization_msgs/msg/MarkerArray",
     }
-    # Two frames per sensor; one static tf message.
-    assert {k: len(v) for k, v in run["msgs"].items()} == {k: 1 if k == "/tf_static" else 2 for k in run["types"]}
+    # Two frames per sensor; one static tf message and the scene's geometry once.
+    assert {k: len(v) for k, v in run["msgs"].items()} == {
+        k: 1 if k in ("/tf_static", "/scene_markers") else 2 for k in run["types"]}
 
 
 def test_clock_and_stamps_are_the_recording_times(run):
@@ -409,5 +411,7 @@ def test_cli_run_format_mcap(tmp_path):
     assert f"wrote {path}" in res.output
     with AnyReader([path], default_typestore=_typestore()) as reader:
         got = {c.topic: reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages()}
-    assert set(got) == {"/tf_static", "/clock", "/lidar/points", "/prox/frame"}
+    assert set(got) == {"/tf_static", "/clock", "/lidar/points", "/prox/frame", "/scene_markers"}
+    (wall,) = got["/scene_markers"].markers  # the wall's 12 triangles, in its own frame
+    assert wall.header.frame_id == "wall" and len(wall.points) == 36
     assert got["/lidar/points"].width > 0 and got["/prox/frame"].quality > 0
