@@ -438,50 +438,48 @@ def cycle_operator(indptr, indices, data, tol):  # pragma: no cover - compiled
     """A level's operator as the Gauss-Seidel cycle takes it: ``A`` (n, n) CSR with sorted rows, float64,
     without its rounding noise, in float32, with :func:`diagonal_split`'s ``split`` and ``dinv``.
 
-    An off-diagonal entry with ``|a_ij| <= tol sqrt(|a_ii a_jj|)`` is left out (exact zeros too).
+    An off-diagonal entry with ``|a_ij| <= tol (sqrt|a_ii| sqrt|a_jj|)`` is left out (exact zeros too).
     The assembled stiffness holds such entries where the element terms of a coupling cancel (zero
     in exact arithmetic, ~1e-31 F against a diagonal of ~1e-13 F: 1e-24 to 1e-16 of it on the
     robot-cell skin, 48% of its entries; the smallest true coupling is 1e-6 of it). In float32
     their products with the sweep's potentials fall below the smallest normal number (1.2e-38),
     and every such subnormal product costs the CPU ~100 cycles: they made the down sweep 2.2x and
     the up sweep 2.3x slower than on the same matrix without them (docs/capacitive-accuracy.md).
-    The rule is symmetric (the cycle stays symmetric) and keeps the diagonal.
+    The rule is symmetric bit for bit (a symmetric ``A`` keeps a symmetric cycle) and keeps the diagonal.
 
     Returns
     -------
     (indptr (n + 1,), indices (m,), data (m,) float32), split (n,) int64, dinv (n,) float32.
     """
     n = indptr.shape[0] - 1
-    diag = np.zeros(n)
+    root = np.zeros(n)  # sqrt(|a_ii|): the rule without a square root per entry
+    dinv = np.zeros(n, np.float32)
     for i in range(n):
         for p in range(indptr[i], indptr[i + 1]):
             if indices[p] == i:
-                diag[i] = data[p]
+                a = data[p]
+                root[i] = np.sqrt(abs(a))
+                if a > 0:
+                    dinv[i] = np.float32(1.0 / a)
     ptr = np.zeros(n + 1, indptr.dtype)
     ind = np.empty(indices.shape[0], indices.dtype)
     dat = np.empty(indices.shape[0], np.float32)
     split = np.empty(n, np.int64)
-    dinv = np.zeros(n, np.float32)
     m = 0
     for i in range(n):
-        split[i] = -1
+        split[i] = m
         for p in range(indptr[i], indptr[i + 1]):
             j = indices[p]
             a = data[p]
-            if j >= i and split[i] < 0:
-                split[i] = m
-            if j == i:
-                if a > 0:
-                    dinv[i] = np.float32(1.0 / a)
-            elif a == 0.0 or abs(a) <= tol * np.sqrt(abs(diag[i] * diag[j])):
+            if j != i and abs(a) <= tol * (root[i] * root[j]):  # the same product for a_ji: symmetric
                 continue
             ind[m] = j
             dat[m] = np.float32(a)
             m += 1
-        if split[i] < 0:
-            split[i] = m
+            if j < i:  # sorted rows: the entries left of the diagonal come first
+                split[i] = m
         ptr[i + 1] = m
-    return (ptr, ind[:m].copy(), dat[:m].copy()), split, dinv
+    return (ptr, ind[:m], dat[:m]), split, dinv
 
 
 @jit
