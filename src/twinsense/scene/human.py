@@ -20,6 +20,10 @@ the joint trajectory, each with exact time derivatives:
   :mod:`twinsense.scene.gait` along a straight heading or a waypoint path
   whose heading turns smoothly (a C1 ramp of the heading over ``turn_length``
   around each waypoint, so the yaw rate is continuous);
+- starting and stopping: the gait played at a gait time whose rate ramps
+  smoothly from 0 to 1 (1 to 0) over START_BLEND, so the body never moves
+  faster than its steady gait, while the standing pose fades out (in); the
+  walk starts at the right foot's mid-stance, where standing puts that foot;
 - standing: legs straight, arms hanging, optional sway of the pelvis;
 - turning on the spot: the heading ramps to a new value;
 - reaching: analytic two-link inverse kinematics of shoulder (flexion,
@@ -433,7 +437,10 @@ class Turn:
         V.number("turn.duration", self.duration, lo=0.05, hi=60.0, unit="s")
 
 
-START_BLEND = 0.6  # [s] from standing into the gait (and from the gait to standing at a path's end)
+# [s] the walk's gait rate ramps from 0 to 1 over this after its start (and from 1 to 0 over this
+# before a path's end) while the standing pose fades out (in); the walk arrives START_BLEND later
+# than start_time + L / v (each ramp covers half of what full speed would).
+START_BLEND = 0.6
 SWAY_FREQUENCY = 0.2  # [Hz] of a standing person's lateral sway
 
 
@@ -465,20 +472,22 @@ class _Plan:
     q: np.ndarray
     qd: np.ndarray
 
-    def blend(self, other: _Plan, w: float, wd: float, dyaw_ref: float = 0.0) -> _Plan:
-        """(1 - w) self + w other, with the rate of w (``wd`` [1/s]) in the derivatives.
+    def fade(self, stand: _Plan, ref: _Plan, k: float, kd: float, dyaw: float) -> _Plan:
+        """self + k (stand - ref): the difference between a standing plan and a fixed pose of the gait
+        ``ref`` (its rates ignored), weighted by ``k`` (rate ``kd`` [1/s]), added to this plan.
+        ``dyaw`` [rad] is stand.yaw - ref.yaw on the branch the caller chose (a difference wrapped
+        to +-pi at each instant would flip with the pelvis torsion in a turn of about half round).
 
-        The yaw turns by the difference within pi of ``dyaw_ref`` [rad]: a blend that turns the
-        person about half round takes one direction for all of its duration (wrapping each
-        instant's difference to +-pi would flip it with the pelvis torsion).
+        The gait runs on under it (its forward progress is not faded: the reference pose is where
+        the gait is at the start or end of the walk), so the fade moves the pelvis only by the
+        small lateral and vertical offsets of that pose and the joints from the standing angles.
         """
-        def mix(a, b, ad, bd):
-            return (1 - w) * a + w * b, (1 - w) * ad + w * bd + wd * (b - a)
-        p, v = mix(self.p, other.p, self.v, other.v)
-        dyaw = dyaw_ref + float(_wrap(other.yaw - self.yaw - dyaw_ref))
-        yaw, yaw_d = self.yaw + w * dyaw, (1 - w) * self.yaw_d + w * other.yaw_d + wd * dyaw
-        roll, roll_d = mix(self.roll, other.roll, self.roll_d, other.roll_d)
-        q, qd = mix(self.q, other.q, self.qd, other.qd)
+        def mix(a, s_, r, ad, sd):
+            return a + k * (s_ - r), ad + k * sd + kd * (s_ - r)
+        p, v = mix(self.p, stand.p, ref.p, self.v, stand.v)
+        yaw, yaw_d = self.yaw + k * dyaw, self.yaw_d + k * stand.yaw_d + kd * dyaw
+        roll, roll_d = mix(self.roll, stand.roll, ref.roll, self.roll_d, stand.roll_d)
+        q, qd = mix(self.q, stand.q, ref.q, self.qd, stand.qd)
         return _Plan(p, v, yaw, yaw_d, roll, roll_d, q, qd)
 
 
@@ -546,6 +555,10 @@ class PersonMotion(_ReadOnly):
     reach : Reach, optional
     sway : float
         Lateral sway amplitude of a standing person [m] (0.2 Hz).
+
+    ``stop_time`` [s] is when a walk along a path arrives (start_time + L / v + START_BLEND, give or
+    take the forward sway; inf without a path); :attr:`gait_origin` where the steady gait's phases
+    count from.
     """
 
     def __init__(self, tree: KinematicTree, height: float, position=(0.0, 0.0), heading_deg: float = 0.0,
@@ -589,13 +602,11 @@ class PersonMotion(_ReadOnly):
                     raise ConfigError(e.field, walk.path if e.field == "walk.path" else e.value, e.allowed) from None
             else:
                 self.path = HeadingPath(start_xy[None], math.radians(walk.heading_deg), walk.turn_length)
-            if math.isfinite(self.path.length):
-                # Walking covers the path at the mean speed; the last START_BLEND
-                # seconds blend into standing at the path's end.
-                self.stop_time = walk.start_time + self.path.length / walk.speed
         self._reach_q = None
         self._last = None
         self._start_turn = 0.0
+        self._gait0 = self._gait_end = self._x0 = 0.0
+        self._rate = 1.0
         if walk is not None:
             # "auto": the planted body where it can walk (its leg sweeps the stance under the pelvis and
             # its swing keeps the joints within their limits), else the smooth one.
@@ -604,15 +615,21 @@ class PersonMotion(_ReadOnly):
             for k, body in enumerate(bodies):
                 try:
                     self.cycle = WalkCycle(timing, self.leg, body)
-                    # The start blend's turn from the standing heading to the path's [rad], chosen once.
+                    self._schedule()
+                    # The start's turn from the standing heading to the path's [rad], chosen once.
                     t0 = walk.start_time
-                    self._start_turn = float(_wrap(self._walking(t0).yaw
+                    self._start_turn = float(_wrap(self._walking(self._gait0, 0.0).yaw
                                                    - self._standing(t0, start_xy, self.heading).yaw))
                     self._check_gait_limits()
                     break
                 except ConfigError:
                     if k == len(bodies) - 1:
                         raise
+            # The gait's first and last poses, which the standing poses fade from and into.
+            self._ref0 = self._walking(self._gait0, 0.0)
+            self._stand0_yaw = self._standing(walk.start_time, start_xy, self.heading).yaw
+            if math.isfinite(self.stop_time):
+                self._ref_end = self._walking(self._gait_end, 0.0)
         self.start_xy.setflags(write=False)
         self._q_rest.setflags(write=False)
         self._seal()
@@ -624,8 +641,8 @@ class PersonMotion(_ReadOnly):
         lift of a slow planted walk can), rather than fail in the middle of a run."""
         lo, hi = self.tree.limits.T
         dc = self.cycle.timing.cycle_duration
-        for t in self.walk.start_time + START_BLEND + np.linspace(0.0, dc, 97):
-            q = self._walking(float(t)).q
+        for t in self._gait0 + np.linspace(0.0, dc, 97):
+            q = self._walking(float(t), 1.0).q
             bad = np.nonzero((q < lo) | (q > hi))[0]
             if len(bad):
                 j = self.tree.joint_names[bad[0]]
@@ -633,6 +650,83 @@ class PersonMotion(_ReadOnly):
                                   f"a speed whose gait keeps every joint within its limits (joint {j!r} reaches "
                                   f"{math.degrees(q[bad[0]]):.1f} deg, limits [{math.degrees(lo[bad[0]]):.0f}, "
                                   f"{math.degrees(hi[bad[0]]):.0f}] deg; body={self.cycle.body!r})")
+
+    def _schedule(self) -> None:
+        """The walk's gait times, its peak rate and ``stop_time``.
+
+        The gait starts at the reference (right) foot's mid-stance, at the gait time ``_gait0``
+        where that foot's sole centre is as far ahead of the pelvis as a standing person's (the
+        other foot swings beside it): the standing pose is then closest to the gait's, and the
+        fade between them hardly moves the standing foot. It ends at ``_gait_end``, where the
+        pelvis has come the path's length (root of the forward body translation). The gait time
+        phi(t) (:meth:`_phase`) ramps its rate smoothly from 0 to 1 over START_BLEND, and back to
+        0 over the last START_BLEND; a walk too short for that peaks at rate G / START_BLEND < 1
+        (G = _gait_end - _gait0).
+        """
+        from scipy.optimize import brentq
+
+        wc, walk = self.cycle, self.walk
+        dc = wc.timing.cycle_duration
+        centre = 0.5 * (FOOT_LENGTH - 2 * HEEL_BEHIND_ANKLE) * self.height  # standing: sole centre ahead
+        tg = np.linspace(0.0, wc.timing.relative_support * dc, 257)
+
+        def ahead(t):
+            x = wc.sole_points(t)[0]
+            return 0.5 * (x[0] + x[1]) - centre
+
+        gap = ahead(tg)
+        k = np.nonzero((gap[:-1] > 0) & (gap[1:] <= 0))[0]
+        if len(k):
+            self._gait0 = float(brentq(lambda t: float(ahead(t)[0]), tg[k[0]], tg[k[0] + 1], xtol=1e-12))
+        else:  # not reached (no stance crosses it): the nearest
+            self._gait0 = float(tg[np.argmin(np.abs(gap))])
+        self._x0 = float(wc.body_translation(self._gait0)[0][0, 0])
+        length, v = self.path.length, walk.speed
+        if not math.isfinite(length):
+            self._gait_end, self._rate = math.inf, 1.0
+            self.stop_time = math.inf
+            return
+
+        def short(t):
+            return float(wc.body_translation(t)[0][0, 0]) - self._x0 - length
+
+        # The pelvis never moves backwards, and its forward translation stays within a fraction of
+        # a step of v t: the root lies within half a cycle of L / v.
+        lo, hi = self._gait0 + max(0.0, length / v - 0.5 * dc), self._gait0 + length / v + 0.5 * dc
+        self._gait_end = float(brentq(short, lo, hi, xtol=1e-13, rtol=4 * np.finfo(float).eps))
+        g = self._gait_end - self._gait0
+        self._rate = min(1.0, g / START_BLEND)
+        self.stop_time = walk.start_time + START_BLEND + max(g, START_BLEND)
+
+    @property
+    def gait_origin(self) -> float:
+        """Wall time [s] from which the steady walk's gait phases count: between the start and stop
+        ramps the reference (right) heel strikes at ``gait_origin + n D_c`` (inf without a walk).
+        The walk starts at the reference foot's mid-stance and its rate ramps up over START_BLEND,
+        so this is ``walk.start_time + START_BLEND / 2 - _gait0``."""
+        if self.walk is None:
+            return math.inf
+        return self.walk.start_time + 0.5 * START_BLEND - self._gait0
+
+    def _phase(self, t: float) -> tuple[float, float]:
+        """Gait time phi [s] and its rate d phi / dt at ``t`` [s] of a walk under way.
+
+        With B = START_BLEND, r the peak rate, F(x) = x^3 - x^4 / 2 (the integral of the ramp
+        3 x^2 - 2 x^3): phi = gait0 + r B F(tau / B) over the start (tau = t - start_time), then
+        gait0 + tau - B / 2, and gait_end - r B F((stop_time - t) / B) over the stop. The rate is
+        r (3 x^2 - 2 x^3): it rises from 0 and falls to 0 monotonically with a continuous
+        derivative (0 at both ends of each ramp), so positions and velocities are continuous.
+        """
+        B, r = START_BLEND, self._rate
+        tau = t - self.walk.start_time
+        left = self.stop_time - t
+        if left < B:
+            x = max(left, 0.0) / B
+            return self._gait_end - r * B * (x ** 3 - 0.5 * x ** 4), r * x * x * (3 - 2 * x)
+        if tau < B:
+            x = max(tau, 0.0) / B
+            return self._gait0 + r * B * (x ** 3 - 0.5 * x ** 4), r * x * x * (3 - 2 * x)
+        return self._gait0 + tau - 0.5 * B, 1.0
 
     # ------------------------------------------------------------ pieces
     def _standing(self, t: float, xy, heading: float, turning: bool = True) -> _Plan:
@@ -663,11 +757,12 @@ class PersonMotion(_ReadOnly):
             q[c] = -s * (a + roll)
             qd[c] = -s * (ad + roll_d)
 
-    def _walking(self, t: float) -> _Plan:
+    def _walking(self, tg: float, rate: float) -> _Plan:
+        """The gait's pose at gait time ``tg`` [s] (see :meth:`_phase`), its rates multiplied by
+        ``rate`` (d tg / dt): the walk played ``rate`` times as fast, the same poses."""
         wc, path = self.cycle, self.path
-        tg = t - self.walk.start_time
         (p,), (v,) = wc.body_translation(tg)
-        s, sd = float(p[0]), float(v[0])
+        s, sd = float(p[0]) - self._x0, float(v[0])
         xy, tangent, psi, dpsi = path.at(s)
         psi_d = dpsi * sd
         normal = np.array([-tangent[1], tangent[0]])
@@ -694,29 +789,31 @@ class PersonMotion(_ReadOnly):
         for name, val, der in (("torso_rotation", -thor - tors, -thor_d - tors_d), ("torso_tilt", tilt, tilt_d),
                                ("neck_flexion", -tilt, -tilt_d), ("neck_rotation", thor, thor_d)):
             q[col[name]], qd[col[name]] = val, der
-        return _Plan(pos, vel, psi + tors, psi_d + tors_d, roll, roll_d, q, qd)
+        return _Plan(pos, vel * rate, psi + tors, (psi_d + tors_d) * rate, roll, roll_d * rate, q, qd * rate)
 
     def _plan(self, t: float, reach: bool = True) -> _Plan:
         walk = self.walk
         if walk is None or t <= walk.start_time:
             plan = self._standing(t, self.start_xy, self.heading)
-        elif t < self.stop_time - START_BLEND:
-            plan = self._walking(t)
-            if t < walk.start_time + START_BLEND:
-                # From standing into the gait: the body accelerates over START_BLEND. The standing
-                # motion (sway, a turn still under way) goes on under the blend, so the blend's
-                # velocities are the derivatives of its poses and nothing jumps at the start.
-                w, wd = smoothstep((t - walk.start_time) / START_BLEND)
-                stand = self._standing(t, self.start_xy, self.heading)
-                plan = stand.blend(plan, float(w), float(wd) / START_BLEND, self._start_turn)
-        else:
+        elif t >= self.stop_time:
             end_xy, _, end_psi, _ = self.path.at(self.path.length)
-            stand = self._standing(t, end_xy, end_psi, turning=False)
-            if t < self.stop_time:
+            plan = self._standing(t, end_xy, end_psi, turning=False)
+        else:
+            plan = self._walking(*self._phase(t))
+            tau = t - walk.start_time
+            if tau < START_BLEND:
+                # The standing pose's difference from the gait's first pose fades out (the standing
+                # motion, a sway or a turn still under way, goes on under it), so nothing jumps.
+                w, wd = smoothstep(tau / START_BLEND)
+                stand = self._standing(t, self.start_xy, self.heading)
+                dyaw = stand.yaw - self._stand0_yaw - self._start_turn
+                plan = plan.fade(stand, self._ref0, 1.0 - float(w), -float(wd) / START_BLEND, dyaw)
+            if self.stop_time - t < START_BLEND:
                 w, wd = smoothstep((t - self.stop_time + START_BLEND) / START_BLEND)
-                plan = self._walking(t).blend(stand, float(w), float(wd) / START_BLEND)
-            else:
-                plan = stand
+                end_xy, _, end_psi, _ = self.path.at(self.path.length)
+                stand = self._standing(t, end_xy, end_psi, turning=False)
+                dyaw = float(_wrap(stand.yaw - self._ref_end.yaw))
+                plan = plan.fade(stand, self._ref_end, float(w), float(wd) / START_BLEND, dyaw)
         if reach and self.reach is not None:
             self._apply_reach(t, plan)
         return plan
