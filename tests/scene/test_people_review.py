@@ -28,8 +28,9 @@ HEEL, FOOT, ANKLE = 0.25 * 0.152, 0.152, 0.039  # sole: heel behind the ankle, l
 # ~ 1e-10 m/s. The motion is C1 only at a few instants (a blend's or a ramp's start and end,
 # the stance contact rolling from heel to toe): there the central difference is off by at most
 # h |jump of the acceleration| / 4, < 1e-6 * 80 / 4 = 2e-5 m/s for jumps below 80 m/s^2 (8 g;
-# the largest error measured in these scenes is 4.3e-6 m/s, a jump of ~17 m/s^2 at the end of
-# a start blend). Rotations: the same bound in rad/s (measured 4e-6 rad/s).
+# the largest error measured in these scenes is 3.7e-6 m/s; 4.3e-6 m/s when the start was a
+# position blend). Rotations: the same bound in rad/s (measured 9e-6 rad/s: the half-turn start's
+# yaw fade, pi rad under a weight whose second derivative jumps by 6 / 0.6^2 /s^2 at its ends).
 FD_H = 1e-6
 FD_TOL = 2e-5
 
