@@ -15,7 +15,7 @@ import threading
 from pathlib import Path
 
 import numpy as np
-from test_foxglove_stream import _decoder, resubscribe_if_unknown, serve_with_client, subscribing_client
+from test_foxglove_stream import _decoder, handle_text, serve_with_client, subscribing_client
 from websockets.sync.client import connect
 
 from twinsense.io.mcap import MATERIAL_COLORS, OTHER_COLOR
@@ -109,15 +109,7 @@ def collecting_client(port: int, topics, out: list, ready: threading.Event, stop
             except TimeoutError:
                 continue
             if isinstance(msg, str):
-                m = json.loads(msg)
-                resubscribe_if_unknown(ws, m, subs)
-                if m["op"] == "advertise":
-                    for ch in m["channels"]:
-                        if ch["topic"] in topics:
-                            sid = len(subs) + 1
-                            subs[sid] = ch
-                            ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": sid,
-                                                                                     "channelId": ch["id"]}]}))
+                handle_text(ws, json.loads(msg), subs, topics)
                 continue
             _, sid, log_ns = struct.unpack_from("<BIQ", msg)
             ch = subs[sid]

@@ -75,6 +75,21 @@ def resubscribe_if_unknown(ws, m: dict, subs: dict) -> None:
                 ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": sid, "channelId": cid}]}))
 
 
+def handle_text(ws, m: dict, subs: dict, wanted, channels: dict | None = None) -> None:
+    """A text message of the server: subscribe to each advertised channel whose topic is ``wanted``
+    (``subs``: subscription id -> channel, ``channels``: every advertised channel by id), and send a
+    refused subscription again (:func:`resubscribe_if_unknown`)."""
+    resubscribe_if_unknown(ws, m, subs)
+    if m["op"] == "advertise":
+        for ch in m["channels"]:
+            if channels is not None:
+                channels[ch["id"]] = ch
+            if ch["topic"] in wanted:
+                sid = len(subs) + 1
+                subs[sid] = ch
+                ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": sid, "channelId": ch["id"]}]}))
+
+
 def _decoder(channel: dict):
     """A protobuf message class from the FileDescriptorSet a channel advertises."""
     fds = descriptor_pb2.FileDescriptorSet.FromString(base64.b64decode(channel["schema"]))
@@ -95,16 +110,7 @@ def subscribing_client(port: int, got: dict, ready: threading.Event, seen: dict,
         while not all(t in got for t in wanted):
             msg = ws.recv(timeout=10)
             if isinstance(msg, str):
-                m = json.loads(msg)
-                resubscribe_if_unknown(ws, m, subs)
-                if m["op"] == "advertise":
-                    for ch in m["channels"]:
-                        channels[ch["id"]] = ch
-                        if ch["topic"] in wanted:
-                            sid = len(subs) + 1
-                            subs[sid] = ch
-                            ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": sid,
-                                                                                     "channelId": ch["id"]}]}))
+                handle_text(ws, json.loads(msg), subs, wanted, channels)
                 continue
             # Binary message data: opcode 0x01, uint32 subscription id, uint64 log time [ns], payload.
             op, sid, log_ns = struct.unpack_from("<BIQ", msg)
