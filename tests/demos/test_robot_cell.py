@@ -1,24 +1,28 @@
 """The robot-cell demo: its cell equals examples/robot_cell.yaml, it writes its outputs, the radar sees the torso."""
 
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 import trimesh
+from scipy.spatial import cKDTree
 
 from twinsense.constants import SPEED_OF_LIGHT
 from twinsense.demos.robot_cell import (
+    PERSON,
     ROBOT,
     build_arm_cell,
     build_arm_cell_scene,
     build_arm_cell_sensors,
     micro_doppler,
     run_robot_cell_demo,
+    tof_separation,
     torso_line,
 )
 from twinsense.errors import ConfigError
 from twinsense.io.recording import open_recording
-from twinsense.safety import point_box_distance, point_capsule_distance
+from twinsense.safety import SeparationMonitor, point_box_distance, point_capsule_distance
 from twinsense.scenario import ScenarioError, load_scenario
 from twinsense.scene import Box
 
@@ -188,3 +192,26 @@ def test_reaching_hand_comes_close_to_the_skin_but_never_into_it_or_a_link():
     assert d_skin.min() < 0.03
     close = ts[d_skin < 0.03]
     assert 3.2 < close.min() < close.max() < 3.75
+
+
+def test_wall_tof_separation_leaves_out_isolated_returns_but_not_a_surface():
+    # A 10 x 10 cm patch of points 1 cm apart (a surface 3 m away puts ~1.4 cm between pixels) 0.5 m in
+    # front of the robot's base, and three lone points (one 20 cm from the robot, in mid-air, as a noisy
+    # floor pixel that passed the static margins reads): the reading is the patch's distance to the robot
+    # (the same cKDTree query over the same robot points: exact), not the strays'.
+    scene = build_arm_cell_scene()
+    monitor = SeparationMonitor(scene, ROBOT, PERSON)
+    t = 1.0
+    robot = monitor.robot_points(t)[0]
+    base = robot[np.argmin(robot[:, 2])]
+    u, v = np.meshgrid(np.arange(10) * 0.01, np.arange(10) * 0.01)
+    patch = np.stack([base[0] + 0.5 + 0 * u, base[1] - 0.6 + u, 1.2 + v], axis=-1).reshape(-1, 3)
+    strays = np.array([[base[0] + 0.15, base[1] - 0.3, 1.0], [0.9, -1.0, 1.6], [0.2, -1.8, 0.7]])
+    pts = np.vstack([patch, strays])
+    d_strays = cKDTree(robot).query(strays)[0]
+    assert d_strays.min() < cKDTree(robot).query(patch)[0].min()  # a stray is nearer: it would win
+    frame = SimpleNamespace(t=t, valid=np.ones(len(pts), bool), points_world=pts, noise=np.full(len(pts), 1e-3))
+    assert tof_separation(monitor, frame) == cKDTree(robot).query(patch)[0].min()
+    # Strays alone: nothing to report.
+    alone = SimpleNamespace(t=t, valid=np.ones(3, bool), points_world=strays, noise=np.full(3, 1e-3))
+    assert np.isnan(tof_separation(monitor, alone))
