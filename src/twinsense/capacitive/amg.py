@@ -230,7 +230,7 @@ class BlockAMG:
         self._factor_coarse()
         self._patterns = None if pattern is None else coarse_patterns(pattern, self.P, self.R)
         self._cycle_work = {}  # CompiledCycle's blocks by block width, reused from call to call
-        self._cycle_prolongators = None  # CompiledCycle's copies of the prolongators, made once
+        self._cycle_prolongators = None  # the float32 cycles' copies of the prolongators, made once
         self._first = None if pattern is None or not self.P else self._first_level(A)
 
     def _first_level(self, A: sp.csr_matrix) -> tuple:
@@ -432,7 +432,8 @@ cycle moves."""
 
 
 CYCLE_NOISE = 1e-10
-""":class:`CompiledCycle` leaves out a level's off-diagonal entries with ``|a_ij| <= CYCLE_NOISE sqrt(a_ii a_jj)``
+""":class:`CompiledCycle` and the float32 :class:`CompactCycle` leave out a level's off-diagonal entries
+with ``|a_ij| <= CYCLE_NOISE sqrt(a_ii a_jj)``
 (:func:`~twinsense.capacitive.kernels.cycle_operator`): the assembly's rounding noise where a coupling
 cancels (at most 1e-16 of the diagonals on the robot-cell skin; its smallest true coupling is 1e-6),
 whose float32 products are subnormal numbers and slow the sweeps 2.2x. What it leaves out changes the
@@ -465,12 +466,38 @@ def _cycle_transfer(P: sp.csr_matrix, R: sp.csr_matrix, dtype) -> tuple:
 
 
 def _cycle_levels(ml: BlockAMG, dtype) -> list:
-    """Every level but the coarsest of ``ml`` as the compiled cycles take it, copied in ``dtype``:
+    """Every level but the coarsest of ``ml`` as :class:`CompactCycle` takes it, copied in ``dtype``:
     ``((indptr, indices, data) of A_l, damped inverse diagonal (n_l,), (indptr, indices, data) of P_l,
-    n_{l+1})``."""
-    return [((a.indptr, a.indices, a.data.astype(dtype)), d[:, 0].astype(dtype),
-             (p.indptr, p.indices, p.data.astype(dtype)), p.shape[1])
-            for a, d, p in zip(ml.A[:-1], ml.scaled_dinv, ml.P, strict=True)]
+    n_{l+1})``; in float32 without the rounding noise (:func:`_compact_operator`, :func:`_cycle_transfer`)."""
+    if dtype == CYCLE_DTYPE:
+        if ml._cycle_prolongators is None:  # the same copies as CompiledCycle's, kept on the hierarchy
+            ml._cycle_prolongators = [_cycle_transfer(p, r, dtype) for p, r in zip(ml.P, ml.R, strict=True)]
+        transfers = [p for p, _ in ml._cycle_prolongators]
+    else:
+        transfers = [(p.indptr, p.indices, p.data.astype(dtype)) for p in ml.P]
+    return [(_compact_operator(a, dtype), d[:, 0].astype(dtype), p, pm.shape[1])
+            for a, d, p, pm in zip(ml.A[:-1], ml.scaled_dinv, transfers, ml.P, strict=True)]
+
+
+def _compact_operator(a: sp.csr_matrix, dtype) -> tuple:
+    """(indptr, indices, data) of a level's operator ``a`` (n, n) as :class:`CompactCycle` takes it, in ``dtype``.
+
+    In float32 (:data:`CYCLE_DTYPE`) without the off-diagonal entries ``|a_ij| <= CYCLE_NOISE
+    sqrt|a_ii| sqrt|a_jj|`` (:func:`~twinsense.capacitive.kernels.cycle_operator`, the rule of
+    :class:`CompiledCycle`): on the tactile skins 26-35 % of the fine level's entries are the
+    assembly's rounding where a coupling cancels (1e-21 to 1e-17 of the diagonals), and their float32
+    products with the Jacobi step's potentials are subnormal numbers, 5,600-22,000 in the first
+    cycle of a frame and 40,000-150,000 in a median one (``skin_patch_8x8``, ``skin_patch_16x16``;
+    docs/capacitive-accuracy.md). The kept entries keep their order, so the residual loop sums the
+    same terms in the same order less the dropped ones. Other types keep every entry (a float64
+    product underflows only below 2.2e-308): the float64 cycle stays the hierarchy's own.
+    """
+    if dtype != CYCLE_DTYPE:
+        return a.indptr, a.indices, a.data.astype(dtype)
+    from twinsense.capacitive.kernels import cycle_operator
+
+    op, _, _ = cycle_operator(a.indptr, a.indices, np.asarray(a.data, float), CYCLE_NOISE)
+    return op
 
 
 class CompiledCycle:
@@ -563,6 +590,10 @@ class CompactCycle:
     bytes do not depend on the block it is in (the tactile skin splits its
     columns over threads). Fresh blocks per call; a cycle made with
     ``previous`` of the same hierarchy copies only the finest level anew.
+    In float32 the levels leave out the assembly's rounding noise by
+    :class:`CompiledCycle`'s rule (:data:`CYCLE_NOISE`, :func:`_compact_operator`):
+    its float32 products were subnormal numbers, and the ``skin_patch_16x16``
+    frame's Maxwell solve took 1.2x as long with them.
 
     Parameters
     ----------
@@ -582,8 +613,8 @@ class CompactCycle:
             # The same hierarchy with a new finest matrix (BlockAMG.set_fine):
             # only the finest level's matrix and damping are new.
             a, d = ml.A[0], ml.scaled_dinv[0]
-            self.levels = [((a.indptr, a.indices, a.data.astype(dtype)), d[:, 0].astype(dtype),
-                            *previous.levels[0][2:]), *previous.levels[1:]]
+            self.levels = [(_compact_operator(a, dtype), d[:, 0].astype(dtype), *previous.levels[0][2:]),
+                           *previous.levels[1:]]
             self.masks = [free.astype(float), *previous.masks[1:]]
             return
         self.levels = _cycle_levels(ml, dtype)
