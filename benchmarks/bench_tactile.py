@@ -25,11 +25,12 @@ with the Maxwell solve in NumPy and in compiled loops, in the same run,
 wall time and process CPU time (the machine is shared: CPU time is the
 figure that load moves least).
 
-Run:  .venv/bin/python benchmarks/bench_tactile.py [--electrical [--before REV] | --levers]
+Run:  .venv/bin/python benchmarks/bench_tactile.py [--electrical [--before REV] | --levers | --cycle-noise]
       (--electrical: whole frames only; --before REV: also the Maxwell solve of git revision REV's
       framesolver.py, same run, for revisions whose framesolver.py imports the shared kernels of
       capacitive/kernels.py (e1a994a and later); --levers: the Maxwell-solve variants of
-      docs/tactile.md, Speed)
+      docs/tactile.md, Speed; --cycle-noise: the float32 cycle without the assembly's rounding
+      noise against one keeping every entry, skin_patch_8x8 and 16x16)
 """
 
 from __future__ import annotations
@@ -170,9 +171,13 @@ def _skin_with_old_solver(rev: str):
     return skin
 
 
-def _whole_frames(skins: dict, blocks: int = 6, per_block: int = 5) -> dict:
+def _whole_frames(skins: dict, blocks: int = 6, per_block: int = 5, contexts: dict | None = None) -> dict:
     """Timings of whole frames of each skin, alternating blocks of ``per_block`` frames (seconds;
-    ``cpu``: process CPU time per frame)."""
+    ``cpu``: process CPU time per frame). ``contexts``: {label: a context manager factory} entered
+    around each of that skin's frames (default: none)."""
+    import contextlib
+
+    contexts = contexts or {}
     from twinsense import Pose, Scene, Sphere
 
     lay = next(iter(skins.values())).config.layout
@@ -194,32 +199,40 @@ def _whole_frames(skins: dict, blocks: int = 6, per_block: int = 5) -> dict:
 
     scenes = [scene(k) for k in range(1, 61)]
     out = {}
+    def ctx(label):
+        return contexts.get(label, contextlib.nullcontext)()
+
     for label, skin in skins.items():
         t0 = time.perf_counter()
-        skin.capture(scene(0), 0.0)
+        with ctx(label):
+            skin.capture(scene(0), 0.0)
         out[label] = {"first": time.perf_counter() - t0, "wall": [], "cpu": [], "stages": [], "iters": [], "local": []}
         for sc in scenes[:3]:  # the scenes' own geometry caches, not the skin's, are warmed here
-            skin.capture(sc, 0.0)
+            with ctx(label):
+                skin.capture(sc, 0.0)
     k = 3
     for _ in range(blocks):
         for label, skin in skins.items():
             r = out[label]
             for q in range(per_block):
                 sc = scenes[(k + q) % 60]
-                w0, c0 = time.perf_counter(), time.process_time()
-                skin.capture(sc, 0.0)
-                r["wall"].append(time.perf_counter() - w0)
-                r["cpu"].append(time.process_time() - c0)
+                with ctx(label):
+                    w0, c0 = time.perf_counter(), time.process_time()
+                    skin.capture(sc, 0.0)
+                    r["wall"].append(time.perf_counter() - w0)
+                    r["cpu"].append(time.process_time() - c0)
                 r["iters"].append(skin._last_result.iterations)
                 r["local"].append(getattr(skin.electrostatics.solver, "local_nodes", 0))
             for q in range(per_block):
-                r["stages"].append(_frame_stages(skin, scenes[(k + per_block + q) % 60]))
+                with ctx(label):
+                    r["stages"].append(_frame_stages(skin, scenes[(k + per_block + q) % 60]))
         k += 2 * per_block
     for label, skin in skins.items():
         r = out[label]
         still = scenes[5]
-        skin.capture(still, 0.0)
-        s_best, s_med = best_and_median(lambda s=skin, sc=still: s.capture(sc, 0.0), repeats=10)
+        with ctx(label):
+            skin.capture(still, 0.0)
+            s_best, s_med = best_and_median(lambda s=skin, sc=still: s.capture(sc, 0.0), repeats=10)
         stages = np.array(r["stages"])
         r.update(best=float(np.min(r["wall"])), med=float(np.median(r["wall"])), cpu=float(np.median(r["cpu"])),
                  s_best=s_best, s_med=s_med, stages=np.median(stages[:, 0], axis=0),
@@ -246,6 +259,39 @@ def _frame_stages(skin, scene) -> list[list[float]]:
     marks.append((time.perf_counter(), time.process_time()))
     m = np.array(marks)
     return np.diff(m, axis=0).T.tolist()
+
+
+def cycle_noise_section() -> None:
+    """Whole frames of ``skin_patch_8x8`` and ``skin_patch_16x16`` with the float32 V-cycle as built
+    (without the assembly's rounding noise, ``amg.CYCLE_NOISE``) against the same skin whose cycle keeps
+    every entry (``CYCLE_NOISE = 0`` while its frames run), alternating blocks of frames in one process;
+    the same CG steps are expected (docs/capacitive-accuracy.md, the cycle without the rounding noise)."""
+    import contextlib
+
+    from twinsense.capacitive import amg
+    from twinsense.capacitive.tactile import make_tactile
+
+    @contextlib.contextmanager
+    def every_entry():
+        kept = amg.CYCLE_NOISE
+        amg.CYCLE_NOISE = 0.0
+        try:
+            yield
+        finally:
+            amg.CYCLE_NOISE = kept
+
+    for preset in ("skin_patch_8x8", "skin_patch_16x16"):
+        new, old = f"{preset}, cycle without the rounding noise", f"{preset}, cycle keeping every entry"
+        skins = {old: make_tactile(preset, solver_threads=1), new: make_tactile(preset, solver_threads=1)}
+        rows = _whole_frames(skins, contexts={old: every_entry})
+        for label, r in rows.items():
+            print(f"  {label}: whole moving frame {r['med'] * 1e3:7.1f} ms median wall, process CPU "
+                  f"{r['cpu'] * 1e3:6.1f} ms median; Maxwell solve {r['stages'][3] * 1e3:6.1f} ms wall, "
+                  f"{r['stages_cpu'][3] * 1e3:6.1f} ms CPU median; CG steps per frame {r['col_iters']:.1f} "
+                  "(all columns)")
+        print(f"  {preset}: without / keeping the noise, same run: whole frame CPU "
+              f"{rows[new]['cpu'] / rows[old]['cpu']:.2f}, Maxwell solve CPU "
+              f"{rows[new]['stages_cpu'][3] / rows[old]['stages_cpu'][3]:.2f}")
 
 
 def levers_section(frames: int = 43) -> None:
@@ -416,6 +462,8 @@ def main() -> None:
     print_machine()
     if "--levers" in sys.argv[1:]:
         levers_section()
+    elif "--cycle-noise" in sys.argv[1:]:
+        cycle_noise_section()
     else:
         if "--electrical" not in sys.argv[1:]:
             mechanics_section()
