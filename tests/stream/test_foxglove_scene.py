@@ -9,20 +9,23 @@ their edge lengths; a client joining late gets the scene too, and an added objec
 
 from __future__ import annotations
 
+import base64
 import json
 import struct
 import threading
 from pathlib import Path
 
 import numpy as np
+import trimesh
 from test_foxglove_stream import _decoder, handle_text, serve_with_client, subscribing_client
 from websockets.sync.client import connect
 
 from twinsense.io.mcap import MATERIAL_COLORS, OTHER_COLOR
 from twinsense.scenario import scenario_from_dict
-from twinsense.scene import Box, Cylinder, Pose, Scene, Sphere
+from twinsense.scene import Box, Cylinder, Pose, Scene, SceneObject, Sphere, TriangleMesh
 from twinsense.scene.materials import Material
 from twinsense.stream import FoxgloveSink
+from twinsense.stream.foxglove_ws import SCENE_MESSAGE_BYTES, pack_scene
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -74,7 +77,10 @@ def test_the_scene_reaches_a_client_in_the_frames_of_tf():
     wanted = ("/scene", "/tf")
     got, ready, seen = {}, threading.Event(), {}
     sink = FoxgloveSink(port=0)
-    _, stopped = serve_with_client(sc, [sink], sink, subscribing_client, (got, ready, seen, wanted), wanted)
+    # The UR5 cell's scene is 2.5 MB: several messages, each within websockets' default 1 MiB frame limit.
+    ids = [o.name for o in sc.scene.objects]
+    _, stopped = serve_with_client(sc, [sink], sink, subscribing_client, (got, ready, seen, wanted, ids, 2**20),
+                                   wanted)
     assert stopped, sorted(got)
     _, ch, update = got["/scene"]
     assert ch["schemaName"] == "foxglove.SceneUpdate" and ch["encoding"] == "protobuf"
@@ -163,7 +169,8 @@ def test_a_late_client_gets_the_scene_and_an_added_object_is_sent_again():
 
         # A client joining now gets the scene as it is (latched), not only frames from now on.
         got, ready = {}, threading.Event()
-        b = threading.Thread(target=subscribing_client, args=(sink.port, got, ready, {}, ("/scene",)))
+        b = threading.Thread(target=subscribing_client, args=(sink.port, got, ready, {}, ("/scene",),
+                                                              [o.name for o in scene.objects], 2**20))
         b.start()
         threads.append(b)
         b.join(20)
@@ -198,3 +205,54 @@ def test_clients_subscribing_together_all_get_the_scene():
         sink.close()
     for g in gots:
         check_scene(g["/scene"][2], scene)
+
+
+def _ball(name: str, x: float, subdivisions: int) -> SceneObject:
+    """An icosphere of radius 0.2 m (subdivisions 5: 20,480 triangles, a 0.55 MB entity)."""
+    m = trimesh.creation.icosphere(subdivisions=subdivisions, radius=0.2)
+    return SceneObject(name, TriangleMesh(m.vertices, m.faces), "plastic", Pose(position=(x, 0.0, 0.5)))
+
+
+def test_a_scene_over_1_mib_reaches_a_client_with_the_default_frame_limit():
+    # Three 0.55 MB meshes (1.6 MB): as one message, a client with websockets' default limit (2**20 bytes)
+    # closed the connection (1009, message too big) and got no scene and no other topic; now each message
+    # is at most SCENE_MESSAGE_BYTES and together they are the scene, entity for entity.
+    scene = Scene([_ball(f"ball{i}", float(i), 5) for i in range(3)])
+    sink = FoxgloveSink(port=0)
+    sink.open(scene, [])
+    got = {}
+    client = threading.Thread(target=subscribing_client, args=(sink.port, got, threading.Event(), {}, ("/scene",),
+                                                               [o.name for o in scene.objects], 2**20))
+    try:
+        client.start()
+        client.join(20)
+    finally:
+        sink.close()
+    assert "/scene" in got
+    check_scene(got["/scene"][2], scene)
+
+
+def test_scene_messages_pack_entities_up_to_the_limit():
+    # Independent of the server: the packed messages parse, with protobuf's own decoder of foxglove's
+    # schema, as SceneUpdates whose entities are the scene's in order; sizes within the limit except an
+    # entity larger than it, alone.
+    import foxglove
+    import foxglove.messages as fm
+
+    schema = fm.SceneUpdate.get_schema()
+    decode = _decoder({"schema": base64.b64encode(schema.data).decode(), "schemaName": schema.name}).FromString
+    scene = Scene([_ball("big", 0.0, 6), _ball("a", 1.0, 4), _ball("b", 2.0, 4), _ball("c", 3.0, 5)])
+    sink = FoxgloveSink(port=0)
+    sink._fg, sink._m = foxglove, fm
+    parts = [fm.SceneUpdate(entities=[sink._entity(o, 0)]).encode() for o in scene.objects]
+    sizes = [len(p) for p in parts]
+    assert sizes[0] > SCENE_MESSAGE_BYTES > sizes[1] + sizes[2] + sizes[3] > sizes[3] > SCENE_MESSAGE_BYTES / 2
+    msgs = pack_scene(parts)
+    assert [len(m) for m in msgs] == [sizes[0], sizes[1] + sizes[2] + sizes[3]]
+    merged = decode(msgs[0])
+    merged.MergeFromString(msgs[1])
+    assert [e.id for e in decode(msgs[1]).entities] == ["a", "b", "c"]
+    check_scene(merged, scene)
+    assert pack_scene([]) == ()
+    small = pack_scene(parts[1:], limit=sizes[1] + sizes[2])
+    assert [len(m) for m in small] == [sizes[1] + sizes[2], sizes[3]]

@@ -99,13 +99,17 @@ def _decoder(channel: dict):
     return message_factory.GetMessageClass(pool.FindMessageTypeByName(channel["schemaName"]))
 
 
-def subscribing_client(port: int, got: dict, ready: threading.Event, seen: dict, wanted=WANTED) -> None:
+def subscribing_client(port: int, got: dict, ready: threading.Event, seen: dict, wanted=WANTED,
+                       scene_ids=(), max_size: int | None = None) -> None:
     """A Foxglove WebSocket client: subscribes to the ``wanted`` topics as they are advertised and keeps
     the first decoded message of each in ``got`` {topic: (log time [ns], channel, message)};
-    ``seen`` collects the channels advertised and subscribed."""
+    ``seen`` collects the channels advertised and subscribed. ``/scene`` comes in several SceneUpdates
+    (each under 1 MiB): they are merged into one, kept when its entities include every id of ``scene_ids``.
+    ``max_size``: the frame-size limit [bytes] (None: none; websockets takes 1 MiB by default)."""
     channels, subs = seen.setdefault("advertised", {}), seen.setdefault("subscribed", {})
-    # No frame-size limit (websockets takes 1 MiB by default): /scene carries whole meshes in one message.
-    with connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1"], open_timeout=10, max_size=None) as ws:
+    scene = None
+    with connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1"], open_timeout=10,
+                 max_size=max_size) as ws:
         ready.set()
         while not all(t in got for t in wanted):
             msg = ws.recv(timeout=10)
@@ -122,6 +126,14 @@ def subscribing_client(port: int, got: dict, ready: threading.Event, seen: dict,
             else:
                 assert ch["encoding"] == "protobuf"
                 body = _decoder(ch).FromString(payload)
+            if ch["topic"] == "/scene":
+                if scene is None:
+                    scene = body
+                else:
+                    scene.MergeFromString(payload)  # repeated fields append: the entities of both
+                if not set(scene_ids) <= {e.id for e in scene.entities}:
+                    continue
+                body = scene
             got.setdefault(ch["topic"], (log_ns, ch, body))
 
 

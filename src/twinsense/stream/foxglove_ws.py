@@ -13,7 +13,8 @@ topic                           type                  content
                                                       its own /tf frame (frame-locked), latched: sent
                                                       as a client subscribes (sends at least
                                                       SCENE_RESEND_INTERVAL apart), again when
-                                                      objects are added
+                                                      objects are added; in messages of at most
+                                                      SCENE_MESSAGE_BYTES (entities packed in order)
 ``/<body>/joint_states``        JSON                  robots, people: sensor_msgs/JointState's
                                                       fields (header, name, position, velocity,
                                                       effort) at each frame time
@@ -82,6 +83,10 @@ SCENE_TOPIC = "/scene"
 #: served together at its end, so clients subscribing in a burst (or one resubscribing in a loop) cannot
 #: fill the others' backlogs with copies of a multi-megabyte message.
 SCENE_RESEND_INTERVAL = 0.5
+#: [bytes] Most a /scene message holds: entities are packed into SceneUpdates of at most this size (an entity
+#: larger than it goes alone), so that clients with a frame limit of 1 MiB (2**20 bytes, e.g. Python's
+#: ``websockets`` by default) take them; 1,000,000 leaves 48,576 bytes for the 13-byte message header.
+SCENE_MESSAGE_BYTES = 1_000_000
 
 
 def require_foxglove():
@@ -167,7 +172,7 @@ class FoxgloveSink(QueuedSink):
         self._posed_t: float | None = None
         # The latched scene: its encoded SceneUpdate (the only copy kept), its entity ids, the scene
         # version it shows, and the simulation time [ns] of the last frame published (its log time).
-        self._scene_bytes: bytes | None = None
+        self._scene_bytes: tuple[bytes, ...] = ()
         self._scene_ids: tuple[str, ...] = ()
         self._scene_version: int | None = None
         self._scene_lock = threading.Lock()
@@ -285,9 +290,9 @@ class FoxgloveSink(QueuedSink):
                                        m.KeyValuePair(key="geometry", value=geom.kind)], **shape)
 
     def _set_scene(self, objects, ns: int) -> list[str]:
-        """Encode ``objects`` as the latched SceneUpdate (entities stamped ``ns``); the ids that went."""
+        """Encode ``objects`` as the latched SceneUpdates (entities stamped ``ns``); the ids that went."""
         ids = tuple(o.name for o in objects)
-        data = self._m.SceneUpdate(entities=[self._entity(o, ns) for o in objects]).encode() if ids else None
+        data = pack_scene([self._m.SceneUpdate(entities=[self._entity(o, ns)]).encode() for o in objects])
         with self._scene_lock:
             gone = [i for i in self._scene_ids if i not in set(ids)]
             self._scene_bytes, self._scene_ids = data, ids
@@ -296,8 +301,7 @@ class FoxgloveSink(QueuedSink):
     def _send_scene(self) -> None:
         """Log the latched scene on ``/scene`` to the clients subscribed to it (a no-op without objects)."""
         with self._scene_lock:
-            data = self._scene_bytes
-            if data is not None:
+            for data in self._scene_bytes:
                 self._channels[SCENE_TOPIC].log(data, log_time=self._last_ns)
             self._scene_sent_at = time.monotonic()
 
@@ -447,6 +451,27 @@ class FoxgloveSink(QueuedSink):
         if time.monotonic() >= self._next_stats:
             self._log_stats()
             self._next_stats = time.monotonic() + self.stats_interval
+
+
+def pack_scene(updates: list[bytes], limit: int = SCENE_MESSAGE_BYTES) -> tuple[bytes, ...]:
+    """Encoded one-entity SceneUpdates packed, in order, into messages of at most ``limit`` bytes.
+
+    Concatenated protobuf messages parse as one whose repeated fields hold all the parts' entries
+    (protobuf's merge rule), so a message is its parts joined: a SceneUpdate with their entities. An
+    update longer than ``limit`` is a message of its own. No updates: no messages.
+    """
+    out: list[bytes] = []
+    part: list[bytes] = []
+    size = 0
+    for u in updates:
+        if part and size + len(u) > limit:
+            out.append(b"".join(part))
+            part, size = [], 0
+        part.append(u)
+        size += len(u)
+    if part:
+        out.append(b"".join(part))
+    return tuple(out)
 
 
 def _json_values(a) -> Any:
