@@ -256,3 +256,55 @@ def test_scene_messages_pack_entities_up_to_the_limit():
     assert pack_scene([]) == ()
     small = pack_scene(parts[1:], limit=sizes[1] + sizes[2])
     assert [len(m) for m in small] == [sizes[1] + sizes[2], sizes[3]]
+
+
+def test_a_person_and_mujoco_bodies_in_the_frames_of_tf():
+    # Scenes the other tests do not use: a clothed person (skin and clothing segments, the clothing on
+    # the optical sensors' layers only: drawn all the same, the user sees the scene), a MuJoCo model (its
+    # world body's geoms and infinite plane as the object "world", the root of /tf; a free body named with
+    # a space) and a plane. Entities: the meshes value for value; frames: those /tf publishes (or world).
+    import mujoco
+
+    from twinsense.robots.mujoco_cosim import MujocoCosim
+    from twinsense.scene.human import add_person
+
+    xml = """<mujoco><worldbody><geom type="plane" size="0 0 0.1"/>
+             <geom type="cylinder" size="0.05 0.3" pos="1 0 0.3"/>
+             <body name="ball body" pos="0 0 1"><freejoint/><geom type="sphere" size="0.1"/>
+             <geom type="box" size="0.1 0.1 0.1" pos="0.2 0 0"/></body></worldbody></mujoco>"""
+    cosim = MujocoCosim(mujoco.MjModel.from_xml_string(xml))
+    scene = cosim.scene
+    add_person(scene, "alice", position=(2.0, 0.0), clothing="fabric")
+    names = [o.name for o in scene.objects]
+    assert names[:2] == ["world", "ball body"] and "alice/thorax_clothing" in names
+    assert "radar" not in scene.object("alice/thorax_clothing").layers
+    sink = FoxgloveSink(port=0)
+    sink.open(scene, [_Probe()])
+    msgs, ready, stop = [], threading.Event(), threading.Event()
+    client = threading.Thread(target=collecting_client, args=(sink.port, ("/scene", "/tf"), msgs, ready, stop))
+    client.start()
+    try:
+        assert ready.wait(10)
+        _wait(lambda: any(t == "/scene" for t, _, _ in msgs), "the scene")
+        # /tf is advertised with its first message: new frame times until the client has one.
+        for k in range(40):
+            sink.send(_Probe(), 0.1 * k, _Frame())
+            if any(t == "/tf" for t, _, _ in msgs):
+                break
+            threading.Event().wait(0.05)
+        _wait(lambda: any(t == "/tf" for t, _, _ in msgs), "/tf")
+    finally:
+        stop.set()
+        client.join(20)
+        sink.close()
+    # 2.0 MB (21 + 21 + 2 entities): three messages, each within the limit, together the scene.
+    ups = [m for t, _, m in msgs if t == "/scene"]
+    assert len(ups) == 3 and all(u.ByteSize() <= SCENE_MESSAGE_BYTES for u in ups)
+    update = ups[0]
+    for u in ups[1:]:
+        update.MergeFromString(u.SerializeToString())
+    check_scene(update, scene)
+    tf = next(m for t, _, m in msgs if t == "/tf")
+    parents = {x.child_frame_id: x.parent_frame_id for x in tf.transforms}
+    assert "world" not in parents  # the root: no world -> world loop
+    assert all(parents.get(e.frame_id) == "world" for e in update.entities if e.frame_id != "world")
