@@ -35,3 +35,21 @@ def test_a_person_is_a_body_and_a_plain_scene_has_none():
     assert scene.articulated_bodies == ()
     person = add_person(scene, "p")
     assert scene.articulated_bodies == (person,) and len(person.tree.joint_names) > 0
+
+
+def test_object_and_frame_names_are_valid_tf_frame_ids():
+    # An object's or frame's name is its /tf frame id in MCAP files and the Foxglove stream; tf2 refuses
+    # ids that start with '/', and '/' separates a body from its links, so empty segments are refused.
+    import pytest
+
+    from twinsense.errors import ConfigError
+    from twinsense.scene import SceneObject
+
+    for bad in ("/floor", "floor/", "ur5//tool0", "", 3):
+        with pytest.raises(ConfigError, match="object.name.*tf frame id"):
+            SceneObject(bad, Box((1.0, 1.0, 1.0)))
+        with pytest.raises(ConfigError, match="frame.name.*tf frame id"):
+            Frame(bad)
+    for good in ("floor", "ur5/tool0", "person/left_hand", "ball body"):
+        assert SceneObject(good, Box((1.0, 1.0, 1.0))).name == good
+        assert Frame(good).name == good

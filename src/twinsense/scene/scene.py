@@ -16,6 +16,16 @@ from twinsense.scene.pose import Pose
 SENSOR_KINDS = ("tof", "radar", "capacitive", "camera", "lidar", "ultrasonic", "magnetic", "inductive", "tactile")
 
 
+
+#: What an object's or frame's name may be: it is also its ROS 2 / Foxglove frame id (tf2 refuses ids
+#: that start with '/'), and '/' separates a body's name from its links' ("ur5/tool0").
+FRAME_NAME_RULE = "a non-empty string that neither starts nor ends with '/' nor holds '//' (it is a tf frame id)"
+
+
+def _check_frame_name(field: str, name) -> None:
+    if not isinstance(name, str) or not name or name.startswith("/") or name.endswith("/") or "//" in name:
+        raise ConfigError(field, name, FRAME_NAME_RULE)
+
 @dataclass(frozen=True, eq=False)
 class SceneObject:
     """A rigid object: geometry in its local frame, a motion, a material, layers.
@@ -43,8 +53,7 @@ class SceneObject:
     magnet: Magnet | None = None
 
     def __post_init__(self) -> None:
-        if not isinstance(self.name, str) or not self.name:
-            raise ConfigError("object.name", self.name, "a non-empty string")
+        _check_frame_name("object.name", self.name)
         if not isinstance(self.geometry, Geometry):
             raise ConfigError(f"{self.name}.geometry", self.geometry, "a twinsense geometry (Box, Sphere, ...)")
         object.__setattr__(self, "material", get_material(self.material))
@@ -101,8 +110,7 @@ class Frame:
     motion: Motion | Pose = field(default_factory=Static)
 
     def __post_init__(self) -> None:
-        if not isinstance(self.name, str) or not self.name:
-            raise ConfigError("frame.name", self.name, "a non-empty string")
+        _check_frame_name("frame.name", self.name)
         motion = Static(self.motion) if isinstance(self.motion, Pose) else self.motion
         if not isinstance(motion, Motion):
             raise ConfigError(f"{self.name}.motion", motion, "a Pose or a Motion")
