@@ -19,6 +19,7 @@ import pytest
 import scipy.sparse as sp
 from two_pad import two_pad_config
 
+from stiffness_noise import off_diagonal_noise
 from twinsense.capacitive.amg import CYCLE_NOISE, BlockAMG, CompiledCycle
 from twinsense.capacitive.kernels import cycle_operator, diagonal_split, gs_down6
 from twinsense.capacitive.pcg import compiled_block_pcg
@@ -48,12 +49,6 @@ def _scale(M: sp.csr_matrix) -> np.ndarray:
     """(nnz,) sqrt|m_ii| sqrt|m_jj| of every stored entry, CSR order."""
     root = np.sqrt(np.abs(M.diagonal()))
     return root[np.repeat(np.arange(M.shape[0]), np.diff(M.indptr))] * root[M.indices]
-
-
-def _relative(M: sp.csr_matrix) -> np.ndarray:
-    """(nnz,) |m_ij| / sqrt(|m_ii m_jj|) of every stored entry, CSR order."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.abs(M.data) / _scale(M)
 
 
 def test_cycle_operator_is_the_rule_applied_to_the_matrix(frame):
@@ -101,31 +96,14 @@ def test_cycle_transfer_drops_the_same_weights_from_both(frame):
 
 
 def test_what_the_cycle_leaves_out_is_rounding_of_exact_zeros(frame):
-    # The element matrices of P1 elements are positive semi-definite, so |k_e,ij| <= sqrt(k_e,ii k_e,jj)
-    # and, by Cauchy-Schwarz over the m elements sharing the edge ij, sum_e |k_e,ij| <= sqrt(K_ii K_jj).
-    # A coupling that is zero in exact arithmetic is then assembled as at most
-    # (m + c) u sqrt(K_ii K_jj): m - 1 additions (gamma_{m-1}) and c ~ 10 roundings inside each element
-    # term (gradients, products, the volume), u = 1.1e-16. Every entry the rule leaves out lies under
-    # that bound with c = 10; every kept one lies above 1e-6 (the noise and the true couplings are 10
-    # decades apart, the rule's 1e-10 in between).
+    # Every entry the rule leaves out lies under the rounding bound of an exact zero, (m + 10) u
+    # sqrt(K_ii K_jj) (tests/stiffness_noise.py derives it); every kept one lies above 1e-6 (the noise and
+    # the true couplings are 10 decades apart, the rule's 1e-10 in between).
     system, _, _, _, _ = frame
-    K = system.stiffness().tocsr().copy()
-    K.eliminate_zeros()
-    K.sort_indices()
-    rel = _relative(K)
-    rows = np.repeat(np.arange(K.shape[0]), np.diff(K.indptr))
-    off = rows != K.indices
-    cells = np.asarray(system.mesh.cells)
-    # m: the tetrahedra holding both nodes of an edge (each tetrahedron holds 6 edges).
-    pairs = np.concatenate([cells[:, [a, b]] for a in range(4) for b in range(a + 1, 4)])
-    edges = sp.coo_matrix((np.ones(len(pairs)), (pairs.min(axis=1), pairs.max(axis=1))), shape=K.shape).tocsr()
-    edges = edges + edges.T
-    m = np.asarray(edges[rows[off], K.indices[off]]).ravel()
-    dropped = rel[off] <= CYCLE_NOISE
-    assert dropped.sum() > 0.3 * off.sum()
-    u = np.finfo(float).eps / 2
-    assert np.all(rel[off][dropped] <= (m[dropped] + 10) * u)
-    assert rel[off][~dropped].min() > 1e-6
+    rel, bound, dropped = off_diagonal_noise(system.stiffness(), system.mesh.cells)
+    assert dropped.sum() > 0.3 * len(rel)
+    assert np.all(rel[dropped] <= bound[dropped])
+    assert rel[~dropped].min() > 1e-6
 
 
 def test_the_float32_cycle_forms_no_subnormal_product(frame):

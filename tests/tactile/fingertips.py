@@ -27,3 +27,18 @@ def fingertips(k: int, top: float):
     sc.add_object("thumb", Sphere(6e-3), "human_skin",
                   pose=Pose((4e-3 - dx, 4e-3, top + 6e-3 - 0.1e-3 - 0.05e-3 * (k % 2))))
     return sc
+
+
+def deform_to_third_frame(skin) -> None:
+    """Solve the fingertips' first two frames, then deform ``skin`` to the third (contact, displacement,
+    the fingertips as objects) without solving it: the state a frame solve starts from."""
+    from twinsense.capacitive.coupling import inclusions_from_scene
+
+    top = skin.config.layout.total_thickness
+    for k in range(2):
+        skin.solve_at(fingertips(k, top), 0.0)
+    scene = fingertips(2, top)
+    pose = skin.mount.pose_at(scene, 0.0)
+    es = skin.electrostatics
+    es.set_displacement(skin._contact(scene, 0.0, pose)[0])
+    es.set_objects(inclusions_from_scene(scene, 0.0, skin.kind), skin_to_world=pose)

@@ -5,10 +5,9 @@ import dataclasses
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from fingertips import fingertips, small_skin
+from fingertips import deform_to_third_frame, small_skin
 
 from twinsense.capacitive.amg import BlockAMG, CompactCycle
-from twinsense.capacitive.coupling import inclusions_from_scene
 from twinsense.capacitive.kernels import (
     block_product,
     block_residual,
@@ -29,23 +28,11 @@ from twinsense.capacitive.tactile.subdomain import LAYERS, MAX_NODES, SEED_SHARE
 from twinsense.errors import ConfigError
 
 
-def _deform(skin, scene) -> None:
-    """Move the skin's electrostatics to ``scene`` as TactileSensor.solve_at does, without the solve."""
-    pose = skin.mount.pose_at(scene, 0.0)
-    u, _, _ = skin._contact(scene, 0.0, pose)
-    es = skin.electrostatics
-    es.set_displacement(u)
-    es.set_objects(inclusions_from_scene(scene, 0.0, skin.kind), skin_to_world=pose)
-
-
 @pytest.fixture(scope="module")
 def frame():
     """A skin after two moving frames, deformed to the third: its system blocks, warm start and residual."""
     skin = small_skin()
-    top = skin.config.layout.total_thickness
-    for k in range(2):
-        skin.solve_at(fingertips(k, top), 0.0)
-    _deform(skin, fingertips(2, top))
+    deform_to_third_frame(skin)
     es = skin.electrostatics
     A, K, B, fixed, X_fixed = system_blocks(es.system)
     X0 = warm_start(X_fixed, fixed, es.solver.potentials)
