@@ -16,9 +16,9 @@ import trimesh
 import yaml
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
-from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
+from tf_matrix import tf_matrix
 from twinsense.cli import app
 from twinsense.scenario import scenario_from_dict
 
@@ -45,14 +45,6 @@ def _scenario(folder) -> dict:
             "outputs": {"recording": "rec.h5"}}
 
 
-def _matrix(tr) -> np.ndarray:
-    q, p = tr.transform.rotation, tr.transform.translation
-    h = np.eye(4)
-    h[:3, :3] = Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix()
-    h[:3, 3] = [p.x, p.y, p.z]
-    return h
-
-
 def test_shapes_and_names_through_run_format_mcap(tmp_path):
     d = _scenario(tmp_path)
     (tmp_path / "s.yaml").write_text(yaml.safe_dump(d))
@@ -67,10 +59,10 @@ def test_shapes_and_names_through_run_format_mcap(tmp_path):
     ((t0, arr),) = msgs["/scene_markers"]
     assert [mk.header.frame_id for mk in arr.markers] == [o.name for o in scene.objects]
     (static,) = [m for _, m in msgs["/tf_static"]]
-    poses = {tr.child_frame_id: (tr.header.frame_id, _matrix(tr)) for tr in static.transforms}
+    poses = {tr.child_frame_id: (tr.header.frame_id, tf_matrix(tr)) for tr in static.transforms}
     first_tf = msgs["/tf"][0][1]
     assert msgs["/tf"][0][0] == t0 == 0
-    poses.update({tr.child_frame_id: (tr.header.frame_id, _matrix(tr)) for tr in first_tf.transforms})
+    poses.update({tr.child_frame_id: (tr.header.frame_id, tf_matrix(tr)) for tr in first_tf.transforms})
     for mk, obj in zip(arr.markers, scene.objects, strict=True):
         mesh = obj.geometry.mesh
         corners = np.array([[p.x, p.y, p.z] for p in mk.points])

@@ -17,6 +17,7 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
+from tf_matrix import tf_matrix
 from twinsense.cli import app
 from twinsense.errors import ConfigError
 from twinsense.robots import load_robot, robot_path
@@ -271,16 +272,6 @@ def _matrix(pose: dict) -> np.ndarray:
     return m
 
 
-def _tf_matrix(tf) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
-
-    r, p = tf.transform.rotation, tf.transform.translation
-    m = np.eye(4)
-    m[:3, :3] = Rotation.from_quat([r.x, r.y, r.z, r.w]).as_matrix()
-    m[:3, 3] = [p.x, p.y, p.z]
-    return m
-
-
 @pytest.fixture(scope="module")
 def cell_run(tmp_path_factory):
     """The cell run as a user runs it: python -m twinsense run cell.yaml -o out --format mcap."""
@@ -307,9 +298,9 @@ def _read_mcap(path: Path):
                 other = store.deserialize_cdr(msg.data, "tf2_msgs/msg/TFMessage")
                 for tf, tf2 in zip(dec.transforms, other.transforms, strict=True):
                     assert (tf.child_frame_id, tf.header.frame_id) == (tf2.child_frame_id, tf2.header.frame_id)
-                    np.testing.assert_array_equal(_tf_matrix(tf), _tf_matrix(tf2))
+                    np.testing.assert_array_equal(tf_matrix(tf), tf_matrix(tf2))
                     into = static if channel.topic == "/tf_static" else moving.setdefault(msg.log_time, {})
-                    into[tf.child_frame_id] = (tf.header.frame_id, _tf_matrix(tf))
+                    into[tf.child_frame_id] = (tf.header.frame_id, tf_matrix(tf))
                     headers.append((channel.topic, tf.header.frame_id, msg.log_time))
             elif hasattr(dec, "header"):
                 headers.append((channel.topic, dec.header.frame_id, msg.log_time))

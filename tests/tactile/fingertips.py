@@ -42,3 +42,15 @@ def deform_to_third_frame(skin) -> None:
     es = skin.electrostatics
     es.set_displacement(skin._contact(scene, 0.0, pose)[0])
     es.set_objects(inclusions_from_scene(scene, 0.0, skin.kind), skin_to_world=pose)
+
+
+def third_frame_blocks(skin):
+    """:func:`deform_to_third_frame`, then that frame's system blocks and warm start:
+    (A, K, B, fixed, X_fixed, X0) as the frame solver takes them."""
+    from twinsense.capacitive.solver import warm_start
+    from twinsense.capacitive.tactile.framesolver import system_blocks
+
+    deform_to_third_frame(skin)
+    es = skin.electrostatics
+    A, K, B, fixed, X_fixed = system_blocks(es.system)
+    return A, K, B, fixed, X_fixed, warm_start(X_fixed, fixed, es.solver.potentials)

@@ -15,15 +15,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from fingertips import deform_to_third_frame, fingertips, small_skin
+from fingertips import fingertips, small_skin, third_frame_blocks
 
 import twinsense.capacitive.tactile.framesolver as framesolver
 from stiffness_noise import off_diagonal_noise
 from twinsense.capacitive.amg import CYCLE_NOISE, BlockAMG, CompactCycle
 from twinsense.capacitive.kernels import cholesky_columns, cycle_down
 from twinsense.capacitive.pcg import compact_block_pcg
-from twinsense.capacitive.solver import warm_start
-from twinsense.capacitive.tactile.framesolver import system_blocks
 
 TINY = np.finfo(np.float32).tiny  # smallest normal float32, 1.18e-38
 
@@ -32,10 +30,7 @@ TINY = np.finfo(np.float32).tiny  # smallest normal float32, 1.18e-38
 def frame():
     """The small skin after two moving frames, deformed to the third: (skin, A, B, fixed, X0, hierarchy)."""
     skin = small_skin()
-    deform_to_third_frame(skin)
-    es = skin.electrostatics
-    A, _, B, fixed, X_fixed = system_blocks(es.system)
-    X0 = warm_start(X_fixed, fixed, es.solver.potentials)
+    A, _, B, fixed, _, X0 = third_frame_blocks(skin)
     return skin, A, B, fixed, X0, BlockAMG(A)
 
 

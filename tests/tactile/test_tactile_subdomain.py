@@ -5,7 +5,7 @@ import dataclasses
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from fingertips import deform_to_third_frame, small_skin
+from fingertips import small_skin, third_frame_blocks
 
 from twinsense.capacitive.amg import BlockAMG, CompactCycle
 from twinsense.capacitive.kernels import (
@@ -15,8 +15,8 @@ from twinsense.capacitive.kernels import (
     maxwell_from_residual,
     put_columns,
 )
-from twinsense.capacitive.solver import MaxwellSolver, SolverConfig, warm_start
-from twinsense.capacitive.tactile.framesolver import FrameSolver, system_blocks
+from twinsense.capacitive.solver import MaxwellSolver, SolverConfig
+from twinsense.capacitive.tactile.framesolver import FrameSolver
 from twinsense.capacitive.tactile.kernels import (
     grow_rows,
     residual_rows,
@@ -32,10 +32,7 @@ from twinsense.errors import ConfigError
 def frame():
     """A skin after two moving frames, deformed to the third: its system blocks, warm start and residual."""
     skin = small_skin()
-    deform_to_third_frame(skin)
-    es = skin.electrostatics
-    A, K, B, fixed, X_fixed = system_blocks(es.system)
-    X0 = warm_start(X_fixed, fixed, es.solver.potentials)
+    A, K, B, fixed, X_fixed, X0 = third_frame_blocks(skin)
     R0 = np.empty_like(X0)
     rr0 = np.empty(B.shape[1])
     block_residual(A.indptr, A.indices, A.data, B, X0, R0, rr0)
