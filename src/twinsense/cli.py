@@ -187,16 +187,32 @@ def recover(path: Path = typer.Argument(..., help="a killed run's '.<name>.h5.<p
     typer.echo(f"recovered {sum(counts.values())} frames ({kept}) into {dest}")
 
 
+def _stored_scenario_dir(src: Path) -> Path | None:
+    """The scenario folder a recording keeps (``scenario_dir``), if it exists here; None otherwise."""
+    from twinsense.io.recording import open_recording
+
+    try:
+        with open_recording(src, allow_incomplete=True) as rec:
+            stored = rec.scenario_dir
+    except TwinsenseError:
+        return None  # the conversion itself reports what is wrong with the file
+    return stored if stored is not None and stored.is_dir() else None
+
+
 def _convert(src: Path, dest: Path, base_dir: Path | None = None, hint: bool = False) -> None:
-    """``base_dir``: where the stored scenario's relative paths (meshes, robot descriptions) are taken from
-    (the scenario file's folder after a run; the working folder when None). ``hint``: a stored scenario
-    that cannot be rebuilt names ``--scenario-dir``."""
+    """``base_dir``: where the stored scenario's relative paths (meshes, robot descriptions) are taken from;
+    None: the scenario folder the recording keeps, where it exists, else the working folder. ``hint``: a
+    stored scenario that cannot be rebuilt names ``--scenario-dir``."""
     from twinsense.io.mcap import convert as to_mcap
     from twinsense.scenario import ScenarioError, scenario_from_dict
 
+    if base_dir is None:
+        base_dir = _stored_scenario_dir(src)
+    where = "the working folder" if base_dir is None else f"{str(base_dir)!r}"
+
     def failed(exc: Exception) -> None:
         if hint and isinstance(exc, ScenarioError):
-            typer.echo("note: the stored scenario's relative paths are taken from the working folder; "
+            typer.echo(f"note: the stored scenario's relative paths were taken from {where}; "
                        "--scenario-dir names the scenario file's folder", err=True)
         _fail(exc)
 
@@ -224,7 +240,8 @@ def convert(recording: Path = typer.Argument(..., help="a twinsense HDF5 recordi
             out: Path = typer.Argument(..., help="the file to write: .mcap (ROS 2) or .rrd (Rerun)"),
             scenario_dir: Path = typer.Option(None, "--scenario-dir",
                                               help="the folder the stored scenario's relative paths (robot "
-                                                   "descriptions, meshes) are taken from (default: the working "
+                                                   "descriptions, meshes) are taken from (default: the scenario "
+                                                   "file's folder the recording keeps, else the working "
                                                    "folder)")) -> None:
     """Convert a recording into a ROS 2 MCAP file (needs the 'ros2' extra) or a Rerun .rrd file ('rerun' extra).
 

@@ -390,6 +390,7 @@ class Scenario:
     raw: dict = field(default_factory=dict)
     limits: Any = None  # twinsense.simulate.RunLimits the scenario was checked against (None: the defaults)
     processes: int = 1  # capture processes of the run (simulate's processes=)
+    base_dir: Path | None = None  # where the scenario's relative paths were taken from (the file's folder)
 
     def recording_path(self, out_dir) -> Path | None:
         """Where :meth:`run` writes the recording (None when ``outputs.recording`` is null)."""
@@ -406,7 +407,8 @@ class Scenario:
 
         return simulate(self.scene, self.sensors, self.duration, out=self.recording_path(out_dir), seed=self.seed,
                         progress=progress, scenario=self.raw, keep_frames=False, limits=self.limits,
-                        stop=stop, processes=self.processes if processes is None else processes)
+                        stop=stop, processes=self.processes if processes is None else processes,
+                        scenario_dir=self.base_dir)
 
 
 def _loc(loc: tuple) -> str:
@@ -621,7 +623,7 @@ def scenario_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None 
     if problems:
         raise ScenarioError(source, problems)
     return Scenario(spec.name, scene, sensors, spec.duration, spec.seed, spec.outputs, source, data, limits,
-                    spec.processes)
+                    spec.processes, base_dir)
 
 
 def _add_robots(spec: ScenarioSpec, scene: Scene, base_dir: Path, local_mats: dict[str, Material]) -> list:

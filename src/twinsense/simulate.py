@@ -196,7 +196,7 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
              limits: RunLimits | None = None,
              stop: Callable[[], BaseException | None] | None = None,
              workers: int | None = None, processes: int | None = None,
-             process_timeout: float | None = None) -> SimulationResult:
+             process_timeout: float | None = None, scenario_dir=None) -> SimulationResult:
     """Run ``sensors`` over ``[t0, t0 + duration)`` on one shared clock.
 
     Parameters
@@ -267,6 +267,9 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
         max(60 s, 50 x the slowest frame handed back so far), and max(300 s, that) for each sensor's
         first frame and for the prepares (kernels compiled, caches filled); see
         :func:`process_wait`. A process that is alive but hangs is then found, not waited on forever.
+    scenario_dir : path-like, optional
+        The scenario file's folder, kept in the recording (``scenario_dir``) so that ``twinsense
+        convert`` takes the stored scenario's relative paths from it.
     """
     if not isinstance(scene, Scene):
         raise ConfigError("scene", scene, "a twinsense.Scene")
@@ -343,7 +346,7 @@ def simulate(scene: Scene, sensors, duration: float, out=None, *, seed: int = 0,
         if path.suffix not in (".h5", ".hdf5"):
             path = path / "recording.h5"
         try:
-            writer = RecordingWriter(path, scenario=scenario)
+            writer = RecordingWriter(path, scenario=scenario, scenario_dir=scenario_dir)
         except BaseException:
             if closable:
                 source.close()

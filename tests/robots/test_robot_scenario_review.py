@@ -20,6 +20,7 @@ from typer.testing import CliRunner
 from tf_matrix import tf_matrix
 from twinsense.cli import app
 from twinsense.errors import ConfigError
+from twinsense.io.recording import open_recording
 from twinsense.robots import load_robot, robot_path
 from twinsense.scenario import ScenarioError, scenario_from_dict
 
@@ -554,17 +555,25 @@ def test_sweep_output_folder_that_is_a_file_is_a_clear_error(tmp_path):
 
 
 def test_convert_takes_the_scenario_folder_for_relative_descriptions(tmp_path, monkeypatch):
-    # A recording of a robot given as a relative .urdf, converted from another folder: --scenario-dir names
-    # the folder the stored scenario's relative paths are taken from.
+    # A recording of a robot given as a relative .urdf, converted from another folder: the recording keeps
+    # the scenario file's folder (scenario_dir), so the stored scenario's relative paths resolve from any
+    # working folder; once that folder is gone, --scenario-dir names where it went.
     (tmp_path / "cell").mkdir()
     (tmp_path / "cell" / "spinner.urdf").write_text(SPINNER.format(r=0.4, a=0.1))
     sonar = {"name": "sonar", "kind": "ultrasonic", "preset": "open_40khz", "mount": {"parent": "sp/paddle"}}
     p = _write(tmp_path / "cell", _data([{"name": "sp", "description": "spinner.urdf"}], [sonar], recording="r.h5"))
     monkeypatch.chdir(tmp_path / "cell")
     assert CliRunner().invoke(app, ["run", str(p), "-o", str(tmp_path / "out"), "--no-progress"]).exit_code == 0
+    with open_recording(tmp_path / "out" / "r.h5") as rec:
+        assert rec.scenario_dir == (tmp_path / "cell").resolve()
     monkeypatch.chdir(tmp_path)
     res = CliRunner().invoke(app, ["convert", "out/r.h5", "out/r.mcap"])
-    assert res.exit_code == 2 and "--scenario-dir" in res.output  # the error says where the way out is
-    res = CliRunner().invoke(app, ["convert", "out/r.h5", "out/r.mcap", "--scenario-dir", "cell"])
     assert res.exit_code == 0, res.output
     assert (tmp_path / "out" / "r.mcap").is_file()
+    (tmp_path / "cell").rename(tmp_path / "moved")
+    res = CliRunner().invoke(app, ["convert", "out/r.h5", "out/r2.mcap"])
+    assert res.exit_code == 2 and "--scenario-dir" in res.output  # the error says where the way out is
+    assert "working folder" in res.output
+    res = CliRunner().invoke(app, ["convert", "out/r.h5", "out/r2.mcap", "--scenario-dir", "moved"])
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "out" / "r2.mcap").is_file()

@@ -5,7 +5,8 @@ Layout (documented in docs/recording-format.md)::
     /                      attrs: format = "twinsense-recording", format_version = 1,
                                   twinsense_version, created (ISO 8601 UTC),
                                   complete (bool), error (str, only if incomplete),
-                                  scenario (JSON text, may be "{}")
+                                  scenario (JSON text, may be "{}"),
+                                  scenario_dir (str, only with a scenario file)
     /<sensor name>/        attrs: kind, frame_rate [Hz], config (JSON text)
     /<sensor name>/timestamps     (n_frames,) float64 [s]
     /<sensor name>/<stream>       (n_frames, ...) one dataset per frame stream
@@ -145,6 +146,9 @@ class RecordingWriter:
     flush_interval : float or None
         [s] A frame is on disk (readable after a hard kill) at most this long
         after it was appended; None flushes only when the file is closed.
+    scenario_dir : path-like, optional
+        The scenario file's folder, stored (absolute) in the root attribute
+        ``scenario_dir``: where the scenario's relative paths are taken from.
 
     Attributes
     ----------
@@ -157,7 +161,7 @@ class RecordingWriter:
     """
 
     def __init__(self, path, scenario: Mapping | None = None, compression: str | None = "lzf",
-                 flush_interval: float | None = FLUSH_INTERVAL):
+                 flush_interval: float | None = FLUSH_INTERVAL, scenario_dir=None):
         self.path = Path(path)
         if self.path.suffix not in (".h5", ".hdf5"):
             self.path = self.path.with_suffix(".h5")
@@ -186,6 +190,10 @@ class RecordingWriter:
         a["created"] = _dt.datetime.now(_dt.UTC).isoformat()
         a["complete"] = False
         a["scenario"] = _json(dict(scenario or {}))
+        if scenario_dir is not None:
+            # The folder the scenario's relative paths (meshes, robot descriptions, recordings) were taken
+            # from, absolute: `twinsense convert` rebuilds the scenario from it wherever it is run.
+            a["scenario_dir"] = str(Path(scenario_dir).resolve())
         self._counts: dict[str, int] = {}
         self._datasets: dict[str, tuple[h5py.Dataset, dict[str, h5py.Dataset]]] = {}
         self._closed = False
@@ -581,6 +589,10 @@ class Recording:
         self.version = str(_attr(self._f, "twinsense_version", self.path, "the file"))
         self.created = str(_attr(self._f, "created", self.path, "the file"))
         self.scenario = _json_attr(self._f, "scenario", self.path, "the file")
+        stored = a.get("scenario_dir")
+        #: The folder the stored scenario's relative paths were taken from (None: not recorded, e.g. a
+        #: Python-built run, or a recording from before this attribute).
+        self.scenario_dir = Path(str(stored)) if stored else None
         self.sensors = {}
         for k, g in self._f.items():
             if not isinstance(g, h5py.Group):
