@@ -281,3 +281,19 @@ def test_append_checks(tmp_path):
         assert len(rec["a"]) == 1  # whole frames only
     with pytest.raises(ConfigError, match="flush_interval"):
         RecordingWriter(tmp_path / "q.h5", flush_interval=0)
+
+
+def test_scenario_dir_is_stored_absolute_and_a_bad_one_writes_nothing(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "cell").mkdir()
+    with RecordingWriter(tmp_path / "a.h5", scenario={"name": "t"}, scenario_dir="cell") as w:
+        w.add_sensor("cam", "camera", 10.0, {})
+        w.append("cam", 0.0, {"depth": np.zeros((2, 2), np.float32)})
+    with open_recording(tmp_path / "a.h5") as rec:
+        assert rec.scenario_dir == (tmp_path / "cell").resolve()
+    write(tmp_path / "b.h5")
+    with open_recording(tmp_path / "b.h5") as rec:
+        assert rec.scenario_dir is None  # not given: not stored
+    with pytest.raises(ConfigError, match="scenario_dir"):
+        RecordingWriter(tmp_path / "c.h5", scenario_dir=5)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.h5", "b.h5", "cell"]  # nothing half-written

@@ -167,6 +167,11 @@ class RecordingWriter:
             self.path = self.path.with_suffix(".h5")
         if flush_interval is not None and not (isinstance(flush_interval, (int, float)) and flush_interval > 0):
             raise ConfigError("flush_interval", flush_interval, "a number of seconds > 0, or None")
+        if scenario_dir is not None and not isinstance(scenario_dir, (str, os.PathLike)):
+            raise ConfigError("scenario_dir", scenario_dir, "the scenario file's folder (a path), or None")
+        # The folder the scenario's relative paths (meshes, robot descriptions, recordings) were taken
+        # from, absolute: `twinsense convert` rebuilds the scenario from it wherever it is run.
+        stored_dir = None if scenario_dir is None else str(Path(scenario_dir).resolve())
         if self.path.parent.exists() and not self.path.parent.is_dir():  # h5py would say only "errno = 20"
             raise RecordingError(f"cannot write {str(self.path)!r}: {str(self.path.parent)!r} is a file, not a folder")
         if not self.path.parent.exists():
@@ -190,10 +195,8 @@ class RecordingWriter:
         a["created"] = _dt.datetime.now(_dt.UTC).isoformat()
         a["complete"] = False
         a["scenario"] = _json(dict(scenario or {}))
-        if scenario_dir is not None:
-            # The folder the scenario's relative paths (meshes, robot descriptions, recordings) were taken
-            # from, absolute: `twinsense convert` rebuilds the scenario from it wherever it is run.
-            a["scenario_dir"] = str(Path(scenario_dir).resolve())
+        if stored_dir is not None:
+            a["scenario_dir"] = stored_dir
         self._counts: dict[str, int] = {}
         self._datasets: dict[str, tuple[h5py.Dataset, dict[str, h5py.Dataset]]] = {}
         self._closed = False

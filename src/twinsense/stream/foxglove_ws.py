@@ -294,7 +294,8 @@ class FoxgloveSink(QueuedSink):
         ids = tuple(o.name for o in objects)
         data = pack_scene([self._m.SceneUpdate(entities=[self._entity(o, ns)]).encode() for o in objects])
         with self._scene_lock:
-            gone = [i for i in self._scene_ids if i not in set(ids)]
+            kept = set(ids)
+            gone = [i for i in self._scene_ids if i not in kept]
             self._scene_bytes, self._scene_ids = data, ids
         return gone
 
