@@ -20,22 +20,25 @@ body, is expressed with frame-only intermediate links named
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 import xml.etree.ElementTree as ET
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial import ConvexHull, QhullError
 from scipy.spatial.transform import Rotation
 
-from twinsense.errors import ConfigError
+from twinsense.errors import ConfigError, GeometryError
 from twinsense.inputs import note_input, noting
 from twinsense.robots.deps import require
 from twinsense.robots.descriptions import resolve
 from twinsense.robots.materials import link_materials
-from twinsense.robots.meshes import merge, primitive_mesh
+from twinsense.robots.meshes import primitive_mesh
 from twinsense.scene.articulated import ArticulatedBody, Joint, JointMotion, KinematicTree, Link
-from twinsense.scene.geometry import Box, Capsule, Cylinder, Geometry, Plane, Sphere
+from twinsense.scene.geometry import Box, Capsule, Cylinder, Geometry, Plane, Sphere, TriangleMesh
 from twinsense.scene.motion import Motion
 from twinsense.scene.pose import Pose
 
@@ -177,11 +180,7 @@ def geom_mesh(model, g: int, field: str) -> tuple[np.ndarray, np.ndarray] | None
     ``field`` and the geom: an SDF geom, which has no surface to draw)."""
     t = int(model.geom_type[g])
     if t == GEOM_MESH:
-        mid = int(model.geom_dataid[g])
-        va, vn = int(model.mesh_vertadr[mid]), int(model.mesh_vertnum[mid])
-        fa, fn = int(model.mesh_faceadr[mid]), int(model.mesh_facenum[mid])
-        return (np.asarray(model.mesh_vert[va:va + vn], dtype=float),
-                np.asarray(model.mesh_face[fa:fa + fn], dtype=np.int64))
+        return _compiled_mesh(model, g)
     if t == GEOM_ELLIPSOID:
         v, f = primitive_mesh(Sphere(1.0, subdivisions=3))
         return v * np.asarray(model.geom_size[g], dtype=float), f
@@ -242,9 +241,97 @@ def body_geoms(model, b: int, which: str = "visual") -> list[int]:
     return [g for g in ids if g not in display] or ids
 
 
+@dataclass(frozen=True, eq=False)
+class _Ellipsoid:
+    """Inside test of a MuJoCo ellipsoid geom: sum (x_i / a_i)^2 <= 1, radii ``a`` (3,) [m]."""
+
+    radii: np.ndarray
+
+    def contains(self, points) -> np.ndarray:
+        p = np.asarray(points, dtype=float).reshape(-1, 3)
+        return np.sum((p / self.radii) ** 2, axis=1) <= 1.0
+
+
+@dataclass(frozen=True, eq=False)
+class _MeshVolume:
+    """Inside test of a MuJoCo mesh geom, vertices (n, 3) [m] and faces (m, 3) in the geom frame: the
+    mesh itself when it is closed, else its convex hull (what MuJoCo collides a mesh geom as); a flat
+    mesh (no hull) has no inside."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+
+    @functools.cached_property
+    def _test(self):
+        try:
+            mesh = TriangleMesh(self.vertices, self.faces, name="mjcf mesh geom")
+            if mesh.mesh.is_watertight:
+                return mesh.contains
+        except GeometryError:  # degenerate triangles only: the hull decides
+            pass
+        try:
+            eq = ConvexHull(self.vertices).equations
+        except QhullError:  # all vertices in one plane (or fewer than four): no volume
+            return lambda p: np.zeros(len(p), dtype=bool)
+        # Inside the hull: on the inner side of every facet plane (n . p + d <= 0), to rounding.
+        return lambda p: np.all(p @ eq[:, :3].T + eq[:, 3] <= 1e-12, axis=1)
+
+    def contains(self, points) -> np.ndarray:
+        return np.asarray(self._test(np.asarray(points, dtype=float).reshape(-1, 3)), dtype=bool)
+
+
+def geom_volume(model, g: int):
+    """Geom g's inside test in its geom frame (an object with ``contains(points (n, 3)) -> bool (n,)``), or
+    None for a geom without volume (a plane; an SDF or plugin geom, which twinsense does not draw)."""
+    t = int(model.geom_type[g])
+    if t == GEOM_PLANE:
+        return None
+    if t == GEOM_ELLIPSOID:
+        return _Ellipsoid(np.asarray(model.geom_size[g], dtype=float).copy())
+    if t in (GEOM_MESH, GEOM_HFIELD):  # a height field is a closed prism: its own mesh's test is exact
+        mesh = geom_mesh(model, g, "mjcf") if t == GEOM_HFIELD else _compiled_mesh(model, g)
+        return _MeshVolume(*mesh)
+    return geom_primitive(model, g)
+
+
+@dataclass(frozen=True, eq=False)
+class GeomsMesh(TriangleMesh):
+    """A MuJoCo body's geoms merged into one triangle mesh in the body frame (what rays see), whose inside
+    test is the geoms' own: a point is inside when it lies inside one of them.
+
+    ``solids``: ((inside test in the geom frame, geom -> body pose), ...) of the geoms with a volume. The
+    merged mesh of a body with a plane (the world body of most MuJoCo scenes: a floor beside a table) or an
+    open mesh is open, and an open mesh's inside test would otherwise be the hull of all the geoms: the
+    air between a table and the floor's far edge counted as inside the table.
+    """
+
+    solids: tuple = ()
+
+    def contains(self, points):
+        p = np.asarray(points, dtype=float).reshape(-1, 3)
+        out = np.zeros(len(p), dtype=bool)
+        for solid, pose in self.solids:
+            rest = np.flatnonzero(~out)
+            if len(rest) == 0:
+                break
+            # Body -> geom frame: R^T (p - t), written as a row product.
+            local = (p[rest] - pose.position) @ pose.rotation
+            out[rest] = solid.contains(local)
+        return out
+
+
+def _compiled_mesh(model, g: int) -> tuple[np.ndarray, np.ndarray]:
+    mid = int(model.geom_dataid[g])
+    va, vn = int(model.mesh_vertadr[mid]), int(model.mesh_vertnum[mid])
+    fa, fn = int(model.mesh_faceadr[mid]), int(model.mesh_facenum[mid])
+    return (np.asarray(model.mesh_vert[va:va + vn], dtype=float),
+            np.asarray(model.mesh_face[fa:fa + fn], dtype=np.int64))
+
+
 def body_geometry(model, b: int, which: str = "visual", field: str = "mjcf") -> Geometry | None:
     """One geometry for body ``b`` in its body frame: a single primitive geom at the body origin
-    stays a primitive (exact inside tests); anything else is merged into one mesh."""
+    stays a primitive (exact inside tests); anything else is merged into one :class:`GeomsMesh`
+    (inside: inside one of the geoms)."""
     ids = body_geoms(model, b, which)
     if len(ids) == 1:
         g = ids[0]
@@ -252,12 +339,21 @@ def body_geometry(model, b: int, which: str = "visual", field: str = "mjcf") -> 
         prim = geom_primitive(model, g)
         if prim is not None and pose.isclose(Pose(), atol=0.0):
             return prim
-    parts = []
+    verts, faces, solids, off = [], [], [], 0
     for g in ids:
         mesh = geom_mesh(model, g, field)
-        if mesh is not None:
-            parts.append((*mesh, _quat_pose(model.geom_pos[g], model.geom_quat[g])))
-    return merge(parts, body_name(model, b))
+        if mesh is None:
+            continue
+        pose = _quat_pose(model.geom_pos[g], model.geom_quat[g])
+        verts.append(pose.apply(mesh[0]))
+        faces.append(np.asarray(mesh[1]) + off)
+        off += len(mesh[0])
+        volume = geom_volume(model, g)
+        if volume is not None:
+            solids.append((volume, pose))
+    if not verts:
+        return None
+    return GeomsMesh(np.vstack(verts), np.vstack(faces), name=body_name(model, b), solids=tuple(solids))
 
 
 #: How ``mjcf_tree`` takes MuJoCo ball joints.

@@ -1,0 +1,90 @@
+"""MJCF models a user brings, checked from outside: closed forms of the geoms, MuJoCo's own ray test and
+the files MuJoCo reads, none of which the rest of the suite uses."""
+
+import mujoco
+import numpy as np
+
+import twinsense as ts
+from twinsense.robots import MujocoCosim, load_mjcf
+
+# A typical MuJoCo scene: static geoms straight in the world body (a floor and a table), a robot body with
+# several geoms (an offset capsule, an ellipsoid and an open mesh: a tetrahedron with one face missing).
+CELL = """<mujoco>
+  <asset><mesh name="open_tet" vertex="0 0 0  0.2 0 0  0 0.2 0  0 0 0.2" face="0 2 1  0 1 3  0 3 2"/></asset>
+  <worldbody>
+    <geom name="floor" type="plane" size="0 0 0.1"/>
+    <geom name="table" type="box" size="0.3 0.3 0.4" pos="1 0 0.4"/>
+    <body name="arm" pos="-1 0.5 0.5">
+      <geom type="capsule" fromto="0 0 0  0.3 0 0" size="0.05"/>
+      <geom type="ellipsoid" size="0.1 0.05 0.08" pos="0 0.3 0" euler="0 0 23"/>
+      <geom type="mesh" mesh="open_tet" pos="0 -0.4 0"/>
+    </body>
+  </worldbody>
+</mujoco>"""
+
+
+def _inside_cell(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Closed forms: (inside the table (world body), inside one of the arm's geoms), body frames."""
+    world = np.all(np.abs(p - [1, 0, 0.4]) <= [0.3, 0.3, 0.4], axis=1)  # the floor has no volume
+    x = np.clip(p[:, 0], 0.0, 0.3)  # the capsule: within 0.05 m of the segment x in [0, 0.3]
+    capsule = np.linalg.norm(p - np.c_[x, 0 * x, 0 * x], axis=1) <= 0.05
+    c, s = np.cos(np.radians(23)), np.sin(np.radians(23))  # MJCF angles are degrees by default
+    q = p - [0, 0.3, 0]
+    e = np.c_[c * q[:, 0] + s * q[:, 1], -s * q[:, 0] + c * q[:, 1], q[:, 2]]  # into the ellipsoid's axes
+    ellipsoid = np.sum((e / [0.1, 0.05, 0.08]) ** 2, axis=1) <= 1
+    t = p - [0, -0.4, 0]  # the open tetrahedron counts as its hull, as MuJoCo collides it
+    tet = np.all(t >= 0, axis=1) & (t.sum(axis=1) <= 0.2)
+    return world, capsule | ellipsoid | tet
+
+
+def test_merged_geoms_are_inside_only_where_a_geom_is():
+    # The world body's geoms (a plane and a box) merge into one open mesh; its inside test was the hull of
+    # everything: a slab of air from the table's top down to the floor's edge 10 m away counted as inside
+    # the table, (-3, 2, 0.3) among it. The reference is each geom's closed form; points are random in a
+    # box around everything, the table's corners 1 mm in or out, and points around the arm's geoms (its
+    # body frame), so any hull or gap shows. Exact: no point lies within rounding of a surface.
+    cosim = MujocoCosim(mujoco.MjModel.from_xml_string(CELL))
+    rng = np.random.default_rng(7)
+    world_pts = rng.uniform([-5, -5, -0.2], [5, 5, 1.2], (20000, 3))
+    half = np.array([0.3, 0.3, 0.4]) + rng.choice([-1e-3, 1e-3], (2000, 1))  # 1 mm in or out
+    world_pts[:2000] = np.array([1, 0, 0.4]) + rng.choice([-1, 1], (2000, 3)) * half  # the table's corners
+    arm_pts = rng.uniform([-0.2, -0.5, -0.15], [0.4, 0.45, 0.25], (20000, 3))  # arm body frame
+    world, _ = _inside_cell(world_pts)
+    _, arm = _inside_cell(arm_pts)
+    assert 0 < world.sum() < len(world) and 0 < arm.sum() < len(arm)
+    np.testing.assert_array_equal(cosim.scene.object("world").geometry.contains(world_pts), world)
+    np.testing.assert_array_equal(cosim.scene.object("arm").geometry.contains(arm_pts), arm)
+    assert not cosim.scene.object("world").geometry.contains([[-3.0, 2.0, 0.3]])[0]
+    # load_mjcf's links are the same geometry.
+    body = load_mjcf(mujoco.MjModel.from_xml_string(CELL))
+    np.testing.assert_array_equal(body.tree.link("arm").geometry.contains(arm_pts), arm)
+
+
+def test_a_plane_alone_off_the_origin_has_no_inside():
+    # A floor below the origin merges into a mesh of one flat square: its hull had no volume and the
+    # inside test raised scipy's QhullError from the capacitive sensor's cell mapping.
+    xml = '<mujoco><worldbody><geom type="plane" size="1 1 0.1" pos="0 0 -0.5"/></worldbody></mujoco>'
+    geom = MujocoCosim(mujoco.MjModel.from_xml_string(xml)).scene.object("world").geometry
+    assert not geom.contains(np.random.default_rng(1).uniform(-1, 1, (100, 3))).any()
+
+
+def test_capacitive_pad_does_not_see_a_table_four_metres_away():
+    # The symptom: a proximity pad in a MuJoCo scene read 15 % more capacitance, and a quarter of
+    # the small ball's signal, when a table stood 4 m away, because the pad sat inside the world body's
+    # hull. The reference is the same scene without the table: the pad's domain (a few cm) does not reach
+    # it, so the channels agree within the frame solver's contract, each capacitance within
+    # capacitance_atol of a direct solve, so two solves within twice that.
+    def channels(table: str) -> np.ndarray:
+        xml = f"""<mujoco><worldbody>
+          <geom name="floor" type="plane" size="0 0 0.1"/>{table}
+          <body name="pad" pos="-3 2 0.3"><geom type="box" size="0.1 0.1 0.01"/><site name="pad_top" pos="0 0 0.011"/>
+          </body>
+          <body name="ball" pos="-3 2 0.4"><freejoint/><geom type="sphere" size="0.03"/></body>
+        </worldbody></mujoco>"""
+        cosim = MujocoCosim(mujoco.MjModel.from_xml_string(xml))
+        cap = ts.CapacitiveSensor.preset("pad-grid", name="cap", mount=ts.Mount(ts.Pose(), "pad_top"))
+        return cap, cap.capture(cosim.scene, 0.0, np.random.default_rng(0)).channels
+
+    cap, alone = channels("")
+    _, with_table = channels('<geom name="table" type="box" size="0.3 0.3 0.4" pos="1 0 0.4"/>')
+    np.testing.assert_allclose(with_table, alone, rtol=0, atol=2 * cap.frame_solver_config.capacitance_atol)
