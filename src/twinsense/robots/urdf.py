@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from twinsense.errors import ConfigError
+from twinsense.errors import ConfigError, GeometryError
 from twinsense.inputs import note_input
 from twinsense.robots.deps import require
 from twinsense.robots.descriptions import resolve
@@ -38,10 +38,67 @@ _JOINT_KINDS = {"revolute": "revolute", "continuous": "continuous", "prismatic":
                 "floating": "fixed"}
 #: Which elements give a link its shape: what a camera sees ("visual") or the simplified "collision" one.
 SHAPE_SOURCES = ("visual", "collision")
+#: The shapes a URDF ``<geometry>`` holds.
+_SHAPES = ("box", "cylinder", "sphere", "mesh")
 
 
 def _pose(matrix) -> Pose:
     return Pose() if matrix is None else Pose.from_matrix(np.asarray(matrix, dtype=float))
+
+
+def _numbers(text: str | None, field: str, n: tuple[int, ...], what: str, *, nonzero: bool = False) -> None:
+    """ConfigError unless ``text`` holds a count in ``n`` of finite numbers (none zero when ``nonzero``),
+    separated by spaces (or commas, which yourdfpy also reads in sizes and scales)."""
+    if text is None:
+        return
+    try:
+        vals = [float(x) for x in text.replace(",", " ").split()]
+    except ValueError:
+        vals = None
+    if vals is None or len(vals) not in n or not all(math.isfinite(x) and (x != 0.0 or not nonzero) for x in vals):
+        raise ConfigError(field, text, what)
+
+
+def _check_elements(root: ET.Element, field: str) -> None:
+    """The elements yourdfpy reads without checking, checked with the field that names them.
+
+    URDF (and urdfdom, which ROS uses) requires a joint's ``<parent link>`` and ``<child link>``, one
+    ``<geometry>`` holding a shape in each ``<visual>`` / ``<collision>``, and three numbers in an
+    ``<origin>``'s ``xyz`` and ``rpy`` and an ``<axis>``'s ``xyz``; yourdfpy fails on a missing one with
+    a bare AttributeError or TypeError, or takes a NaN, which would then fail far from its element.
+    """
+    xyz = "3 finite numbers separated by spaces"
+    for k, j in enumerate(root.findall("joint")):
+        where = f"{field}.joints[{j.get('name') or k}]"
+        for tag in ("parent", "child"):
+            el = j.find(tag)
+            if el is None or not el.get("link"):
+                raise ConfigError(f"{where}.{tag}", None if el is None else el.get("link"),
+                                  f'a <{tag} link="..."/> element naming a link')
+        for tag, attrs in (("origin", ("xyz", "rpy")), ("axis", ("xyz",))):
+            el = j.find(tag)
+            for a in attrs if el is not None else ():
+                _numbers(el.get(a), f"{where}.{tag}.{a}", (3,), xyz + (" [m]" if a == "xyz" and tag == "origin"
+                                                                     else " [rad]" if a == "rpy" else ""))
+    for lk in root.findall("link"):
+        for source in SHAPE_SOURCES:
+            for k, el in enumerate(lk.findall(source)):
+                where = f"{field}.links[{lk.get('name')}].{source}[{k}]"
+                o = el.find("origin")
+                for a, unit in (("xyz", " [m]"), ("rpy", " [rad]")):
+                    _numbers(None if o is None else o.get(a), f"{where}.origin.{a}", (3,), xyz + unit)
+                g = el.find("geometry")
+                shape = None if g is None or len(g) == 0 else g[0]  # the first child, as urdfdom and yourdfpy
+                if shape is None or shape.tag not in _SHAPES:
+                    raise ConfigError(f"{where}.geometry", None if shape is None else shape.tag,
+                                      "a <geometry> element holding one of: " + ", ".join(f"<{t}>" for t in _SHAPES))
+                if shape.tag == "mesh":
+                    if not shape.get("filename"):
+                        raise ConfigError(f"{where}.mesh.filename", shape.get("filename"),
+                                          "the mesh file's path or package:// URI")
+                    _numbers(shape.get("scale"), f"{where}.mesh.scale", (1, 3),
+                             "1 or 3 finite, non-zero scale factors (x y z; a negative one mirrors the mesh)",
+                             nonzero=True)
 
 
 def _shape_parts(link, source: str, base_dir: Path, field: str, packages: dict) -> list:
@@ -55,6 +112,11 @@ def _shape_parts(link, source: str, base_dir: Path, field: str, packages: dict) 
             path = resolve_uri(g.mesh.filename, base_dir, packages)
             v, f = read_mesh(path, f"{where}.mesh", link.name, g.mesh.filename)
             scale = np.ones(3) if g.mesh.scale is None else np.broadcast_to(np.asarray(g.mesh.scale, float), (3,))
+            if np.prod(scale) < 0.0:
+                # A mirroring scale ("1 -1 1": a left part from the right one's file) turns every triangle
+                # inside out; reversing the corners keeps the normals pointing out of the part, as trimesh's
+                # apply_transform does (an inside-out closed part has a negative volume and is no volume).
+                f = f[:, ::-1]
             parts.append((v * scale, f, origin))
         else:
             try:  # name the link and element of a bad primitive, not only "box.size"
@@ -116,6 +178,7 @@ def urdf_tree(path, *, materials=None, shapes: str = "visual", name: str | None 
         found = f"<{root.tag}> with {len(root.findall('link'))} <link> elements and name={root.get('name')!r}"
         raise ConfigError("urdf.path", str(path), f"a URDF file: a named <robot> with at least one <link> "
                           f"(found {found}; a .urdf stub left by xacro: load its .xacro source instead)")
+    _check_elements(root, field)
     try:
         robot = yourdfpy.URDF.load(io.BytesIO(data), build_scene_graph=False, load_meshes=False,
                                    build_collision_scene_graph=False, load_collision_meshes=False).robot
@@ -126,7 +189,11 @@ def urdf_tree(path, *, materials=None, shapes: str = "visual", name: str | None 
     base_dir = p.parent.resolve()
     links = []
     for lk in robot.links:
-        geom = merge(_shape_parts(lk, shapes, base_dir, field, pkgs), f"{lk.name}")
+        try:
+            geom = merge(_shape_parts(lk, shapes, base_dir, field, pkgs), f"{lk.name}")
+        except GeometryError as exc:  # the merged mesh's own checks (its extent), named by the link
+            raise ConfigError(f"{field}.links[{lk.name}].{shapes}", lk.name, f"{shapes} shapes that make a "
+                              f"usable mesh (check each mesh's unit and scale: {exc})") from None
         links.append(Link(lk.name, geom, mats[lk.name]))
     joints = []
     joint_names = {j.name for j in robot.joints}
@@ -144,8 +211,11 @@ def urdf_tree(path, *, materials=None, shapes: str = "visual", name: str | None 
         mimic = None
         if j.mimic is not None and kind != "fixed":
             if j.mimic.joint in joint_names:
-                mimic = Mimic(j.mimic.joint, 1.0 if j.mimic.multiplier is None else float(j.mimic.multiplier),
-                              0.0 if j.mimic.offset is None else float(j.mimic.offset))
+                try:
+                    mimic = Mimic(j.mimic.joint, 1.0 if j.mimic.multiplier is None else float(j.mimic.multiplier),
+                                  0.0 if j.mimic.offset is None else float(j.mimic.offset))
+                except ConfigError as e:  # Mimic's own field ("mimic.multiplier") named by its joint
+                    raise ConfigError(f"{field}.joints[{j.name}].{e.field}", e.value, e.allowed) from None
             else:  # kept as a joint of its own: the file names no such master
                 warnings.warn(f"{field}: joint {j.name!r} mimics {j.mimic.joint!r}, which the file does not "
                               "have; it is driven as a joint of its own", stacklevel=2)

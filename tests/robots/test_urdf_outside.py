@@ -1,0 +1,281 @@
+"""URDF robots checked from outside: meshes against trimesh's own load, kinematics against a URDF reader
+written here from the XML and scipy's rotations, and bad files through the loader and a scenario file.
+
+The references share no code with the loader's path through yourdfpy: the mesh reference reads each file with
+trimesh, applies the declared ``scale`` and ``<origin>`` as one 4 x 4 matrix (``Trimesh.apply_transform``,
+which also reverses the triangles of a mirroring transform), and a COLLADA file's unit through pycollada; the
+kinematics reference parses ``<origin>``, ``<axis>`` and ``<mimic>`` from the XML text and composes scipy's
+``Rotation.from_euler("xyz", rpy)`` (URDF's fixed-axis roll, pitch, yaw) and ``Rotation.from_rotvec``.
+"""
+
+import math
+import re
+import warnings
+import xml.etree.ElementTree as ET
+
+import collada
+import numpy as np
+import pytest
+import trimesh
+from scipy.spatial.transform import Rotation
+
+from twinsense.errors import ConfigError
+from twinsense.robots import load_robot, load_urdf
+from twinsense.robots.paths import example_robot_data_share
+from twinsense.robots.urdf import urdf_tree
+from twinsense.scenario import ScenarioError, scenario_from_dict
+
+SHARE = example_robot_data_share()
+ROBOTS = SHARE / "robots"
+EPS = np.finfo(float).eps
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Meshes: units, scale (mirroring ones too) and origin against trimesh's own load of the same file
+# ---------------------------------------------------------------------------------------------------------------
+
+def _origin_matrix(el) -> np.ndarray:
+    """The 4 x 4 of an ``<origin>`` element (identity if None), from the XML text and scipy."""
+    m = np.eye(4)
+    if el is not None:
+        m[:3, :3] = Rotation.from_euler("xyz", np.array(el.get("rpy", "0 0 0").split(), float)).as_matrix()
+        m[:3, 3] = np.array(el.get("xyz", "0 0 0").split(), float)
+    return m
+
+
+def _reference_link_mesh(urdf, link, source):
+    """(vertices, faces) of a link's mesh elements read by trimesh with scale, unit and origin applied, in the
+    file's order (the loader merges them in that order); None if the link has a primitive shape or no shape."""
+    parts = []
+    for el in link.findall(source):
+        mesh = el.find("geometry").find("mesh")
+        if mesh is None:
+            return None
+        name = mesh.get("filename")
+        assert name.startswith("package://example-robot-data/"), name
+        path = SHARE / name[len("package://example-robot-data/"):]
+        tm = trimesh.load(str(path), force="mesh", process=False)
+        scale = np.broadcast_to(np.array(mesh.get("scale", "1").split(), float), (3,))
+        if path.suffix.lower() == ".dae":
+            scale = scale * (collada.Collada(str(path), ignore=[collada.common.DaeUnsupportedError,
+                                                                collada.common.DaeBrokenRefError])
+                             .assetInfo.unitmeter or 1.0)
+        tm.apply_transform(_origin_matrix(el.find("origin")) @ np.diag([*scale, 1.0]))
+        parts.append(tm)
+    if not parts:
+        return None
+    offsets = np.cumsum([0] + [len(p.vertices) for p in parts])
+    return (np.vstack([p.vertices for p in parts]),
+            np.vstack([p.faces + o for p, o in zip(parts, offsets[:-1], strict=True)]))
+
+
+# DAE, STL in mm scaled by 0.001, mirrored STL ("1 -1 1", "0.001 -0.001 0.001", "1 1 -1", "-1 -1 -1"), several
+# meshes per link: 173 mesh elements of 160 links, ~4 s on the shared test machine. (All 2,318 mesh elements of
+# the 67 loadable files, visual and collision, agree the same way: <= 1.4e-16 of the largest coordinate.)
+MESH_CASES = [
+    ("ur_description/urdf/ur10_robot.urdf", "visual"),
+    ("so_arm_description/urdf/so101.urdf", "visual"),
+    ("talos_data/robots/talos_reduced.urdf", "collision"),
+    ("centauro_description/urdf/centauro.urdf", "visual"),
+    ("tiago_description/robots/tiago_dual.urdf", "collision"),
+]
+
+
+@pytest.mark.parametrize(("rel", "source"), MESH_CASES)
+def test_link_meshes_equal_trimesh_with_the_declared_scale_and_origin(rel, source):
+    tree = urdf_tree(ROBOTS / rel, shapes=source)
+    root = ET.parse(ROBOTS / rel).getroot()
+    checked = mirrored = 0
+    for link in root.findall("link"):
+        ref = _reference_link_mesh(root, link, source)
+        if ref is None:
+            continue
+        geom = tree.links[tree.link_names.index(link.get("name"))].geometry
+        # R (s * v) + t against (T @ S) v: each coordinate is a 3-term dot product on either side, ~3 roundings of
+        # the largest coordinate each; 16 eps of max(1 m, |coordinate|) covers them (seen: <= 1 eps).
+        extent = max(1.0, float(np.abs(ref[0]).max()))
+        np.testing.assert_allclose(geom.vertices, ref[0], rtol=0, atol=16 * EPS * extent)
+        # trimesh reverses the corners of a mirrored part: the triangles face out in both, corner for corner.
+        np.testing.assert_array_equal(geom.faces, ref[1])
+        checked += 1
+        mirrored += any(np.prod(np.array(m.get("scale", "1").split(), float)) < 0
+                        for el in link.findall(source) for m in el.iter("mesh"))
+    assert checked >= 5
+    if "talos" in rel or "centauro" in rel or "tiago" in rel:
+        assert mirrored >= 5, mirrored
+
+
+def test_a_mirrored_closed_part_stays_a_volume_facing_out(tmp_path):
+    # A closed, asymmetric part (a tetrahedron off its origin) drawn mirrored and squashed: scale "0.5 -2 1".
+    v = np.array([[0.1, 0.0, 0.0], [0.3, 0.0, 0.0], [0.1, 0.2, 0.0], [0.1, 0.0, 0.4]])
+    f = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    part = trimesh.Trimesh(v, f, process=False)
+    assert part.is_volume and part.volume > 0  # outward as written
+    part.export(tmp_path / "tet.stl")
+    (tmp_path / "m.urdf").write_text(
+        '<robot name="m"><link name="a"><collision><origin xyz="0.1 -0.2 0.3" rpy="0.3 -0.2 0.1"/>'
+        '<geometry><mesh filename="tet.stl" scale="0.5 -2 1"/></geometry></collision></link></robot>')
+    geom = load_urdf(tmp_path / "m.urdf", shapes="collision").tree.links[0].geometry
+    ref = trimesh.load(tmp_path / "tet.stl", process=False)
+    origin = ET.fromstring('<origin xyz="0.1 -0.2 0.3" rpy="0.3 -0.2 0.1"/>')
+    ref.apply_transform(_origin_matrix(origin) @ np.diag([0.5, -2.0, 1.0, 1.0]))
+    # Coordinates < 1 m, a 3-term dot product per coordinate on either side: 16 eps as above.
+    np.testing.assert_allclose(geom.vertices, ref.vertices, rtol=0, atol=16 * EPS)
+    np.testing.assert_array_equal(geom.faces, ref.faces)
+    # Closed form: |det S| = 0.5 * 2 * 1 = 1, so the volume is the tetrahedron's as the STL stores it (float32
+    # corners), det[b - a, c - a, d - a] / 6, and positive (the loader's mesh was inside out before: volume -V,
+    # so no volume to the soft-iron bodies). Either side sums triple products of coordinates < 1 m: 1e-15 m^3
+    # is ~100 roundings of the 2.7e-3 m^3.
+    v32 = v.astype(np.float32).astype(float)
+    exact = np.linalg.det(v32[1:] - v32[0]) / 6.0
+    assert geom.mesh.is_volume
+    assert geom.mesh.volume == pytest.approx(exact, rel=0, abs=1e-15)
+    assert geom.mesh.volume == pytest.approx(ref.volume, rel=0, abs=1e-15)
+    # Every face normal points away from the part's centroid (the tetrahedron is convex).
+    centroid = geom.mesh.vertices.mean(axis=0)
+    assert np.all(np.einsum("ij,ij->i", geom.mesh.triangles_center - centroid, geom.mesh.face_normals) > 0)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Kinematics: every link pose against a URDF reader written from the XML text
+# ---------------------------------------------------------------------------------------------------------------
+
+def _reference_poses(root, q: dict) -> dict:
+    """{link: 4 x 4 world pose} of a URDF tree from its XML text, the joints at ``q`` (mimics from their
+    masters: multiplier * q_master + offset, as ROS computes them)."""
+    joints = {j.get("name"): j for j in root.findall("joint")}
+    parent_joint = {j.find("child").get("link"): j for j in joints.values()}
+    memo = {}
+
+    def value(j):
+        m = j.find("mimic")
+        if m is not None and m.get("joint") in joints:
+            return float(m.get("multiplier", "1")) * value(joints[m.get("joint")]) + float(m.get("offset", "0"))
+        return q.get(j.get("name"), 0.0)
+
+    def pose(link):
+        if link not in memo:
+            j = parent_joint.get(link)
+            if j is None:
+                memo[link] = np.eye(4)
+            else:
+                motion = np.eye(4)
+                axis_el = j.find("axis")
+                axis = np.array((axis_el.get("xyz", "1 0 0") if axis_el is not None else "1 0 0").split(), float)
+                if j.get("type") in ("revolute", "continuous", "prismatic"):
+                    axis = axis / np.linalg.norm(axis)  # KDL's (ROS) unit axis
+                    if j.get("type") == "prismatic":
+                        motion[:3, 3] = axis * value(j)
+                    else:
+                        motion[:3, :3] = Rotation.from_rotvec(axis * value(j)).as_matrix()
+                memo[link] = pose(j.find("parent").get("link")) @ _origin_matrix(j.find("origin")) @ motion
+        return memo[link]
+
+    return {lk.get("name"): pose(lk.get("name")) for lk in root.findall("link")}
+
+
+FK_CASES = [  # installed name or example-robot-data file
+    "ur3", "ur10", "kinova", "xarm7", "z1", "human", "panda",
+    "so_arm_description/urdf/so100.urdf", "so_arm_description/urdf/so101.urdf",
+    "pr2_description/urdf/pr2.urdf", "tiago_description/robots/tiago.urdf",
+]
+
+
+@pytest.mark.parametrize("robot", FK_CASES)
+def test_link_poses_equal_an_independent_urdf_reader(robot):
+    if "/" in robot:
+        path, body = ROBOTS / robot, load_urdf(ROBOTS / robot, shapes="collision")
+    else:
+        from twinsense.robots import robot_path
+
+        path, body = robot_path(robot), load_robot(robot, shapes="collision")
+    tree, root = body.tree, ET.parse(path).getroot()
+    rng = np.random.default_rng(sum(map(ord, robot)))
+    lo, hi = np.maximum(tree.limits[:, 0], -math.pi), np.minimum(tree.limits[:, 1], math.pi)
+    for _ in range(4):
+        q = rng.uniform(lo, hi)
+        st = tree.forward(q)
+        want = _reference_poses(root, dict(zip(tree.joint_names, q, strict=True)))
+        length = max(1.0, max(float(np.abs(w[:3, 3]).max()) for w in want.values()))
+        # Each joint adds a few roundings on either side (a 3 x 3 product, the joint rotation, a position sum):
+        # <= ~10 eps of max(1 m, the largest coordinate) per joint; these chains have <= 21 joints (TIAGo),
+        # so 300 eps bounds the difference (seen: <= 6 eps, 1.2e-15 m), far inside 1e-9 m / 1e-9 rad.
+        for n in tree.link_names:
+            got = st.pose(n).matrix
+            np.testing.assert_allclose(got[:3, 3], want[n][:3, 3], rtol=0, atol=300 * EPS * length, err_msg=n)
+            np.testing.assert_allclose(got[:3, :3], want[n][:3, :3], rtol=0, atol=300 * EPS, err_msg=n)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Bad files: a ConfigError naming the element, the value and what is allowed
+# ---------------------------------------------------------------------------------------------------------------
+
+_UR5_BASE = "package://example-robot-data/robots/ur_description/meshes/ur5/collision/base.stl"
+_LINKS = '<link name="a"/><link name="b"/>'
+_JOINT = ('<joint name="j" type="revolute"><parent link="a"/><child link="b"/>{x}<axis xyz="0 0 1"/>'
+          '<limit lower="-1" upper="1" effort="1" velocity="1"/>{m}</joint>')
+
+
+def _mesh_link(attrs: str) -> str:
+    return f'<link name="a"><collision><geometry><mesh {attrs}/></geometry></collision></link>'
+
+
+BAD_URDFS = [
+    # (name, robot body, field, value shown, words of the allowed)
+    ("scale_two", _mesh_link(f'filename="{_UR5_BASE}" scale="1 2"'),
+     r"links\[a\]\.collision\[0\]\.mesh\.scale", "'1 2'", "1 or 3 finite, non-zero"),
+    ("scale_zero", _mesh_link(f'filename="{_UR5_BASE}" scale="0.001 0 0.001"'),
+     r"links\[a\]\.collision\[0\]\.mesh\.scale", "'0.001 0 0.001'", "non-zero"),
+    ("scale_text", _mesh_link(f'filename="{_UR5_BASE}" scale="mm"'),
+     r"links\[a\]\.collision\[0\]\.mesh\.scale", "'mm'", "scale factors"),
+    ("no_filename", _mesh_link(""), r"links\[a\]\.collision\[0\]\.mesh\.filename", "None", "path or package://"),
+    ("metres_as_microns",
+     f'<link name="a"><visual><geometry><mesh filename="{_UR5_BASE}" scale="1e6 1e6 1e6"/></geometry></visual></link>',
+     r"links\[a\]\.visual$", "'a'", "unit and scale"),
+    ("no_geometry", '<link name="a"><collision><origin xyz="0 0 0"/></collision></link>',
+     r"links\[a\]\.collision\[0\]\.geometry", "None", "<box>, <cylinder>, <sphere>, <mesh>"),
+    ("capsule", '<link name="a"><collision><geometry><capsule radius="1" length="2"/></geometry></collision></link>',
+     r"links\[a\]\.collision\[0\]\.geometry", "'capsule'", "<mesh>"),
+    ("origin_nan", _LINKS + _JOINT.format(x='<origin xyz="0 0 nan"/>', m=""),
+     r"joints\[j\]\.origin\.xyz", "'0 0 nan'", "3 finite numbers"),
+    ("origin_two", _LINKS + _JOINT.format(x='<origin xyz="0 0.1"/>', m=""),
+     r"joints\[j\]\.origin\.xyz", "'0 0.1'", "3 finite numbers"),
+    ("rpy_inf", _LINKS + _JOINT.format(x='<origin rpy="0 inf 0"/>', m=""),
+     r"joints\[j\]\.origin\.rpy", "'0 inf 0'", "[rad]"),
+    ("visual_origin", '<link name="a"><visual><origin xyz="0 0 1e999"/><geometry><sphere radius="0.1"/>'
+     '</geometry></visual></link>', r"links\[a\]\.visual\[0\]\.origin\.xyz", "'0 0 1e999'", "finite"),
+    ("no_parent", _LINKS + '<joint name="j" type="fixed"><child link="b"/></joint>',
+     r"joints\[j\]\.parent", "None", '<parent link="..."/>'),
+    ("mimic_nan", _LINKS + '<link name="c"/>' + _JOINT.format(x="", m="")
+     + '<joint name="k" type="prismatic"><parent link="b"/><child link="c"/><axis xyz="1 0 0"/>'
+       '<limit lower="0" upper="1" effort="1" velocity="1"/><mimic joint="j" multiplier="nan"/></joint>',
+     r"joints\[k\]\.mimic\.multiplier", "nan", "finite"),
+]
+
+
+@pytest.mark.parametrize(("name", "body", "field", "value", "allowed"), BAD_URDFS, ids=[c[0] for c in BAD_URDFS])
+def test_bad_urdf_elements_name_the_element(tmp_path, name, body, field, value, allowed):
+    path = tmp_path / f"{name}.urdf"
+    path.write_text(f'<robot name="r">{body}</robot>')
+    with pytest.raises(ConfigError) as exc:
+        load_robot(path)
+    assert exc.type is ConfigError  # not a GeometryError, ValueError, ... from the libraries
+    msg = str(exc.value)
+    assert exc.value.field.startswith(f"urdf[{name}.urdf].")
+    assert re.search(field, exc.value.field), exc.value.field
+    assert f"= {value} is invalid" in msg, msg
+    assert allowed in msg, msg
+
+
+@pytest.mark.parametrize("name", ["scale_two", "scale_zero", "metres_as_microns", "no_geometry", "origin_nan"])
+def test_bad_urdf_in_a_scenario_is_a_scenario_problem(tmp_path, name):
+    body = next(c[1] for c in BAD_URDFS if c[0] == name)
+    (tmp_path / "arm.urdf").write_text(f'<robot name="r">{body}</robot>')
+    data = {"name": "t", "duration": 0.1, "robots": [{"name": "arm", "description": "arm.urdf"}],
+            "sensors": [], "outputs": {"recording": None}}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ScenarioError) as exc:
+            scenario_from_dict(data, base_dir=tmp_path)
+    assert len(exc.value.problems) == 1, exc.value.problems
+    assert exc.value.problems[0][0].startswith("robots[0].urdf[arm.urdf]."), exc.value.problems
