@@ -279,3 +279,56 @@ def test_bad_urdf_in_a_scenario_is_a_scenario_problem(tmp_path, name):
             scenario_from_dict(data, base_dir=tmp_path)
     assert len(exc.value.problems) == 1, exc.value.problems
     assert exc.value.problems[0][0].startswith("robots[0].urdf[arm.urdf]."), exc.value.problems
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# COLLADA units: the document's own <asset><unit meter>, as pycollada reads it
+# ---------------------------------------------------------------------------------------------------------------
+
+_DAE = """<?xml version="1.0" encoding="utf-8"?>
+<COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
+  {head}<asset>{unit}<up_axis>Z_UP</up_axis></asset>
+  <library_geometries><geometry id="g" name="g"><mesh>
+    <source id="p"><float_array id="pa" count="12">0 0 0 100 0 0 0 200 0 0 0 300</float_array>
+      <technique_common><accessor source="#pa" count="4" stride="3">
+        <param name="X" type="float"/><param name="Y" type="float"/><param name="Z" type="float"/>
+      </accessor></technique_common></source>
+    <vertices id="v"><input semantic="POSITION" source="#p"/></vertices>
+    <triangles count="2"><input semantic="VERTEX" source="#v" offset="0"/><p>0 1 2 0 1 3</p></triangles>
+  </mesh></geometry></library_geometries>
+  <library_visual_scenes><visual_scene id="s"><node id="n" name="n">{node_asset}
+    <instance_geometry url="#g"/></node></visual_scene></library_visual_scenes>
+  <scene><instance_visual_scene url="#s"/></scene>
+</COLLADA>
+"""
+DAE_CASES = {
+    # Either quote is XML; an exporter's long comment before <asset>; a node's own <asset> is that node's only.
+    "single_quotes": {"unit": "<unit name='millimetre' meter='0.001'/>"},
+    "after_a_long_comment": {"head": "<!-- " + "licence text " * 800 + "-->\n  ",
+                             "unit": '<unit name="centimetre" meter="0.01"/>'},
+    "a_node_asset_only": {"node_asset": '<asset><unit meter="0.001"/></asset>'},
+    "inches": {"unit": '<unit name="inch" meter="0.0254"/>'},
+}
+
+
+@pytest.mark.parametrize("case", sorted(DAE_CASES))
+def test_collada_unit_is_the_documents_own_as_pycollada_reads_it(tmp_path, case):
+    parts = {"head": "", "unit": "", "node_asset": "", **DAE_CASES[case]}
+    path = tmp_path / f"{case}.dae"
+    path.write_text(_DAE.format(**parts))
+    (tmp_path / "r.urdf").write_text(f'<robot name="r"><link name="a"><visual><geometry><mesh filename="{path.name}"/>'
+                                     '</geometry></visual></link></robot>')
+    geom = load_urdf(tmp_path / "r.urdf").tree.links[0].geometry
+    unit = collada.Collada(str(path)).assetInfo.unitmeter or 1.0
+    raw = trimesh.load(str(path), force="mesh", process=False)
+    # One product per coordinate on either side (coordinate * unit): equal to the bit.
+    np.testing.assert_array_equal(geom.vertices, np.asarray(raw.vertices) * unit)
+    assert np.ptp(geom.vertices, axis=0).max() == pytest.approx(300 * unit, rel=1e-15)
+
+
+def test_a_collada_unit_that_is_no_length_is_refused_naming_the_link(tmp_path):
+    (tmp_path / "z.dae").write_text(_DAE.format(head="", unit='<unit meter="0"/>', node_asset=""))
+    (tmp_path / "r.urdf").write_text('<robot name="r"><link name="a"><visual><geometry><mesh filename="z.dae"/>'
+                                     '</geometry></visual></link></robot>')
+    with pytest.raises(ConfigError, match=r"links\[a\]\.visual\[0\]\.mesh = .*z\.dae.*<unit meter='0'>"):
+        load_urdf(tmp_path / "r.urdf")

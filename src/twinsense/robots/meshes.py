@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import functools
 import io
+import math
 import re
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -23,15 +25,37 @@ from twinsense.inputs import note_input
 from twinsense.scene.geometry import Geometry, TriangleMesh
 from twinsense.scene.pose import Pose
 
-_DAE_UNIT = re.compile(rb"<unit[^>]*\bmeter\s*=\s*\"([^\"]+)\"")
-
 
 def dae_unit(path: Path) -> float:
-    """Metres per length unit declared by a COLLADA file (1 when it declares none)."""
-    with open(path, "rb") as fh:
-        head = fh.read(8192)
-    m = _DAE_UNIT.search(head)
-    return float(m.group(1)) if m else 1.0
+    """Metres per length unit declared by a COLLADA file (1 when it declares none).
+
+    The unit is the ``<unit meter=...>`` of the document's own ``<asset>`` (the root's first child), as
+    pycollada's ``Collada.assetInfo.unitmeter`` reads it: either quote, after any length of comments, and
+    not an ``<asset>`` of a node or geometry further down (those describe that element only).
+    """
+    depth = 0
+    for event, el in ET.iterparse(str(path), events=("start", "end")):
+        if event == "end":
+            if depth == 2:  # the end of the root's first child: no unit in it
+                return 1.0
+            depth -= 1
+            continue
+        depth += 1
+        tag = el.tag.rpartition("}")[2]
+        if depth == 2 and tag != "asset":
+            return 1.0
+        if depth == 3 and tag == "unit":
+            text = el.get("meter")
+            if text is None:
+                return 1.0
+            try:
+                meter = float(text)
+            except ValueError:
+                meter = math.nan
+            if not (math.isfinite(meter) and meter > 0.0):
+                raise ValueError(f"its <unit meter={text!r}> is not a positive number of metres")
+            return meter
+    return 1.0
 
 
 _BIND_MATERIAL = re.compile(rb"<bind_material>.*?</bind_material>", re.S)
