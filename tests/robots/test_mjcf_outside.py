@@ -3,8 +3,11 @@ the files MuJoCo reads, none of which the rest of the suite uses."""
 
 import mujoco
 import numpy as np
+import pytest
 
 import twinsense as ts
+from twinsense.render.caster import cast
+from twinsense.render.rays import Rays
 from twinsense.robots import MujocoCosim, load_mjcf
 
 # A typical MuJoCo scene: static geoms straight in the world body (a floor and a table), a robot body with
@@ -88,3 +91,45 @@ def test_capacitive_pad_does_not_see_a_table_four_metres_away():
     cap, alone = channels("")
     _, with_table = channels('<geom name="table" type="box" size="0.3 0.3 0.4" pos="1 0 0.4"/>')
     np.testing.assert_allclose(with_table, alone, rtol=0, atol=2 * cap.frame_solver_config.capacitance_atol)
+
+
+# --------------------------------------------------------------------------- MuJoCo's infinite plane
+def _down_rays(rng, n: int, reach: float, height: float) -> tuple[np.ndarray, np.ndarray]:
+    """n ray origins at ``height`` [m] over the square of half side ``reach`` [m], pointing down at random
+    (|d_z| >= 0.2, so no ray grazes the floor and every one lands within ~5 x height of its origin)."""
+    o = np.c_[rng.uniform(-reach, reach, (n, 2)), np.full(n, height)]
+    d = rng.normal(size=(n, 2))  # horizontal part
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    dz = rng.uniform(0.2, 1.0, n)
+    return o, np.c_[d * np.sqrt(1 - dz**2)[:, None], -dz]
+
+
+SET_FAR = '<statistic extent="4"/><visual><map zfar="100"/></visual>'  # zfar x extent = 400 m
+
+
+@pytest.mark.parametrize("visual, far", [("", None), (SET_FAR, 400.0)])
+def test_infinite_floor_reaches_as_far_as_mujoco_draws_it(visual, far):
+    # An infinite MuJoCo floor (size 0) was a 20 m square: a sensor on a robot 12 m from the origin saw no
+    # floor, and a LiDAR lost its ground returns beyond 10 m, where MuJoCo's mj_ray (an unbounded plane)
+    # and MuJoCo's own cameras (the plane drawn out to the far clipping distance zfar x extent) see it.
+    # Reference: the closed form h / |d_z| of a ray from height h, and mj_ray, at points out to 0.95 of
+    # zfar x extent. 1e-9 m: both sides intersect the plane in float64 (distances < 60 m here: ~1e-14).
+    xml = f"""<mujoco>{visual}<worldbody><geom name="floor" type="plane" size="0 0 0.1"/>
+      <body name="box" pos="0 0 1"><freejoint/><geom type="box" size="0.1 0.1 0.1"/></body></worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    reach = float(model.vis.map.zfar * model.stat.extent)
+    if far is not None:
+        assert reach == pytest.approx(far, rel=1e-6)  # the MJCF's own settings
+    cosim = MujocoCosim(model)
+    o, d = _down_rays(np.random.default_rng(3), 400, 0.95 * reach - 5 * 3.0, 3.0)
+    o[:, :2] = np.where(np.abs(o[:, :2]) < 0.5, 0.5, o[:, :2])  # not through the box at the origin
+    hits = cast(cosim.scene, Rays(o, d), 0.0)
+    np.testing.assert_allclose(hits.distance, 3.0 / -d[:, 2], rtol=0, atol=1e-9)
+    geomid = np.zeros(1, np.int32)
+    ref = [mujoco.mj_ray(model, data, o[i], d[i], None, 1, -1, geomid) for i in range(len(o))]
+    np.testing.assert_allclose(hits.distance, ref, rtol=0, atol=1e-9)
+    assert np.abs(o[:, :2]).max() > 10.0  # beyond the old square
+    floor = cosim.scene.object("world").geometry
+    assert isinstance(floor, ts.Plane) and floor.size == pytest.approx((2 * reach, 2 * reach), rel=1e-12)

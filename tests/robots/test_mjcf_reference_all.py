@@ -29,7 +29,7 @@ from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from twinsense.robots import MujocoCosim, load_mjcf
-from twinsense.robots.mjcf import INFINITE_PLANE_SIZE, geom_mesh
+from twinsense.robots.mjcf import geom_mesh, infinite_plane_size
 from twinsense.robots.paths import robosuite_robots_dir
 from twinsense.scene import Box, Capsule, Cylinder, Mount, Plane, Pose, Sphere
 from twinsense.scene.motion import MotionState
@@ -148,9 +148,10 @@ def check_tree(model, rng) -> list[int]:
 
 
 # ---------------------------------------------------------------- geoms and the co-simulation clock
-def _on_surface(t: int, size: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _on_surface(t: int, size: np.ndarray, v: np.ndarray, plane_side: float) -> tuple[np.ndarray, np.ndarray]:
     """(distance of each geom-frame vertex (n, 3) from the geom's exact surface [m], the surface's
-    extent along x, y, z [m]), from MuJoCo's own meaning of ``geom_size`` (half sizes, radii)."""
+    extent along x, y, z [m]), from MuJoCo's own meaning of ``geom_size`` (half sizes, radii);
+    ``plane_side``: the side an infinite plane is drawn [m]."""
     x, y, z = v.T
     if t == SPHERE:
         return np.abs(np.linalg.norm(v, axis=1) - size[0]), np.full(3, size[0])
@@ -169,7 +170,7 @@ def _on_surface(t: int, size: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np
         return np.where(inside, np.minimum(side, cap), np.inf), np.array([r, r, h])
     assert t == PLANE
     # size 0 is MuJoCo's infinite plane, drawn as a finite square (documented in docs/robots.md)
-    half = np.array([s if s > 0 else INFINITE_PLANE_SIZE / 2 for s in size[:2]])
+    half = np.array([s if s > 0 else plane_side / 2 for s in size[:2]])
     inside = np.all(np.abs(v[:, :2]) <= half + TOL, axis=1)
     return np.where(inside, np.abs(z), np.inf), np.array([*half, 0.0])
 
@@ -190,7 +191,7 @@ def _geom_points(model, g: int) -> np.ndarray | None:
     # The tessellation lies on the exact surface of MuJoCo's size and spans it: along each axis the
     # vertex nearest it is within half an edge (<= 4 deg for the 32-gons and the 3-times subdivided
     # icosahedron), so the extent is at least cos(4 deg) = 0.9976 of the exact one; 0.99 is the bound.
-    dist, extent = _on_surface(t, np.asarray(model.geom_size[g], float), v)
+    dist, extent = _on_surface(t, np.asarray(model.geom_size[g], float), v, infinite_plane_size(model))
     assert dist.max() <= TOL, (model.geom(g).name, t, dist.max())
     seen = np.abs(v).max(axis=0)
     assert np.all(seen <= extent + TOL) and np.all(seen >= 0.99 * extent), (t, seen, extent)
@@ -203,7 +204,7 @@ def _exact_primitive_matches(model, g: int, geom) -> None:
               CAPSULE: (Capsule, {"radius": s[0], "height": 2 * s[1]}),
               CYLINDER: (Cylinder, {"radius": s[0], "height": 2 * s[1]})}
     if t == PLANE:
-        expect[t] = (Plane, {"size": tuple(2 * x if x > 0 else INFINITE_PLANE_SIZE for x in s[:2])})
+        expect[t] = (Plane, {"size": tuple(2 * x if x > 0 else infinite_plane_size(model) for x in s[:2])})
     cls, fields = expect[t]
     assert type(geom) is cls
     for k, val in fields.items():

@@ -41,13 +41,16 @@ from twinsense.scene.articulated import ArticulatedBody, Joint, JointMotion, Kin
 from twinsense.scene.geometry import Box, Capsule, Cylinder, Geometry, Plane, Sphere, TriangleMesh
 from twinsense.scene.motion import Motion
 from twinsense.scene.pose import Pose
+from twinsense.validation import LENGTH_MAX
 
 #: MuJoCo geom type codes (mjtGeom).
 GEOM_PLANE, GEOM_HFIELD, GEOM_SPHERE, GEOM_CAPSULE, GEOM_ELLIPSOID, GEOM_CYLINDER, GEOM_BOX, GEOM_MESH = range(8)
 #: MuJoCo joint type codes (mjtJoint).
 JNT_FREE, JNT_BALL, JNT_SLIDE, JNT_HINGE = range(4)
-#: Side of the square drawn for an infinite MuJoCo plane (size 0) [m].
-INFINITE_PLANE_SIZE = 20.0
+#: Least side of the square drawn for an infinite MuJoCo plane (size 0) [m] (see :func:`infinite_plane_size`).
+INFINITE_PLANE_MIN_SIZE = 20.0
+#: Largest side [m]: the square turned any way (diagonal sqrt(2) x side) stays within the largest object extent.
+INFINITE_PLANE_MAX_SIZE = LENGTH_MAX / 2
 #: Which geoms give a body its shape.
 GEOM_SETS = ("visual", "collision", "all")
 
@@ -170,9 +173,23 @@ def geom_primitive(model, g: int) -> Geometry | None:
     if t == GEOM_BOX:
         return Box(tuple(float(2 * x) for x in s))
     if t == GEOM_PLANE:
-        sx, sy = (2 * float(x) if x > 0 else INFINITE_PLANE_SIZE for x in s[:2])
+        sx, sy = (2 * float(x) if x > 0 else infinite_plane_size(model) for x in s[:2])
         return Plane((sx, sy))
     return None
+
+
+def infinite_plane_size(model) -> float:
+    """Side [m] of the square an infinite MuJoCo plane (geom size 0) is drawn as: twice MuJoCo's far clipping
+    distance ``vis.map.zfar * stat.extent`` (50 x the model's extent unless the MJCF sets ``<visual><map
+    zfar>`` or ``<statistic extent>``), within [INFINITE_PLANE_MIN_SIZE, INFINITE_PLANE_MAX_SIZE].
+
+    MuJoCo's own renderer draws such a plane out to about that distance from the plane's origin (1.05 x
+    it, "larger than the skybox") and its cameras see nothing beyond it; its ray test (``mj_ray``) and its
+    collisions take the plane as unbounded. A square of that size is what a MuJoCo camera would show and
+    keeps the floor under a robot that moves away from the origin, and in a LiDAR's range.
+    """
+    far = float(model.vis.map.zfar) * float(model.stat.extent)
+    return min(max(2.0 * far, INFINITE_PLANE_MIN_SIZE), INFINITE_PLANE_MAX_SIZE)
 
 
 def geom_mesh(model, g: int, field: str) -> tuple[np.ndarray, np.ndarray] | None:
