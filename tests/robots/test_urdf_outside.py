@@ -332,3 +332,17 @@ def test_a_collada_unit_that_is_no_length_is_refused_naming_the_link(tmp_path):
                                      '</geometry></visual></link></robot>')
     with pytest.raises(ConfigError, match=r"links\[a\]\.visual\[0\]\.mesh = .*z\.dae.*<unit meter='0'>"):
         load_urdf(tmp_path / "r.urdf")
+
+
+def test_a_xacro_include_written_as_a_package_uri_names_the_find_form(tmp_path):
+    # xacro (the ROS tool as well) reads <xacro:include filename> as a path relative to the including file, so a
+    # package:// URI there is a missing file (example-robot-data's hector quadrotor_base.xacro writes one); the
+    # error says how to write it.
+    f = tmp_path / "arm.urdf.xacro"
+    f.write_text('<robot name="arm" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+                 '<xacro:include filename="package://my_arm/urdf/parts.xacro"/><link name="a"/></robot>')
+    with pytest.raises(ConfigError) as exc:
+        load_robot(f)
+    assert exc.value.field == "xacro.path"
+    assert "includes " in exc.value.allowed and "(No such file or directory)" in exc.value.allowed
+    assert "write 'package://my_arm/urdf/parts.xacro' as '$(find my_arm)/urdf/parts.xacro'" in exc.value.allowed

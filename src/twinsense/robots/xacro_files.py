@@ -140,8 +140,16 @@ def _error(exc: Exception, path: Path, stack: list, args: _Args, given: dict, ba
     if isinstance(exc, ExpatError):
         return ConfigError("xacro.path", str(path), f"well-formed XML in {where}{chain} (XML error: {exc})")
     if isinstance(inner, OSError):
+        missing = str(inner.filename)
+        hint = ""
+        if "package:" in missing:
+            # xacro (the ROS tool too) reads an include's filename as a path, relative to the including file.
+            uri = missing[missing.index("package:"):]
+            pkg, _, rest = uri.partition("//")[2].lstrip("/").partition("/")
+            hint = (f"; xacro reads an include's filename as a path, not a URI: write {uri!r} as "
+                    f"'$(find {pkg})/{rest}'")
         return ConfigError("xacro.path", str(path), f"included files that exist: {where}{chain} includes "
-                           f"{inner.filename} ({inner.strerror})")
+                           f"{missing} ({inner.strerror}){hint}")
     msg = str(exc)
     if inner is not None and exc.args and str(exc.args[0]).startswith("<class "):
         # eval_extension's message is "<class ...>: inner" and then the inner error again: once, by its name.
