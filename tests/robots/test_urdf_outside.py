@@ -346,3 +346,10 @@ def test_a_xacro_include_written_as_a_package_uri_names_the_find_form(tmp_path):
     assert exc.value.field == "xacro.path"
     assert "includes " in exc.value.allowed and "(No such file or directory)" in exc.value.allowed
     assert "write 'package://my_arm/urdf/parts.xacro' as '$(find my_arm)/urdf/parts.xacro'" in exc.value.allowed
+
+
+def test_an_unknown_link_material_names_the_link_it_was_given_for():
+    with pytest.raises(ConfigError) as exc:
+        load_robot("ur5", materials={"forearm_link": "unobtainium"}, shapes="collision")
+    assert exc.value.field == "urdf[ur5_robot.urdf].materials.forearm_link"  # it was "material"
+    assert exc.value.value == "unobtainium" and "aluminium" in exc.value.allowed and "mild_steel" in exc.value.allowed

@@ -39,6 +39,9 @@ def link_materials(link_names, overrides=None, field_name: str = "materials") ->
     for link, mat in overrides.items():
         if link not in out:
             raise UnknownNameError(f"{field_name}.link", link, list(out))
-        get_material(mat)  # unknown material names list the library
+        try:
+            get_material(mat)  # unknown material names list the library
+        except UnknownNameError as e:  # named by the link it was given for, not only "material"
+            raise UnknownNameError(f"{field_name}.{link}", mat, e.valid) from None
         out[link] = mat
     return out
