@@ -1,6 +1,6 @@
 """The single-origin bundle picker (render/bundle.py) against Embree's traversal.
 
-For the robot cell (UR5 on its pick-and-place trajectory, the person walking;
+For the robot cell (UR5e on its pick-and-place trajectory, the person walking;
 every frame at a new time, so every moving object moves):
 
 - the wrist ToF camera's rays (``pmd_pico_flexx``, 2 x 2 rays per pixel:
@@ -19,7 +19,7 @@ every frame at a new time, so every moving object moves):
 - the whole wrist ToF frame (``tof.capture``) and the whole radar frame
   (``radar.capture``) with either picker, alternating;
 - the picker's settings: rays per cell (16, 32, 64) and the early exit on/off;
-  the UR5's visual meshes (95,694 triangles) against its collision meshes;
+  the UR5e's visual meshes (121,783 triangles) against its collision meshes;
 
 and for the office scene of bench_render.py (1000 x 342 rays, >= 50k
 triangles, a walking person): the pick and the whole cast with either picker.
@@ -252,7 +252,7 @@ def main() -> None:
             ("radar paper_bgt60tr13c on the flange", "radar", radar_rays_at, radar)):
         r = rays_at(times[1])
         anchor = embree_anchor(scene, kind, times[1], r.origins, r.directions, 7)[1]
-        print(f"\n== robot cell ({n_tri} triangles, UR5 collision meshes), {label}: {len(r)} rays")
+        print(f"\n== robot cell ({n_tri} triangles, UR5e collision meshes), {label}: {len(r)} rays")
         print(f"  anchor: bare embreex cast, 1 thread, same rays       {anchor * 1e3:7.1f} ms median")
         compare_picks(scene, kind, rays_at, times, args.rounds, anchor, before, args.picks_only)
         if args.picks_only:
@@ -263,7 +263,7 @@ def main() -> None:
     if args.picks_only:
         print_load_at_end()
         return
-    print("\n== the robot cell with the UR5's visual meshes, wrist ToF rays")
+    print("\n== the robot cell with the UR5e's visual meshes, wrist ToF rays")
     heavy = build_arm_cell_scene(shapes="visual")
     print(f"  {sum(len(o.geometry.mesh.faces) for o in heavy.objects)} triangles")
     r = tof_rays(times[1])

@@ -6,7 +6,7 @@ frame), packets of 8 rays from a compiled loop; backend "embreex" is the
 per-object path it replaced (static BVH, then per moving object a cull, a
 cast in its frame and a merge). Cases:
 
-- robot cell (``build_arm_cell``: UR5 and a walking person, 27 moving objects):
+- robot cell (``build_arm_cell``: UR5e and a walking person):
   the wrist ToF camera (``pmd_pico_flexx``, 2 x 2 sub-pixels, 153,216 rays)
   on the moving arm: whole frames and the cast alone; the wrist radar's render
   (``paper_bgt60tr13c``, 1000 x 342 rays) cast alone; the fixed wall ToF
@@ -287,7 +287,7 @@ def robot_cell(rounds: int) -> None:
     scene, sensors = build_arm_cell()
     n_tri = sum(len(o.geometry.mesh.faces) for o in scene.objects)
     moving = sum(not o.is_static for o in scene.objects)
-    print(f"\n== robot cell: {n_tri} triangles, {moving} moving objects (UR5 links, person)")
+    print(f"\n== robot cell: {n_tri} triangles, {moving} moving objects (UR5e links, person)")
     wall_tof, wrist = sensors[0], sensors[2]
     times = [0.9 + k / 30.0 for k in range(rounds + 2)]
     pose = wrist.mount.pose_at(scene, times[1])

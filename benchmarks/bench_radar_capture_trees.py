@@ -1,6 +1,6 @@
 """The flange radar's whole moving frames, one commit's code against the working tree's, in turn.
 
-The robot cell's UR5 (``demos.robot_cell.build_arm_cell_scene``) carries the
+The robot cell's UR5e (``demos.robot_cell.build_arm_cell_scene``) carries the
 ``paper_bgt60tr13c`` radar on its flange (``_cell.flange_radar``: 1000 x 342 render rays,
 512 samples x 16 chirps x 2 Rx): every scatterer moves relative to the radar, so every frame
 is a full moving synthesis. Round after round, a fresh process of each tree (``--before``: a

@@ -1,6 +1,6 @@
 """The robot cell (``twinsense demo robot-cell``, examples/robot_cell.yaml) at speed.
 
-Measures, with the UR5 running its pick-and-place trajectory and the person
+Measures, with the UR5e running its pick-and-place trajectory and the person
 walking (every frame at a new time, so every moving object moves):
 
 - the wrist ToF camera (``pmd_pico_flexx``, 224 x 171, 2 x 2 rays per pixel)
@@ -21,8 +21,8 @@ walking (every frame at a new time, so every moving object moves):
   scikit-fem + pyamg solve on the same mesh; over the reach also the frame
   solve against the NumPy solve it replaced, alternating in one run;
 - the true separation (``SeparationMonitor.at``) per time;
-- the UR5's link meshes used (collision, 5,340 triangles) against the visual
-  ones (95,694): the wrist ToF frame with the visual meshes, and how far the
+- the UR5e's link meshes used (collision, 7,558 triangles) against the visual
+  ones (121,783): the wrist ToF frame with the visual meshes, and how far the
   visual surface lies from the collision surface (the geometric error of the
   lighter meshes).
 
@@ -65,9 +65,8 @@ from _timing import (
     timed_frames,
 )
 
-from twinsense.demos.robot_cell import PERSON, ROBOT, build_arm_cell, build_arm_cell_scene, build_arm_cell_sensors
+from twinsense.demos.robot_cell import PERSON, ROBOT, arm, build_arm_cell, build_arm_cell_scene, build_arm_cell_sensors
 from twinsense.render.parallel import default_workers
-from twinsense.robots import load_robot
 from twinsense.safety import SeparationMonitor
 from twinsense.simulate import _receive, _send, lane_groups, simulate
 
@@ -271,12 +270,13 @@ def cell_runs(seconds: float, repeats: int = 1) -> None:
 
 
 def mesh_error() -> None:
-    """How far the UR5's visual surface lies from its collision surface, per link."""
-    vis = load_robot("ur5", shapes="visual")
-    col = load_robot("ur5", shapes="collision")
+    """How far the UR5e's visual surface lies from its collision surface, per link."""
+    vis, col = arm("visual"), arm("collision")
     rng = np.random.default_rng(0)
     worst = []
     for lk in vis.tree.links:
+        if lk.name not in col.tree.link_names:
+            continue
         gv, gc = lk.link_frame_geometry(), col.tree.link(lk.name).link_frame_geometry()
         if gv is None or gc is None:
             continue
@@ -378,7 +378,7 @@ def main() -> None:
         print_load_at_end()
         return
     n_tri = sum(len(o.geometry.mesh.faces) for o in scene.objects)
-    print(f"\n== robot cell: {len(scene.objects)} objects, {n_tri} triangles (UR5 collision meshes), arm and person "
+    print(f"\n== robot cell: {len(scene.objects)} objects, {n_tri} triangles (UR5e collision meshes), arm and person "
           "moving")
     wrist_tof(scene, sensors[2], args.frames, "wrist ToF pmd_pico_flexx, 2 x 2 rays per pixel")
     if args.wrist_tof_only:
@@ -394,7 +394,7 @@ def main() -> None:
     print(f"  true separation (SeparationMonitor.at, {sum(len(p) for _, p in mon._robot_points)} robot surface "
           f"points): {med * 1e3:.1f} ms median ({best * 1e3:.1f} best)")
 
-    print("\n== the same cell with the UR5's visual meshes")
+    print("\n== the same cell with the UR5e's visual meshes")
     heavy = build_arm_cell_scene(shapes="visual")
     print(f"  {sum(len(o.geometry.mesh.faces) for o in heavy.objects)} triangles")
     wrist_tof(heavy, build_arm_cell_sensors()[2], max(3, args.frames // 2), "wrist ToF, visual meshes")

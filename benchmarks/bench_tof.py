@@ -11,7 +11,7 @@ In the same process it times the stages: the shared caster's cold cast, its
 cast with kept static hits, the ToF phasors and the signal chain.
 
 ``--wrist-chain`` runs only the signal chain's case: the robot cell's wrist
-camera (``pmd_pico_flexx`` on the moving UR5, a walking person), whole
+camera (``pmd_pico_flexx`` on the moving UR5e, a walking person), whole
 captures with the NumPy reference chain and with the compiled chain in turn,
 frame by frame, then the chain's stages on one frame's hits.
 
@@ -221,7 +221,7 @@ def wrist_chain(frames: int) -> None:
     pose = new.mount.pose_at(scene, times[1])
     rays = new._renderer.rays(pose.rotation, pose.position)
     n_rays = len(rays.directions)
-    print(f"\n== robot cell, wrist ToF pmd_pico_flexx on the moving UR5 ({cfg.width} x {cfg.height} px, "
+    print(f"\n== robot cell, wrist ToF pmd_pico_flexx on the moving UR5e ({cfg.width} x {cfg.height} px, "
           f"{n_rays} rays), walking person; {default_workers()} worker threads")
     _, anchor = embree_anchor(scene, "tof", times[1], rays.origins, rays.directions, repeats=9)
     print(f"  anchor: bare embreex cast of the same {n_rays} rays, 1 thread: {anchor * 1e3:.1f} ms median")
@@ -608,7 +608,7 @@ def before_after(before_src: str, frames: int, rounds: int) -> None:
                 got[way][key] += res[key]
             got[way]["anchor"].append(res["anchor"])
             got[way]["load"].append(res["load"])
-    print(f"\n== robot cell, wrist ToF pmd_pico_flexx on the moving UR5 (153,216 rays): {rounds} rounds of "
+    print(f"\n== robot cell, wrist ToF pmd_pico_flexx on the moving UR5e (153,216 rays): {rounds} rounds of "
           f"{frames} frames per way, in child processes taking turns")
     for way, g in got.items():
         med = float(np.median(g["wall"]))

@@ -8,7 +8,7 @@ noise, envelope, detection) over the person's walk, and the real-time factor
 cast of the same number of rays (two visibility rays per candidate echo of
 one cycle) against the same scene.
 
-``--mesh-robot``: one ``open_40khz`` sensor on the UR5's forearm in the robot cell with the
+``--mesh-robot``: one ``open_40khz`` sensor on the UR5e's forearm in the robot cell with the
 arm's visual meshes (122k facets, ~8,000 candidate echoes a cycle), where the
 A-scan's echo count, not the rays, sets the cost; the same anchor.
 
@@ -27,19 +27,19 @@ from twinsense.demos.ultrasonic import build_cell
 
 
 def mesh_robot() -> None:
-    from twinsense.demos.robot_cell import build_arm_cell_scene
+    from twinsense.demos.robot_cell import ROBOT, build_arm_cell_scene
     from twinsense.presets import make_sensor
     from twinsense.scene import Mount, Pose
 
     scene = build_arm_cell_scene(shapes="visual")
     sensor = make_sensor("ultrasonic", "open_40khz", name="forearm_sonar",
-                         mount=Mount(Pose((0.3, 0.1, 0.4)), parent="ur5/forearm_link"))
+                         mount=Mount(Pose((0.3, 0.1, 0.4)), parent=f"{ROBOT}/forearm_link"))
     times = itertools.cycle(np.arange(10) * 0.4 + 0.5)
     rng = np.random.default_rng(0)
     sensor.capture(scene, 0.1, rng)  # the caster and the static elements once
     best, med = best_and_median(lambda: sensor.capture(scene, next(times), rng), repeats=10)
     n_echo = sum(len(d) for d, _ in sensor.echoes(scene, 2.1))
-    print(f"  open_40khz on the UR5 forearm, visual meshes ({n_echo} echoes heard at 2.1 s): capture "
+    print(f"  open_40khz on the UR5e forearm, visual meshes ({n_echo} echoes heard at 2.1 s): capture "
           f"{best * 1e3:7.1f} ms best {med * 1e3:7.1f} ms median")
     n_rays = max(2 * n_echo, 64)
     pose = sensor.transducer_poses(scene, 2.1)[0]

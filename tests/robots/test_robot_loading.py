@@ -108,10 +108,11 @@ def test_material_overrides_and_defaults():
 
 
 def test_loader_errors(tmp_path):
-    with pytest.raises(UnknownNameError, match="panda, panda-mjcf, sawyer-mjcf, ur10, ur3, ur5, ur5e-mjcf"):
+    with pytest.raises(UnknownNameError, match="panda, panda-mjcf, sawyer-mjcf, ur10, ur3, ur5, ur5e, ur5e-mjcf"):
         load_robot("ur7")
     assert set(robot_names()) == {"ur3", "ur5", "ur10", "panda", "kinova", "xarm7", "z1", "human", "panda-mjcf",
-                                  "ur5e-mjcf", "iiwa-mjcf", "jaco-mjcf", "kinova3-mjcf", "sawyer-mjcf", "xarm7-mjcf"}
+                                  "ur5e", "ur5e-mjcf", "iiwa-mjcf", "jaco-mjcf", "kinova3-mjcf", "sawyer-mjcf",
+                                  "xarm7-mjcf"}
     with pytest.raises(ConfigError, match="urdf.path"):
         load_urdf(tmp_path / "missing.urdf")
     urdf = tmp_path / "arm.urdf"
@@ -173,7 +174,7 @@ def test_format_loaders_take_installed_names():
     with pytest.raises(UnknownNameError, match="human, kinova, panda, ur10, ur3, ur5, xarm7, z1$"):
         load_urdf("panda-mjcf")  # an MJCF robot: load_mjcf or load_robot
     with pytest.raises(UnknownNameError, match="iiwa-mjcf, jaco-mjcf, kinova3-mjcf, panda-mjcf, sawyer-mjcf, "
-                       "ur5e-mjcf, xarm7-mjcf$"):
+                       "ur5e, ur5e-mjcf, xarm7-mjcf$"):
         load_mjcf("ur5")
     with pytest.raises(ConfigError, match=r"urdf.path = 123.*ur3"):
         load_urdf(123)  # neither a path nor a name

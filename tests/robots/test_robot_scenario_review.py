@@ -466,7 +466,7 @@ def _samples(geometry, pose, h: float):
 def test_demo_separation_matches_exact_closest_points_on_the_link_meshes():
     # The demo's true human-robot distance (SeparationMonitor: link meshes subdivided to 10 mm edges, as
     # vertices, against the person's exact capsules and boxes) at three times of its cycle: walking in,
-    # the hand's closest approach to the forearm (51 mm, docs/robots.md) and walking out. Reference:
+    # the hand's closest approach to the forearm (29 mm, docs/robots.md) and walking out. Reference:
     # trimesh's exact point-to-triangle closest points from points on the body segments (2 mm spacing).
     # The monitor is never below the truth and at most 10 / sqrt(3) = 5.8 mm above it; the reference is
     # never below the truth and at most the sampling bound (1 mm on an axis, 1.4 mm on a box face) above.
@@ -504,8 +504,8 @@ def test_demo_separation_matches_exact_closest_points_on_the_link_meshes():
                 ref, err = (d, e) if d < ref else (ref, err)
         assert -err - 1e-9 <= got - ref <= bound + 1e-9, (t, got, ref)
         seen[t] = ref
-    # The hand's closest approach to a link, as docs/robots.md gives it (51 mm), within the bounds above.
-    assert abs(seen[3.55] - 0.051) < 0.006
+    # The hand's closest approach to a link, as docs/robots.md gives it (29 mm), within the bounds above.
+    assert abs(seen[3.55] - 0.029) < 0.006
 
 
 def test_run_with_mcap_resolves_a_relative_description_from_the_scenario_folder(tmp_path, monkeypatch):

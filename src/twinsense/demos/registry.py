@@ -39,7 +39,7 @@ DEMOS: dict[str, tuple[str, str, str]] = {
                 "a hand approaches and presses an 8x8 skin patch on a robot link with one then two fingers: "
                 "proximity and pressure maps, capacitance changes, estimated vs true force, ISO/TS 15066 check"),
     "robot-cell": ("twinsense.demos.robot_cell", "run_robot_cell_demo",
-                   "UR5 pick and place, a person walks up and reaches in: wall and wrist ToF depth, radar "
+                   "UR5e pick and place, a person walks up and reaches in: wall and wrist ToF depth, radar "
                    "micro-Doppler, capacitive skin, true separation vs sensors and ISO/TS 15066 S_p, recording"),
     "replay": ("twinsense.demos.replay", "run_replay_demo",
                "hybrid twin: the real BGT60TR13C recording replayed beside its simulated scene on one clock, "

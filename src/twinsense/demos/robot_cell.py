@@ -1,16 +1,17 @@
-"""The robot cells: the UR5 pick-and-place cell of ``examples/robot_cell.yaml`` and the simple cylinder cell.
+"""The robot cells: the UR5e pick-and-place cell of ``examples/robot_cell.yaml`` and the simple cylinder cell.
 
 ``build_arm_cell`` builds the robot-cell demo's scene and sensors in Python
 (a pip install has no ``examples/``); ``tests/demos/test_robot_cell.py``
-checks that ``examples/robot_cell.yaml`` describes the same cell. A UR5
-(example-robot-data's URDF with its collision meshes: 5,340 triangles, the
-visual meshes have 95,694) picks a part from a table and places it; a person
+checks that ``examples/robot_cell.yaml`` describes the same cell. A UR5e
+(robosuite's MJCF with its collision meshes, 7,558 triangles, shipped with
+twinsense as ``load_robot("ur5e")``; robosuite's visual meshes have 121,783)
+picks a part from a table and places it; a person
 walks up to the cell from the side and reaches towards the robot. A ToF
 camera and a radar on the side wall, a ToF camera on the wrist flange and a
 capacitive proximity skin on the forearm: the ``pad-grid`` preset, a flat
-12 x 9 cm patch tangent to the forearm (the tactile skin presets are flat
-patches too; a flat patch on a 58 mm radius link leaves up to 25 mm of air
-under its long edges).
+12 x 9 cm patch on the forearm (the tactile skin presets are flat patches
+too; on the forearm's round tube it leaves up to 46 mm of air under its long
+edges).
 
 ``build_cylinder_cell_scene`` is the simple cell of ``examples/cylinder_cell.yaml``
 (a cylinder link, a capsule person), which the LiDAR and ultrasonic demos use.
@@ -35,7 +36,8 @@ from twinsense import validation as V
 from twinsense.errors import ConfigError
 from twinsense.plotting import pyplot, save_figure
 from twinsense.presets import make_sensor
-from twinsense.robots import load_robot
+from twinsense.robots import load_mjcf, load_robot
+from twinsense.robots.paths import robosuite_robots_dir
 from twinsense.safety import SeparationMonitor, SeparationParameters, point_box_distance, protective_separation_distance
 from twinsense.scene import Box, Capsule, Cylinder, JointKeyframes, Mount, Oscillation, Plane, Pose, Scene, Waypoints
 from twinsense.scene.human import Reach, Walk, add_person
@@ -44,19 +46,20 @@ from twinsense.simulate import check_processes, fork_available, simulate
 #: Sensor kinds that see the cylinder cell's robot link: every kind but the capacitive skin riding on it.
 LINK_LAYERS = ("tof", "radar", "camera", "lidar", "ultrasonic")
 
-#: The pick-and-place cycle [s] and joint values [rad] (URDF order: shoulder pan, shoulder lift, elbow,
-#: wrist 1-3); the flange points down throughout, 1.05 m above the floor over the part and the place,
-#: 0.885 m at them. Far inside the UR5's +-2 pi (elbow +-pi) limits.
+#: The pick-and-place cycle [s] and joint values [rad] (shoulder pan, shoulder lift, elbow, wrist 1-3); from
+#: UR's home, the flange points straight down (lift + elbow + wrist 1 = -1.57, wrist 2 = -1.57, wrist 3 =
+#: pan), 1.05 m above the floor over the part and the place, 0.885 m at them
+#: (tests/demos/test_robot_cell.py). Far inside the UR5e's +-2 pi (elbow +-pi) limits.
 TIMES = (0.0, 0.8, 1.3, 1.8, 2.8, 3.3, 3.8, 4.6)
 HOME = (0.0, -1.57, 1.57, -1.57, -1.57, 0.0)
-ABOVE_PICK = (0.2, -1.20, 1.60, -1.97, -1.57, 0.2)
-PICK = (0.2, -0.95, 1.70, -2.32, -1.57, 0.2)
-ABOVE_PLACE = (-0.8, -1.20, 1.60, -1.97, -1.57, -0.8)
-PLACE = (-0.8, -0.95, 1.70, -2.32, -1.57, -0.8)
+ABOVE_PICK = (0.159, -1.158, 1.706, -2.118, -1.57, 0.159)
+PICK = (0.16, -0.865, 1.75, -2.455, -1.57, 0.16)
+ABOVE_PLACE = (-0.841, -1.158, 1.706, -2.118, -1.57, -0.841)
+PLACE = (-0.84, -0.865, 1.75, -2.455, -1.57, -0.84)
 KEYFRAMES = (HOME, ABOVE_PICK, PICK, ABOVE_PICK, ABOVE_PLACE, PLACE, ABOVE_PLACE, HOME)
 CYCLE = TIMES[-1]
 
-ROBOT = "ur5"
+ROBOT = "ur5e"
 PERSON = "person"
 WRIST_LINK = "tool0"
 FOREARM_LINK = "forearm_link"
@@ -67,13 +70,15 @@ RADAR_EYE, RADAR_TARGET = (1.0, -2.95, 1.2), (1.1, 0.0, 1.0)
 #: 57.4 GHz centre, above the feet's ~5 m/s; 0.41 m/s Doppler bins), 64 samples; 96 x 48 rays.
 RADAR_OVERRIDES = {"num_samples": 64, "num_chirps": 64, "chirp_repetition_time": 1.0e-4,
                    "ramp_end_time": 4.0e-5, "render_width": 96, "render_height": 48}
-#: The skin: flat, tangent to the forearm (radius 58 mm) 20 cm along it, its normal along the link's -y.
-SKIN_POSE = Pose.from_euler_deg((0.0, -0.062, 0.2), (90, -90, 0))
+#: The skin: flat, 20 cm along the forearm, its normal along the link's -y (the elbow axis), its electrode face
+#: 56 mm from the forearm's axis: the forearm's collision mesh comes to 53.6 mm under the 12 x 9 cm patch, so
+#: 0.8 mm of air under the 1.6 mm board where it comes closest.
+SKIN_POSE = Pose.from_euler_deg((0.0, -0.056, 0.2), (90, -90, 0))
 #: The left hand's reach target [m]: the hand box's centre (what the arm's IK places; the 19 cm hand reaches
 #: 9.5 cm beyond it), 9.5 cm out along the skin's normal from the patch at the place pose (3.3 s). The hand
-#: holds there (3.3-3.8 s) while the arm lifts the skin 11 cm past it: closest 14.6 mm from the patch at
-#: 3.55 s, within 30 mm from 3.23 to 3.72 s, never inside the skin or a link (tests/demos/test_robot_cell.py).
-REACH_TARGET = (0.173, -0.380, 1.099)
+#: holds there (3.3-3.8 s) while the arm lifts the skin past it: closest 16.0 mm from the patch at 3.58 s,
+#: within 30 mm from 3.27 to 3.74 s, never inside the skin or a link (tests/demos/test_robot_cell.py).
+REACH_TARGET = (0.161, -0.396, 1.132)
 
 
 def build_cylinder_cell_scene() -> Scene:
@@ -99,9 +104,25 @@ STATIC_BOXES = (("pedestal", (0.3, 0.3, 0.8), (0.0, 0.0, 0.4)),
                 ("part", (0.12, 0.08, 0.05), (0.58, 0.23, 0.775)))
 
 
+def arm(shapes: str = "collision"):
+    """The cell's UR5e running the pick-and-place cycle on its pedestal (``shapes``: "collision", the
+    shipped model's meshes; "visual", robosuite's display meshes on the same kinematics, its flange body
+    ``right_hand`` named ``tool0`` as in the shipped model: robosuite must be installed)."""
+    V.choice("shapes", shapes, ("collision", "visual"))
+    kw = {"name": ROBOT, "joints": JointKeyframes(TIMES, KEYFRAMES), "base": Pose((0.0, 0.0, 0.8))}
+    if shapes == "collision":
+        return load_robot("ur5e", **kw)
+    import mujoco  # the robots extra, which load_robot("ur5e") needs too
+
+    spec = mujoco.MjSpec.from_file(str(robosuite_robots_dir() / "ur5e" / "robot.xml"))
+    spec.body("right_hand").name = "tool0"
+    return load_mjcf(spec.compile(), geoms="visual", **kw)
+
+
 def build_arm_cell_scene(person: bool = True, shapes: str = "collision") -> Scene:
-    """The UR5 cell of ``examples/robot_cell.yaml``: floor, walls, pedestal, table, part, UR5, person
-    (``person=False``: the cell without the person; ``shapes="visual"``: the UR5's visual meshes)."""
+    """The UR5e cell of ``examples/robot_cell.yaml``: floor, walls, pedestal, table, part, UR5e, person
+    (``person=False``: the cell without the person; ``shapes="visual"``: the UR5e's visual meshes, from
+    robosuite's model, which must be installed: the same kinematics and link names)."""
     s = Scene(name="robot_cell")
     s.add_object("floor", Plane((6.0, 6.0)), "concrete")
     s.add_object("back_wall", Plane((6.0, 3.0)), "drywall", pose=Pose.from_euler_deg((2.5, 0.0, 1.5), (0, -90, 0)))
@@ -109,9 +130,7 @@ def build_arm_cell_scene(person: bool = True, shapes: str = "collision") -> Scen
     materials = {"pedestal": "mild_steel", "table": "wood", "part": "plastic"}
     for name, size, centre in STATIC_BOXES:
         s.add_object(name, Box(size), materials[name], pose=Pose(centre))
-    ur5 = load_robot("ur5", name=ROBOT, joints=JointKeyframes(TIMES, KEYFRAMES), base=Pose((0.0, 0.0, 0.8)),
-                     shapes=shapes)
-    s.add_articulated(ur5)
+    s.add_articulated(arm(shapes))
     if person:
         # Facing its path (atan2(1.6, -0.7) = 113.6 deg): a start that also turns the body slides the
         # standing foot (1.17 m/s peak for this 114 deg turn, docs/people.md).
@@ -269,7 +288,7 @@ def run_robot_cell_demo(out_dir, duration: float = CYCLE, progress: bool = False
                         radar_rate: float = 20.0, skin_rate: float = 5.0, seed: int = 1, fast: bool = False,
                         params: SeparationParameters = SeparationParameters(),
                         processes: int | None = None) -> dict[str, Path]:
-    """Run the UR5 cell for ``duration`` [s] and write its pictures and recording into ``out_dir``.
+    """Run the UR5e cell for ``duration`` [s] and write its pictures and recording into ``out_dir``.
 
     Writes ``depth_wall.png`` and ``depth_wrist.png`` (three depth frames
     each), ``micro_doppler.png`` (radar spectrogram, time vs radial velocity,

@@ -1,4 +1,5 @@
-"""Named robot descriptions shipped by installed packages (example-robot-data, robosuite)."""
+"""Named robot descriptions: the UR5e shipped with twinsense, and those of installed packages (example-robot-data,
+robosuite)."""
 
 from __future__ import annotations
 
@@ -7,12 +8,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from twinsense.errors import ConfigError, UnknownNameError
-from twinsense.robots.paths import example_robot_data_share, robosuite_robots_dir
+from twinsense.robots.paths import bundled_robots_dir, example_robot_data_share, robosuite_robots_dir
 
 
 @dataclass(frozen=True)
 class RobotDescription:
-    """Where a named robot's file lives: ``source`` ("example-robot-data" or "robosuite"), the relative path."""
+    """Where a named robot's file lives: ``source`` ("twinsense", "example-robot-data" or "robosuite"), the relative
+    path."""
 
     name: str
     source: str
@@ -24,11 +26,15 @@ class RobotDescription:
     material: str | None = None
 
     def path(self) -> Path:
-        root = example_robot_data_share() if self.source == "example-robot-data" else robosuite_robots_dir()
-        return root / self.relpath
+        roots = {"twinsense": bundled_robots_dir, "example-robot-data": example_robot_data_share,
+                 "robosuite": robosuite_robots_dir}
+        return roots[self.source]() / self.relpath
 
 
 ROBOTS: dict[str, RobotDescription] = {r.name: r for r in (
+    RobotDescription("ur5e", "twinsense", "ur5e/ur5e.xml", "mjcf",
+                     "Universal Robots UR5e, 6 joints, flange body tool0, collision meshes (robosuite's MJCF, "
+                     "shipped with twinsense: needs mujoco only)"),
     RobotDescription("ur3", "example-robot-data", "robots/ur_description/urdf/ur3_robot.urdf", "urdf",
                      "Universal Robots UR3, 6 joints (example-robot-data URDF)"),
     RobotDescription("ur5", "example-robot-data", "robots/ur_description/urdf/ur5_robot.urdf", "urdf",

@@ -5,16 +5,23 @@ descriptions of example-robot-data come as a cmeel wheel whose files sit in
 ``<site-packages>/cmeel.prefix/share/example-robot-data``; robosuite's MJCF
 assets sit in its package folder. Neither package is imported: the files
 are found through the installed distributions' metadata and import specs.
+The UR5e of the robot-cell demo ships inside twinsense (``twinsense/data/robots``).
 """
 
 from __future__ import annotations
 
 import importlib.metadata
+import importlib.resources
 import importlib.util
 from pathlib import Path
 
 from twinsense.errors import ConfigError
 from twinsense.robots.deps import INSTALL_HINT
+
+
+def bundled_robots_dir() -> Path:
+    """The robot descriptions shipped inside twinsense (``twinsense/data/robots``: the UR5e)."""
+    return Path(str(importlib.resources.files("twinsense.data"))) / "robots"
 
 
 def example_robot_data_share() -> Path:
