@@ -133,3 +133,58 @@ def test_infinite_floor_reaches_as_far_as_mujoco_draws_it(visual, far):
     assert np.abs(o[:, :2]).max() > 10.0  # beyond the old square
     floor = cosim.scene.object("world").geometry
     assert isinstance(floor, ts.Plane) and floor.size == pytest.approx((2 * reach, 2 * reach), rel=1e-12)
+
+
+# --------------------------------------------------------------------------- the files MuJoCo reads
+TET_OBJ = "v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0 0 0.1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+LAYOUT = {
+    "main.xml": """<mujoco><compiler assetdir="assets"/><include file="sub/a.xml"/>
+      <asset><model name="arm" file="parts/arm.xml"/></asset>
+      <worldbody><body name="x"><freejoint/><geom type="mesh" mesh="m1"/><geom type="mesh" mesh="m2"/></body>
+        <body name="mount" pos="0 0 1"><attach model="arm" body="arm" prefix="a_"/></body></worldbody></mujoco>""",
+    # An include's own include, found beside the including file (sub/), not beside the main file.
+    "sub/a.xml": """<mujocoinclude><include file="deeper/b.xml"/>
+      <asset><mesh name="m1" file="m/t.obj"/></asset></mujocoinclude>""",
+    "sub/deeper/b.xml": '<mujocoinclude><asset><mesh name="m2" file="t2.obj"/></asset></mujocoinclude>',
+    "assets/m/t.obj": TET_OBJ,
+    # An attached model: its own folder and meshdir.
+    "parts/arm.xml": """<mujoco><compiler meshdir="meshes"/><asset><mesh name="m3" file="t3.obj"/></asset>
+      <worldbody><body name="arm"><joint type="hinge"/><geom type="mesh" mesh="m3"/></body></worldbody></mujoco>""",
+    "parts/meshes/t3.obj": TET_OBJ,
+}
+# Where MuJoCo finds the mesh an included file names from its own folder: under the asset folder as
+# <include folder>/<file> when the model is loaded by a path relative to its folder, beside the included
+# file when by an absolute path (MuJoCo prefixes the include's folder as it opened it).
+T2 = {"relative": "assets/sub/deeper/t2.obj", "absolute": "sub/deeper/t2.obj"}
+
+
+@pytest.mark.parametrize("how", ["relative", "absolute"])
+def test_model_files_are_the_files_mujoco_reads(tmp_path, monkeypatch, how):
+    # A parameter sweep reuses a recording when none of the files a build read changed; the MJCF files were
+    # found by rules that missed an include's own include, the meshes an included file names from its
+    # folder, and an attached model's files, so a changed mesh there reused a stale recording. Reference:
+    # MuJoCo itself; each file of the layout is needed (the model does not compile without it), and the
+    # model compiles with all of them, so MuJoCo reads exactly these.
+    from twinsense.inputs import noting_inputs
+    from twinsense.robots.mjcf import model_files
+
+    layout = {**LAYOUT, T2[how]: TET_OBJ}
+    for name, text in layout.items():
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text(text)
+    monkeypatch.chdir(tmp_path)
+    main = "main.xml" if how == "relative" else str(tmp_path / "main.xml")
+    mujoco.MjModel.from_xml_path(main)
+    for name in layout:
+        if name == "main.xml":
+            continue
+        f = tmp_path / name
+        f.rename(f.with_suffix(".away"))
+        with pytest.raises(ValueError):
+            mujoco.MjModel.from_xml_path(main)
+        f.with_suffix(".away").rename(f)
+    expected = {(tmp_path / n).resolve() for n in layout}
+    assert model_files(main)[0] == (tmp_path / "main.xml").resolve() and set(model_files(main)) == expected
+    with noting_inputs() as noted:
+        MujocoCosim(main)
+    assert expected <= noted

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 import warnings
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
@@ -83,40 +84,82 @@ _FILE_ATTRIBUTES = ("file", "filename", "fileright", "fileleft", "fileup", "file
 def model_files(path) -> list[Path]:
     """The files compiling the MJCF model at ``path`` reads: the file, its includes and its assets.
 
-    MuJoCo does not list them, so they are read from the XML as MuJoCo resolves
-    them: includes relative to the main file's folder, assets in the
-    compiler's ``meshdir`` / ``texturedir`` / ``assetdir`` (relative to that
-    folder) or beside the model; a ``package://`` URI of a URDF by its file
-    name, as MuJoCo looks it up. A name found in none of those is left out
-    (the model compiled, so MuJoCo did not need it). Absolute paths, first the
-    model file, without repeats.
+    MuJoCo does not list them, so they are read from the XML where MuJoCo (4.0) looks
+    them up: an include beside the main file or beside the file that includes it; an
+    asset ``F`` written in an XML file in folder ``P`` under the compiler's ``meshdir``
+    / ``texturedir`` / ``assetdir`` ``D`` (relative to the main file's folder; that
+    folder if none is set) as ``D/F``, else ``D/P/F``, ``P`` as MuJoCo opened the XML
+    file: relative to the model's folder when the model is loaded from there by a
+    relative path, beside the XML file when by an absolute one; a ``package://`` URI of
+    a URDF by its file name; a model attached with ``<model file>`` with its own folder,
+    includes and assets. Every existing file among those candidates is listed (which
+    one MuJoCo opens depends on how the path was given); a name found in none of them
+    is left out (the model compiled, so MuJoCo did not need it). Absolute paths, first
+    the model file, without repeats.
     """
-    top = Path(path).resolve()
+    files: list[Path] = []
+    _model_files(Path(path).resolve(), files)
+    return files
+
+
+def _existing(candidates) -> list[Path]:
+    """The candidates that are files, resolved, without repeats, in order."""
+    out: list[Path] = []
+    for c in candidates:
+        if c.is_file() and c.resolve() not in out:
+            out.append(c.resolve())
+    return out
+
+
+def _model_files(top: Path, files: list[Path]) -> None:
+    """Add the files of the model at ``top`` (absolute) to ``files`` (see :func:`model_files`)."""
+    if top in files:
+        return
     folder = top.parent
-    files, dirs, assets = [top], [], []
+    files.append(top)
+    dirs: list[Path] = []
+    # (file as written, its XML file's folder relative to the main one, that folder)
+    assets: list[tuple[str, Path, Path]] = []
+    models: list[tuple[str, Path, Path]] = []
     stack = [top]
     while stack:
+        src = stack.pop()
         try:
-            tree = ET.parse(stack.pop())
+            tree = ET.parse(src)
         except (ET.ParseError, OSError):
             continue
+        try:
+            here = src.parent.relative_to(folder)
+        except ValueError:  # an include outside the main file's folder
+            here = Path(os.path.relpath(src.parent, folder))
         for el in tree.iter():
             if el.tag == "compiler":
                 dirs += [folder / el.get(a) for a in ("meshdir", "texturedir", "assetdir") if el.get(a)]
             elif el.tag == "include" and el.get("file"):
-                inc = (folder / el.get("file")).resolve()
-                if inc.is_file() and inc not in files:
-                    files.append(inc)
-                    stack.append(inc)
+                for inc in _existing([folder / el.get("file"), src.parent / el.get("file")]):
+                    if inc not in files:
+                        files.append(inc)
+                        stack.append(inc)
                 continue
-            assets += [el.get(a) for a in _FILE_ATTRIBUTES if el.get(a)]
-    for name in assets:
+            elif el.tag == "model" and el.get("file"):
+                models.append((el.get("file"), here, src.parent))
+                continue
+            assets += [(el.get(a), here, src.parent) for a in _FILE_ATTRIBUTES if el.get(a)]
+    for name, here, beside in assets:
         ref = Path(name.split("://", 1)[-1])
-        where = [ref] if ref.is_absolute() else [d / r for r in (ref, Path(ref.name)) for d in (*dirs, folder)]
-        hit = next((c.resolve() for c in where if c.is_file()), None)
-        if hit is not None and hit not in files:
-            files.append(hit)
-    return files
+        if ref.is_absolute():
+            hits = _existing([ref])
+        else:
+            # The asset folders (else the main one) with the file as written and under the XML file's folder,
+            # and beside that file; failing those, beside the main file, and a URDF's package:// mesh by name.
+            hits = _existing([*(d / r for d in (dirs or [folder]) for r in (ref, here / ref)), beside / ref]) or \
+                _existing([folder / ref, folder / here / ref, *(d / ref.name for d in (*dirs, folder))])[:1]
+        files += [h for h in hits if h not in files]
+    for name, here, beside in models:
+        ref = Path(name)
+        for hit in _existing([ref] if ref.is_absolute() else [folder / ref, folder / here / ref, beside / ref,
+                                                              *(d / ref for d in dirs)]):
+            _model_files(hit, files)
 
 
 def _quat_pose(pos, quat_wxyz) -> Pose:
