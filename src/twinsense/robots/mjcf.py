@@ -242,7 +242,8 @@ def geom_mesh(model, g: int, field: str) -> tuple[np.ndarray, np.ndarray] | None
     if t == GEOM_MESH:
         return _compiled_mesh(model, g)
     if t == GEOM_ELLIPSOID:
-        v, f = primitive_mesh(Sphere(1.0, subdivisions=3))
+        # The unit icosphere of a sphere geom (Sphere's own subdivisions) scaled by the radii: as fine as a sphere.
+        v, f = primitive_mesh(Sphere(1.0))
         return v * np.asarray(model.geom_size[g], dtype=float), f
     if t == GEOM_HFIELD:
         return hfield_mesh(model, int(model.geom_dataid[g]))
