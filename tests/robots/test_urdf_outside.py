@@ -252,6 +252,9 @@ BAD_URDFS = [
      + '<joint name="k" type="prismatic"><parent link="b"/><child link="c"/><axis xyz="1 0 0"/>'
        '<limit lower="0" upper="1" effort="1" velocity="1"/><mimic joint="j" multiplier="nan"/></joint>',
      r"joints\[k\]\.mimic\.multiplier", "nan", "finite"),
+    ("mimic_fixed", _LINKS + '<link name="c"/><joint name="j" type="fixed"><parent link="a"/><child link="b"/></joint>'
+     '<joint name="k" type="continuous"><parent link="b"/><child link="c"/><mimic joint="j"/></joint>',
+     r"joints\[k\]\.mimic\.joint", "'j'", "a revolute, continuous or prismatic joint to follow ('j' is fixed)"),
 ]
 
 

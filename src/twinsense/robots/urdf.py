@@ -197,6 +197,7 @@ def urdf_tree(path, *, materials=None, shapes: str = "visual", name: str | None 
         links.append(Link(lk.name, geom, mats[lk.name]))
     joints = []
     joint_names = {j.name for j in robot.joints}
+    joint_types = {j.name: _JOINT_KINDS.get(j.type) for j in robot.joints}
     for j in robot.joints:
         kind = _JOINT_KINDS.get(j.type)
         if kind is None:
@@ -210,6 +211,11 @@ def urdf_tree(path, *, materials=None, shapes: str = "visual", name: str | None 
         axis = (1.0, 0.0, 0.0) if j.axis is None or kind == "fixed" else tuple(float(x) for x in j.axis)
         mimic = None
         if j.mimic is not None and kind != "fixed":
+            if joint_types.get(j.mimic.joint) == "fixed":  # the tree's own message would list no joints
+                master = next(m for m in robot.joints if m.name == j.mimic.joint)
+                raise ConfigError(f"{field}.joints[{j.name}].mimic.joint", j.mimic.joint,
+                                  f"a revolute, continuous or prismatic joint to follow ({j.mimic.joint!r} is "
+                                  f"{master.type}{', taken as fixed' if master.type != 'fixed' else ''})")
             if j.mimic.joint in joint_names:
                 try:
                     mimic = Mimic(j.mimic.joint, 1.0 if j.mimic.multiplier is None else float(j.mimic.multiplier),
