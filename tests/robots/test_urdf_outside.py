@@ -387,3 +387,15 @@ def test_collada_meshes_span_what_pycollada_binds(folder):
         tol = 8 * 2.0**-24 * float(np.abs(ref).max())
         np.testing.assert_allclose(used.min(axis=0), ref.min(axis=0), rtol=0, atol=tol, err_msg=path.name)
         np.testing.assert_allclose(used.max(axis=0), ref.max(axis=0), rtol=0, atol=tol, err_msg=path.name)
+
+
+def test_a_collada_up_axis_is_not_applied_as_in_rviz(tmp_path):
+    # RViz, Gazebo and hpp-fcl read a robot's COLLADA meshes through assimp and leave out the root node's turn
+    # to Y_UP (their buildMesh: "Don't convert to y-up orientation"); a Y_UP file reads as written, like Z_UP.
+    got = {}
+    for axis in ("Z_UP", "Y_UP"):
+        path = tmp_path / f"{axis}.dae"
+        path.write_text(_DAE.format(head="", unit='<unit meter="0.001"/>', node_asset="").replace("Z_UP", axis))
+        got[axis] = read_mesh(path, "mesh", "link")
+    np.testing.assert_array_equal(got["Y_UP"][0], got["Z_UP"][0])
+    np.testing.assert_array_equal(got["Y_UP"][0][3], [0.0, 0.0, 0.3])  # the file's (0, 0, 300) mm stays on z
