@@ -1,6 +1,8 @@
 """MJCF models a user brings, checked from outside: closed forms of the geoms, MuJoCo's own ray test and
 the files MuJoCo reads, none of which the rest of the suite uses."""
 
+import pickle
+
 import mujoco
 import numpy as np
 import pytest
@@ -58,9 +60,11 @@ def test_merged_geoms_are_inside_only_where_a_geom_is():
     np.testing.assert_array_equal(cosim.scene.object("world").geometry.contains(world_pts), world)
     np.testing.assert_array_equal(cosim.scene.object("arm").geometry.contains(arm_pts), arm)
     assert not cosim.scene.object("world").geometry.contains([[-3.0, 2.0, 0.3]])[0]
-    # load_mjcf's links are the same geometry.
+    # load_mjcf's links are the same geometry; a copy (pickle: a scene is copied that way) keeps the test.
     body = load_mjcf(mujoco.MjModel.from_xml_string(CELL))
     np.testing.assert_array_equal(body.tree.link("arm").geometry.contains(arm_pts), arm)
+    copied = pickle.loads(pickle.dumps(cosim.scene.object("arm").geometry))
+    np.testing.assert_array_equal(copied.contains(arm_pts), arm)
 
 
 def test_a_plane_alone_off_the_origin_has_no_inside():

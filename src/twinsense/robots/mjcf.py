@@ -323,22 +323,29 @@ class _MeshVolume:
     faces: np.ndarray
 
     @functools.cached_property
-    def _test(self):
+    def _solid(self) -> TriangleMesh | np.ndarray | None:
+        """The closed mesh, else its hull's facets (k, 4): outward unit normals and offsets; None if flat.
+        Arrays and meshes, not closures: a scene is copied by pickle."""
         try:
             mesh = TriangleMesh(self.vertices, self.faces, name="mjcf mesh geom")
             if mesh.mesh.is_watertight:
-                return mesh.contains
+                return mesh
         except GeometryError:  # degenerate triangles only: the hull decides
             pass
         try:
-            eq = ConvexHull(self.vertices).equations
+            return np.asarray(ConvexHull(self.vertices).equations, dtype=float)
         except QhullError:  # all vertices in one plane (or fewer than four): no volume
-            return lambda p: np.zeros(len(p), dtype=bool)
-        # Inside the hull: on the inner side of every facet plane (n . p + d <= 0), to rounding.
-        return lambda p: np.all(p @ eq[:, :3].T + eq[:, 3] <= 1e-12, axis=1)
+            return None
 
     def contains(self, points) -> np.ndarray:
-        return np.asarray(self._test(np.asarray(points, dtype=float).reshape(-1, 3)), dtype=bool)
+        p = np.asarray(points, dtype=float).reshape(-1, 3)
+        solid = self._solid
+        if solid is None:
+            return np.zeros(len(p), dtype=bool)
+        if isinstance(solid, TriangleMesh):
+            return np.asarray(solid.contains(p), dtype=bool)
+        # Inside the hull: on the inner side of every facet plane (n . p + d <= 0), to rounding.
+        return np.all(p @ solid[:, :3].T + solid[:, 3] <= 1e-12, axis=1)
 
 
 def geom_volume(model, g: int):
