@@ -242,6 +242,8 @@ BAD_URDFS = [
      r"joints\[j\]\.origin\.xyz", "'0 0 nan'", "3 finite numbers"),
     ("origin_two", _LINKS + _JOINT.format(x='<origin xyz="0 0.1"/>', m=""),
      r"joints\[j\]\.origin\.xyz", "'0 0.1'", "3 finite numbers"),
+    ("origin_commas", _LINKS + _JOINT.format(x='<origin xyz="0,0,0.1"/>', m=""),  # yourdfpy: a ValueError
+     r"joints\[j\]\.origin\.xyz", "'0,0,0.1'", "3 finite numbers separated by spaces"),
     ("rpy_inf", _LINKS + _JOINT.format(x='<origin rpy="0 inf 0"/>', m=""),
      r"joints\[j\]\.origin\.rpy", "'0 inf 0'", "[rad]"),
     ("visual_origin", '<link name="a"><visual><origin xyz="0 0 1e999"/><geometry><sphere radius="0.1"/>'

@@ -46,13 +46,14 @@ def _pose(matrix) -> Pose:
     return Pose() if matrix is None else Pose.from_matrix(np.asarray(matrix, dtype=float))
 
 
-def _numbers(text: str | None, field: str, n: tuple[int, ...], what: str, *, nonzero: bool = False) -> None:
+def _numbers(text: str | None, field: str, n: tuple[int, ...], what: str, *, nonzero: bool = False,
+             commas: bool = False) -> None:
     """ConfigError unless ``text`` holds a count in ``n`` of finite numbers (none zero when ``nonzero``),
-    separated by spaces (or commas, which yourdfpy also reads in sizes and scales)."""
+    separated by spaces (or, with ``commas``, commas: yourdfpy reads them in a mesh scale, not an origin)."""
     if text is None:
         return
     try:
-        vals = [float(x) for x in text.replace(",", " ").split()]
+        vals = [float(x) for x in (text.replace(",", " ") if commas else text).split()]
     except ValueError:
         vals = None
     if vals is None or len(vals) not in n or not all(math.isfinite(x) and (x != 0.0 or not nonzero) for x in vals):
@@ -98,7 +99,7 @@ def _check_elements(root: ET.Element, field: str) -> None:
                                           "the mesh file's path or package:// URI")
                     _numbers(shape.get("scale"), f"{where}.mesh.scale", (1, 3),
                              "1 or 3 finite, non-zero scale factors (x y z; a negative one mirrors the mesh)",
-                             nonzero=True)
+                             nonzero=True, commas=True)
 
 
 def _shape_parts(link, source: str, base_dir: Path, field: str, packages: dict) -> list:
