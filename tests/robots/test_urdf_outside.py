@@ -230,6 +230,8 @@ BAD_URDFS = [
      r"links\[a\]\.collision\[0\]\.mesh\.scale", "'0.001 0 0.001'", "non-zero"),
     ("scale_text", _mesh_link(f'filename="{_UR5_BASE}" scale="mm"'),
      r"links\[a\]\.collision\[0\]\.mesh\.scale", "'mm'", "scale factors"),
+    ("cylinder_length", '<link name="a"><visual><geometry><cylinder radius="0.1"/></geometry></visual></link>',
+     r"links\[a\]\.visual\[0\]\.cylinder\.length", "None", "radius, length"),  # yourdfpy: KeyError 'length'
     ("no_filename", _mesh_link(""), r"links\[a\]\.collision\[0\]\.mesh\.filename", "None", "path or package://"),
     ("metres_as_microns",
      f'<link name="a"><visual><geometry><mesh filename="{_UR5_BASE}" scale="1e6 1e6 1e6"/></geometry></visual></link>',

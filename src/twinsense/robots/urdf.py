@@ -38,8 +38,9 @@ _JOINT_KINDS = {"revolute": "revolute", "continuous": "continuous", "prismatic":
                 "floating": "fixed"}
 #: Which elements give a link its shape: what a camera sees ("visual") or the simplified "collision" one.
 SHAPE_SOURCES = ("visual", "collision")
-#: The shapes a URDF ``<geometry>`` holds.
-_SHAPES = ("box", "cylinder", "sphere", "mesh")
+#: The shapes a URDF ``<geometry>`` holds, and the attributes each requires (a mesh's filename: see below).
+_SHAPE_ATTRS = {"box": ("size",), "cylinder": ("radius", "length"), "sphere": ("radius",), "mesh": ()}
+_SHAPES = tuple(_SHAPE_ATTRS)
 
 
 def _pose(matrix) -> Pose:
@@ -93,6 +94,10 @@ def _check_elements(root: ET.Element, field: str) -> None:
                 if shape is None or shape.tag not in _SHAPES:
                     raise ConfigError(f"{where}.geometry", None if shape is None else shape.tag,
                                       "a <geometry> element holding one of: " + ", ".join(f"<{t}>" for t in _SHAPES))
+                for a in _SHAPE_ATTRS[shape.tag]:
+                    if shape.get(a) is None:
+                        raise ConfigError(f"{where}.{shape.tag}.{a}", None, f"the <{shape.tag}>'s {a} attribute ("
+                                          + ", ".join(_SHAPE_ATTRS[shape.tag]) + " [m])")
                 if shape.tag == "mesh":
                     if not shape.get("filename"):
                         raise ConfigError(f"{where}.mesh.filename", shape.get("filename"),
