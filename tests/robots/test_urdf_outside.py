@@ -403,3 +403,22 @@ def test_a_collada_up_axis_is_not_applied_as_in_rviz(tmp_path):
         got[axis] = read_mesh(path, "mesh", "link")
     np.testing.assert_array_equal(got["Y_UP"][0], got["Z_UP"][0])
     np.testing.assert_array_equal(got["Y_UP"][0][3], [0.0, 0.0, 0.3])  # the file's (0, 0, 300) mm stays on z
+
+
+def test_a_link_of_a_part_and_its_overlapping_mirror_image_is_solid_where_they_overlap(tmp_path):
+    # A link drawn as a closed part and, overlapping it, the same file mirrored (scale "1 -1 1"), as a left and
+    # right half of a housing can be. Inside tests count signed windings: with the mirrored part inside out, a
+    # point inside both summed +1 - 1 = 0 and read as outside the link.
+    trimesh.creation.box(extents=(0.2, 0.1, 0.1)).export(tmp_path / "half.stl")
+    (tmp_path / "h.urdf").write_text(
+        '<robot name="h"><link name="a">'
+        '<visual><origin xyz="0 0.03 0"/><geometry><mesh filename="half.stl"/></geometry></visual>'
+        '<visual><origin xyz="0 -0.03 0"/><geometry><mesh filename="half.stl" scale="1 -1 1"/></geometry></visual>'
+        '</link></robot>')
+    geom = load_urdf(tmp_path / "h.urdf").tree.links[0].geometry
+    assert geom.mesh.is_watertight
+    # Closed form: the boxes span y in [-0.02, 0.08] and [-0.08, 0.02], overlapping in |y| < 0.02 (|x| < 0.1,
+    # |z| < 0.05); points 5 mm or more from every face, so no rounding decides them.
+    inside = [[0.0, 0.0, 0.0], [0.05, 0.01, -0.02], [0.0, 0.05, 0.0], [0.0, -0.05, 0.0]]
+    outside = [[0.0, 0.09, 0.0], [0.0, -0.09, 0.0], [0.11, 0.0, 0.0], [0.0, 0.0, 0.06]]
+    np.testing.assert_array_equal(geom.contains(inside + outside), [True] * 4 + [False] * 4)
