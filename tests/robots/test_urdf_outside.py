@@ -1,5 +1,6 @@
-"""URDF robots checked from outside: meshes against trimesh's own load, kinematics against a URDF reader
-written here from the XML and scipy's rotations, and bad files through the loader and a scenario file.
+"""URDF robots checked from outside: meshes against trimesh's own load and COLLADA units and corners against
+pycollada, kinematics against a URDF reader written here from the XML and scipy's rotations, bad files (and a
+xacro include, a link material) through the loader and a scenario file, and the named human's axes.
 
 The references share no code with the loader's path through yourdfpy: the mesh reference reads each file with
 trimesh, applies the declared ``scale`` and ``<origin>`` as one 4 x 4 matrix (``Trimesh.apply_transform``,
