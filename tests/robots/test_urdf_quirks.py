@@ -21,7 +21,7 @@ from twinsense.scene import Joint, Pose
 
 #: Movable joints of every named robot (the descriptions' own counts).
 JOINTS = {"ur3": 6, "ur5": 6, "ur10": 6, "panda": 8, "kinova": 6, "xarm7": 7, "z1": 7, "human": 36,
-          "panda-mjcf": 7, "ur5e-mjcf": 6, "iiwa-mjcf": 7, "jaco-mjcf": 7, "kinova3-mjcf": 7,
+          "panda-mjcf": 7, "ur5e": 6, "ur5e-mjcf": 6, "iiwa-mjcf": 7, "jaco-mjcf": 7, "kinova3-mjcf": 7,
           "sawyer-mjcf": 7, "xarm7-mjcf": 7}
 
 # One triangle pair in millimetres (unit meter="0.001"), under a node that doubles it and
