@@ -247,3 +247,27 @@ def test_open_meshes_are_hulled_with_the_ones_they_touch():
     middle = np.all(np.abs(p) <= [0.04, 0.04, 0.1], axis=1)  # within the triangle no single piece's hull holds
     assert middle.sum() > 30 and tet.sum() > 30
     np.testing.assert_array_equal(geom.contains(p), prism | tet)
+
+
+# --------------------------------------------------------------------------- one clock
+def test_frame_times_on_steps_read_that_step_late_in_a_run():
+    # MuJoCo's time is a sum of steps; after n steps it misses n dt by up to n rounding errors (1.4e-8 dt
+    # after 60 s of 2 ms steps), beyond the 1e-9 dt the co-simulation allowed. From 16 s on, some 10 Hz
+    # frame times on a step read the step before moved on by a whole step: a swinging pendulum off by
+    # 7.8e-5 in its rotation. Reference: MuJoCo stepped round(t / dt) times on its own. 1e-9: a frame time
+    # before MuJoCo's sum reads that step itself; after it, that step moved on by the difference (<= 1.4e-10
+    # s seen) at <= 8 rad/s, ~1e-9 at most (<= 1.8e-12 seen), where a step's motion is ~1e-5.
+    xml = """<mujoco><option timestep="0.002"/><worldbody><body name="p" pos="0 0 2">
+      <joint name="h" type="hinge" axis="0 1 0"/><geom type="sphere" size="0.05" pos="0.5 0 0" mass="1"/>
+      </body></worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    cosim = MujocoCosim(model, history=1.0)
+    ref = mujoco.MjData(model)
+    for k in range(1, 601):  # 10 Hz for 60 s
+        t = k / 10
+        pose = cosim.body_state("p", t).pose
+        n = round(t / model.opt.timestep)
+        while round(ref.time / model.opt.timestep) < n:
+            mujoco.mj_step(model, ref)
+        mujoco.mj_kinematics(model, ref)
+        np.testing.assert_allclose(pose.rotation, ref.xmat[1].reshape(3, 3), rtol=0, atol=1e-9, err_msg=f"t = {t}")

@@ -20,8 +20,8 @@ the next sensor's earlier frame) get the state of their own time.
 Between two steps
 -----------------
 A time that falls between steps k and k+1 (t_k <= t < t_k + dt) gets step k's
-state moved on by step k's velocities over tau = t - t_k (a time within 1e-9 of
-a step before t_k, MuJoCo's sum of steps, is on step k: tau = 0): p = p_k + v_k tau,
+state moved on by step k's velocities over tau = t - t_k (a time a little before
+t_k, MuJoCo's sum of steps, is on step k: tau = 0; see :meth:`MujocoCosim.slack`): p = p_k + v_k tau,
 R = exp([w_k tau]x) R_k, velocities held. For a body under acceleration a the
 position error is |a| tau^2 / 2 <= |a| dt^2 / 2 (4.4e-5 m for gravity at a
 3 ms step) and the velocity error |a| tau <= |a| dt.
@@ -65,9 +65,11 @@ from twinsense.scene.scene import Frame, Scene, SceneObject
 STATE_CACHE_SIZE = 32
 #: MuJoCo joint types with one coordinate (slide, hinge).
 _ONE_DOF = (2, 3)
-#: A time this fraction of a step or less before a step's is on that step: MuJoCo's time is a sum of
-#: steps and misses the clock's k dt (a frame time k / frame_rate) by a few ulps, either way.
+#: A time this fraction of a step or less before a step's is on that step, beyond the rounding MuJoCo's
+#: time accumulates (see :meth:`MujocoCosim.slack`).
 STEP_SLACK = 1e-9
+#: Relative rounding of one float64 addition (half an ulp is at most this times the sum).
+_EPS = float(np.finfo(float).eps)
 #: MuJoCo's warnings (mjtWarning) for NaN, Inf or huge values in the state or the controls.
 _BAD_STATE = (3, 4, 5, 6)  # mjWARN_BADQPOS, mjWARN_BADQVEL, mjWARN_BADQACC, mjWARN_BADCTRL
 
@@ -219,9 +221,9 @@ class MujocoCosim:
     def _step_to(self, t: float) -> None:
         """step_to with the lock held (a ForkSafeLock is not re-entrant)."""
         self._sync()
-        # A step ends at time + dt; take it when that is not after t (STEP_SLACK of a step absorbs the
-        # rounding of MuJoCo's accumulated time).
-        while self.data.time + self.timestep * (1 - STEP_SLACK) <= t:
+        # A step ends at time + dt; take it when that is not after t (the slack absorbs the rounding of
+        # MuJoCo's accumulated time).
+        while self.data.time + self.timestep - self.slack(t) <= t:
             if self._failure is not None:
                 raise self._failure
             self._step()
@@ -300,6 +302,18 @@ class MujocoCosim:
                 raise ConfigError(f"cosim.data.{field}", a.tolist(), "finite values (MuJoCo would reset the "
                                   "state to the model's initial one)")
 
+    def slack(self, t: float) -> float:
+        """How far [s] a time ``t`` [s] may lie before a step's time and still be on that step.
+
+        MuJoCo's time is a sum of steps (``time += timestep``): after n steps it misses the clock's
+        n dt (a frame time k / frame_rate) by up to n rounding errors of half an ulp each, n eps |t| / 2 at
+        most (1.4e-8 dt after 60 s of 2 ms steps, 5.9e-7 dt after 400 s: far beyond an ulp). The slack is
+        STEP_SLACK of a step plus twice that bound; it stays a small part of a step (7e-4 dt after an
+        hour of 2 ms steps), so a time truly between steps is never taken for the next.
+        """
+        n = abs(t - self._start) / self.timestep + 1.0
+        return self.timestep * STEP_SLACK + n * _EPS * max(abs(t), abs(self._start))
+
     def on_step(self, t: float) -> float:
         """The time of the kept step that ``t`` [s] falls on within rounding (what ``step_to`` stepped to), else t.
 
@@ -311,7 +325,7 @@ class MujocoCosim:
 
     def _on_step(self, t: float) -> float:
         i = bisect.bisect_right(self._times, t)
-        if i < len(self._times) and self._times[i] - t <= self.timestep * STEP_SLACK:
+        if i < len(self._times) and self._times[i] - t <= self.slack(t):
             return self._times[i]
         return t
 
