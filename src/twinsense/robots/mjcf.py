@@ -11,7 +11,8 @@ joints too (with a warning) or, with ``ball_joints="euler"``, as three revolute
 joints about the joint frame's x, y and z axes;
 :class:`~twinsense.robots.mujoco_cosim.MujocoCosim` follows free and ball
 joints through MuJoCo's own state. Height fields are closed meshes on MuJoCo's
-grid; SDF geoms are left out with a warning.
+grid; SDF geoms are left out with a warning. A body's geoms are merged into one
+mesh for the rays (:class:`GeomsMesh`) whose inside test is the geoms' own.
 
 A joint anchored away from its body's origin, or a second joint in the same
 body, is expressed with frame-only intermediate links named
@@ -339,17 +340,17 @@ class _MeshVolume:
 OPEN_MESH_GAP = 1e-3
 
 
-def geom_volume(model, g: int):
+def geom_volume(model, g: int, mesh: tuple[np.ndarray, np.ndarray] | None = None):
     """Geom g's inside test in its geom frame (an object with ``contains(points (n, 3)) -> bool (n,)``), or
-    None for a geom without volume (a plane; an SDF or plugin geom, which twinsense does not draw)."""
+    None for a geom without volume (a plane; an SDF or plugin geom, which twinsense does not draw).
+    ``mesh``: the geom's :func:`geom_mesh`, if already made (a mesh or height field geom's is its volume)."""
     t = int(model.geom_type[g])
     if t == GEOM_PLANE:
         return None
     if t == GEOM_ELLIPSOID:
         return _Ellipsoid(np.asarray(model.geom_size[g], dtype=float).copy())
     if t in (GEOM_MESH, GEOM_HFIELD):  # a height field is a closed prism: its own mesh's test is exact
-        mesh = geom_mesh(model, g, "mjcf") if t == GEOM_HFIELD else _compiled_mesh(model, g)
-        return _MeshVolume(*mesh)
+        return _MeshVolume(*(mesh if mesh is not None else geom_mesh(model, g, "mjcf")))
     return geom_primitive(model, g)
 
 
@@ -453,7 +454,7 @@ def body_geometry(model, b: int, which: str = "visual", field: str = "mjcf") -> 
         verts.append(pose.apply(mesh[0]))
         faces.append(np.asarray(mesh[1]) + off)
         off += len(mesh[0])
-        volume = geom_volume(model, g)
+        volume = geom_volume(model, g, mesh)
         if volume is not None:
             solids.append((volume, pose))
     if not verts:
