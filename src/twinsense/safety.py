@@ -44,7 +44,10 @@ import trimesh
 
 from twinsense import validation as V
 from twinsense.errors import ConfigError
+from twinsense.scene.articulated import ArticulatedBody
 from twinsense.scene.geometry import Box, Capsule, Sphere
+from twinsense.scene.motion import check_time
+from twinsense.scene.scene import Scene
 
 __all__ = ["SeparationMonitor", "SeparationParameters", "SeparationSample", "point_box_distance",
            "point_capsule_distance", "protective_separation_distance"]
@@ -160,30 +163,79 @@ class SeparationSample:
     approach_speed: float
 
 
+def _bodies(scene) -> list:
+    """The scene's articulated bodies (each once, in the order their first link was added)."""
+    out = []
+    for obj in scene.objects:
+        # Only a LinkMotion's ``body`` is an ArticulatedBody (a MuJoCo co-simulation's object motions carry
+        # the MuJoCo body index under that name).
+        body = getattr(obj.motion, "body", None)
+        if isinstance(body, ArticulatedBody) and all(b is not body for b in out):
+            out.append(body)
+    return out
+
+
 def _body(scene, name: str, field: str):
     """The articulated body whose links are the scene objects ``name/...``."""
-    for obj in scene.objects:
-        body = getattr(obj.motion, "body", None)
-        if body is not None and body.name == name:
+    bodies = _bodies(scene)
+    for body in bodies:
+        if body.name == name:
             return body
-    names = sorted({o.motion.body.name for o in scene.objects if getattr(o.motion, "body", None) is not None})
+    names = sorted(b.name for b in bodies)
+    if isinstance(name, str) and any(f.name.startswith(name + "/") for f in scene.frames):
+        raise ConfigError(field, name, f"an articulated body with link geometry ({name!r} has frames only; "
+                          "bodies with geometry: " + (", ".join(names) or "none") + ")")
     raise ConfigError(field, name, "an articulated body of the scene: " + (", ".join(names) or "none"))
+
+
+def _objects(scene, names) -> list:
+    """The scene objects ``names`` (a robot given as rigid objects, e.g. a MuJoCo co-simulation's bodies)."""
+    names = list(names)
+    if not names or not all(isinstance(n, str) for n in names):
+        raise ConfigError("robot", names, "an articulated body's name or a non-empty list of scene object names")
+    known = {o.name: o for o in scene.objects}
+    for k, n in enumerate(names):
+        if n not in known:
+            raise ConfigError(f"robot[{k}]", n, "a scene object: " + ", ".join(sorted(known)))
+    if len(set(names)) != len(names):
+        raise ConfigError("robot", names, "each object once")
+    return [known[n] for n in names]
 
 
 class SeparationMonitor:
     """True minimum distance between the robot ``robot`` and the person ``person`` of ``scene``.
 
-    ``spacing`` [m]: the largest edge of the subdivided robot link meshes
-    (the distance is exact to ``spacing / sqrt(3)``, from above).
+    ``robot``: the name of an articulated body of the scene (its links with geometry), or a list of
+    scene object names, each a rigid part moved by its own motion (a :class:`~twinsense.robots.MujocoCosim`'s
+    bodies: ``[o.name for o in cosim.scene.objects if o.name != "world"]``). ``person``: an articulated body
+    whose segments are capsules, spheres or boxes (:func:`~twinsense.scene.human.add_person`).
+    ``spacing`` [m]: the largest edge of the subdivided robot meshes (the distance is exact to
+    ``spacing / sqrt(3)``, from above).
     """
 
-    def __init__(self, scene, robot: str, person: str, spacing: float = 0.01):
+    def __init__(self, scene, robot, person: str, spacing: float = 0.01):
+        if not isinstance(scene, Scene):
+            raise ConfigError("scene", scene, "a twinsense Scene holding the robot and the person")
         V.length("spacing", spacing)
-        self.robot = _body(scene, robot, "robot")
         self.person = _body(scene, person, "person")
+        if isinstance(robot, str):
+            self.robot = _body(scene, robot, "robot")
+            if self.robot is self.person:
+                raise ConfigError("robot", robot, f"another body than the person ({person!r})")
+            self._objects = None
+            meshes = [(i, g.mesh) for i, lk in enumerate(self.robot.tree.links)
+                      if (g := lk.link_frame_geometry()) is not None]
+        elif isinstance(robot, (list, tuple)):
+            self.robot = None
+            self._objects = _objects(scene, robot)
+            mine = {self.person.object_name(lk.name) for lk in self.person.tree.links}
+            for k, o in enumerate(self._objects):
+                if o.name in mine:
+                    raise ConfigError(f"robot[{k}]", o.name, f"an object that is not a part of the person {person!r}")
+            meshes = [(k, o.geometry.mesh) for k, o in enumerate(self._objects)]
+        else:
+            raise ConfigError("robot", robot, "an articulated body's name or a list of scene object names")
         self.spacing = float(spacing)
-        meshes = [(i, g.mesh) for i, lk in enumerate(self.robot.tree.links)
-                  if (g := lk.link_frame_geometry()) is not None]
         # The subdivided meshes' vertex count, roughly (refused before it exhausts the memory): edges end
         # near spacing / 2 to spacing, a triangle of edges spacing / 2 covers sqrt(3) / 16 spacing^2 and a
         # closed mesh has half as many vertices as triangles (the UR5: 41,026 points at 10 mm for 33,900
@@ -194,7 +246,7 @@ class SeparationMonitor:
             smallest = np.sqrt(area / (np.sqrt(3.0) / 16.0) / 2.0 / MAX_ROBOT_POINTS)
             raise ConfigError("spacing", spacing, f"a spacing >= {smallest:.2g} m for this robot (its "
                               f"{area:.3g} m^2 of link surface as at most {MAX_ROBOT_POINTS:,} points)")
-        self._robot_points = []  # (link index, points (n, 3) in the link frame)
+        self._robot_points = []  # (link or object index, points (n, 3) in the link / object frame)
         for i, m in meshes:
             v, _ = trimesh.remesh.subdivide_to_size(np.asarray(m.vertices), np.asarray(m.faces),
                                                     max_edge=self.spacing, max_iter=30)
@@ -209,15 +261,33 @@ class SeparationMonitor:
             self._prims.append((i, lk.geometry, lk.origin))
 
     def robot_points(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(points (n, 3) [m], velocities (n, 3) [m/s], link index (n,)) of the robot's surface at t."""
-        st = self.robot.state(t)
+        """(points (n, 3) [m], velocities (n, 3) [m/s], part index (n,)) of the robot's surface at t.
+
+        The part index is the link's index in ``robot.tree.links`` (an articulated robot) or the object's
+        in the ``robot`` list given.
+        """
         pts, vel, idx = [], [], []
-        for i, local in self._robot_points:
-            w = local @ st.rotations[i].T + st.positions[i]
-            pts.append(w)
-            vel.append(st.point_velocity(i, w))
-            idx.append(np.full(len(w), i))
+        if self._objects is None:
+            st = self.robot.state(t)
+            for i, local in self._robot_points:
+                w = local @ st.rotations[i].T + st.positions[i]
+                pts.append(w)
+                vel.append(st.point_velocity(i, w))
+                idx.append(np.full(len(w), i))
+        else:
+            t = check_time(t)
+            for k, local in self._robot_points:
+                ms = self._objects[k].motion.state(t)
+                w = local @ ms.pose.rotation.T + ms.pose.position
+                pts.append(w)
+                vel.append(ms.point_velocity(w))
+                idx.append(np.full(len(w), k))
         return np.concatenate(pts), np.concatenate(vel), np.concatenate(idx)
+
+    def _robot_part_name(self, k: int) -> str:
+        if self._objects is None:
+            return self.robot.object_name(self.robot.tree.links[k].name)
+        return self._objects[k].name
 
     def human_distances(self, points, t: float, gradient: bool = False):
         """(distance (n,) [m] from points (n, 3) to the nearest body segment, that segment's link index (n,)).
@@ -252,6 +322,6 @@ class SeparationMonitor:
         # (the line to its nearest body point).
         towards = np.maximum(-np.einsum("ij,ij->i", vel, grad), 0.0)
         k = int(np.argmin(d))
-        return SeparationSample(float(t), float(d[k]), pts[k], self.robot.object_name(
-            self.robot.tree.links[idx[k]].name), self.person.object_name(self.person.tree.links[seg[k]].name),
-            float(towards[k]), float(towards.max()))
+        return SeparationSample(float(t), float(d[k]), pts[k], self._robot_part_name(int(idx[k])),
+                                self.person.object_name(self.person.tree.links[seg[k]].name),
+                                float(towards[k]), float(towards.max()))
