@@ -6,7 +6,8 @@
   kinematics with a person reaching past it, and MuJoCo's Panda co-simulated (posed by MuJoCo's own xpos /
   xmat) with a person in front of it. The documented bound: never below the truth, at most
   spacing / sqrt(3) above.
-- robot_speed (the closest point's speed towards the person) against central differences of the distance.
+- robot_speed (the closest point's speed towards the person) against central differences of the distance;
+  approach_speed (the fastest approach of any robot point) for a bar sliding past a sphere, in closed form.
 - Bad inputs named by field: a scene that is not a Scene, the person as the robot, a robot without geometry,
   unknown object names.
 """
@@ -19,7 +20,7 @@ import trimesh
 
 from twinsense.errors import ConfigError
 from twinsense.safety import SeparationMonitor
-from twinsense.scene import Box, JointKeyframes, Pose, Scene, Sphere
+from twinsense.scene import Box, JointConstantVelocity, JointKeyframes, Pose, Scene, Sphere
 from twinsense.scene.articulated import ArticulatedBody, Joint, KinematicTree, Link
 from twinsense.scene.human import Reach, add_person
 
@@ -255,3 +256,32 @@ def test_bad_inputs_are_named(cosim_cell, make, message):
     _frames_only("bare").add_to(scene)
     with pytest.raises(ConfigError, match=message):
         make(scene, parts)
+
+
+# ---- approach_speed in closed form ---------------------------------------------------------------------
+
+def test_approach_speed_of_a_bar_sliding_past_a_sphere():
+    # A bar along y (2L x 2w x 2w, L = 0.4 m, w = 0.02 m) slides along its own axis (+y) at v = 0.8 m/s past
+    # a still sphere (radius 0.1 m) centred at (D, 0, 0), D = 0.3 m. The bar's face x = w is g = D - w from
+    # the centre. Its point (w, y, 0) moves at (0, v, 0); the line to the sphere's nearest point runs along
+    # (g, -y, 0), so its speed towards the person is f(y) = -v y / sqrt(g^2 + y^2): 0 at the closest point
+    # (y = 0) and largest at the trailing end y = -L: v L / sqrt(g^2 + L^2) = 0.8 * 0.4 / 0.5 = 0.64 m/s
+    # (points off z = 0, or on the other faces, are farther off the line and slower).
+    L, w, v, D, R = 0.4, 0.02, 0.8, 0.3, 0.1
+    g = D - w
+    links = [Link("base"), Link("bar", Box((2 * w, 2 * L, 2 * w)))]
+    joints = [Joint("slide", "prismatic", "base", "bar", axis=(0.0, 1.0, 0.0), lower=-5.0, upper=5.0)]
+    scene = Scene()
+    scene.add_articulated(ArticulatedBody("robot", KinematicTree("robot", links, joints),
+                                          JointConstantVelocity([0.0], [v])))
+    person = [Link("base"), Link("ball", Sphere(R))]
+    scene.add_articulated(ArticulatedBody("person", KinematicTree("person", person,
+                                                                  [Joint("j", "fixed", "base", "ball")]),
+                                          None, Pose((D, 0.0, 0.0))))
+    s = SeparationMonitor(scene, "robot", "person", spacing=0.01).at(0.0)
+    # The bar's corners and edge midpoints are subdivided vertices (the trailing edge's point at z = 0
+    # among them), so the sampled maximum is the closed form to rounding; the closest vertex is (w, 0, 0),
+    # moving square to the line: 0. Distance: g - R on the face.
+    assert s.approach_speed == pytest.approx(v * L / math.hypot(g, L), rel=0, abs=1e-9)
+    assert s.robot_speed == pytest.approx(0.0, rel=0, abs=1e-12)
+    assert s.distance == pytest.approx(g - R, rel=0, abs=1e-12)
