@@ -16,6 +16,15 @@ distance a robot must keep from a person at time t0::
 - ``Z_d``, ``Z_r``: the position uncertainties of the person (the sensing)
   and of the robot (its measurement system).
 
+This is the TS's constant-speed form: v_h and v_r held over T_r + T_s and
+T_r, and a constant deceleration, in place of the TS's integrals of v_h, v_r
+and the stopping speed v_s over those times. Left to the caller: v_h other than 1.6 m/s (ISO 13855 takes 2.0 m/s
+for a hand or arm approach where the distance it gives is at most 0.5 m:
+``SeparationParameters(human_speed=2.0)``), C from the sensing's detection
+capability d (ISO 13855: 8 (d - 14 mm) for d <= 40 mm, 0.208 m at 40 mm;
+0.85 m for coarser detection), and a measured S_s (ISO 10218-1, Annex B:
+``stopping_distance``).
+
 v_r is "the directed speed of the robot in the direction of the operator". A
 robot is not one point: a part a little farther from the person than the
 closest one can approach it faster (a swinging wrist beside a slow elbow),
@@ -32,7 +41,16 @@ their surface points (every vertex after subdividing each mesh until no edge
 exceeds ``spacing``). A point of a triangle whose edges are all <= h is at
 most h / sqrt(3) from its nearest vertex, so the distance returned exceeds
 the true mesh-to-primitive distance by at most ``spacing / sqrt(3)`` (never
-less than the true one).
+less than the true one). That is the unsafe side for ``distance >= S_p``: count
+it in Z_r (``robot_uncertainty``). A robot link that is a primitive (sphere,
+capsule, cylinder) is taken as its tessellation, which lies inside it by up
+to 0.6 % of its radius (a capsule; a sphere or cylinder 0.12 %): the distance
+exceeds the primitive's by that more.
+
+The robot is an articulated body of the scene (by name) or a list of scene
+objects, each a rigid part moved by its own motion (the bodies of a
+:class:`~twinsense.robots.MujocoCosim`); the person is an articulated body
+whose segments are capsules, spheres and boxes.
 """
 
 from __future__ import annotations
