@@ -19,7 +19,7 @@ import pytest
 import trimesh
 
 from twinsense.errors import ConfigError
-from twinsense.safety import SeparationMonitor
+from twinsense.safety import SeparationMonitor, protective_separation_distance
 from twinsense.scene import Box, JointConstantVelocity, JointKeyframes, Pose, Scene, Sphere
 from twinsense.scene.articulated import ArticulatedBody, Joint, KinematicTree, Link
 from twinsense.scene.human import Reach, add_person
@@ -285,3 +285,18 @@ def test_approach_speed_of_a_bar_sliding_past_a_sphere():
     assert s.approach_speed == pytest.approx(v * L / math.hypot(g, L), rel=0, abs=1e-9)
     assert s.robot_speed == pytest.approx(0.0, rel=0, abs=1e-12)
     assert s.distance == pytest.approx(g - R, rel=0, abs=1e-12)
+
+
+@pytest.mark.parametrize("speed", [True, [True, False], "0.5", [0.1, [0.2]], 0.5j])
+def test_protective_distance_refuses_non_numeric_speeds(speed):
+    # A bool was read as 1 m/s (S_p 1.15 m for True); text, ragged lists and complex numbers are not speeds.
+    with pytest.raises(ConfigError, match=r"robot_speed = .*finite speeds >= 0 m/s"):
+        protective_separation_distance(speed)
+
+
+def test_protective_distance_takes_integers_and_arrays():
+    # The hand-worked S_p = 0.9 + 0.25 v_r [m] (defaults: 1.6 * 0.4 + 0.26; v_r (0.1 + 0.3 / 2)), for
+    # integer and 2-D input alike: sums of a few decimals, 1e-12 m.
+    np.testing.assert_allclose(protective_separation_distance(np.array([[0, 1], [2, 3]])),
+                               0.9 + 0.25 * np.array([[0, 1], [2, 3]]), rtol=0, atol=1e-12)
+    assert protective_separation_distance(1) == pytest.approx(1.15, rel=0, abs=1e-12)

@@ -107,9 +107,12 @@ def protective_separation_distance(robot_speed, params: SeparationParameters = S
     Use the fastest approach of any robot point (``SeparationSample.approach_speed``), not only the
     closest point's: see the module docstring."""
     try:
-        v_r = np.asarray(robot_speed, dtype=float)
+        raw = np.asarray(robot_speed)
     except (TypeError, ValueError):
-        raise ConfigError("robot_speed", robot_speed, "finite speeds >= 0 m/s (a number or an array)") from None
+        raw = np.asarray(None)
+    if raw.dtype.kind not in "iuf":  # True would be read as 1 m/s, a string or a ragged list as garbage
+        raise ConfigError("robot_speed", robot_speed, "finite speeds >= 0 m/s (a number or an array)")
+    v_r = raw.astype(float)
     if not np.all(np.isfinite(v_r)) or np.any(v_r < 0):
         raise ConfigError("robot_speed", robot_speed, "finite speeds >= 0 m/s")
     if not isinstance(params, SeparationParameters):
