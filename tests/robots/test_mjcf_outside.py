@@ -125,7 +125,7 @@ def test_infinite_floor_reaches_as_far_as_mujoco_draws_it(visual, far):
     mujoco.mj_forward(model, data)
     reach = float(model.vis.map.zfar * model.stat.extent)
     if far is not None:
-        assert reach == pytest.approx(far, rel=1e-6)  # the MJCF's own settings
+        assert reach == pytest.approx(far, rel=1e-6, abs=0.0)  # the MJCF's own settings (hundreds of m)
     cosim = MujocoCosim(model)
     o, d = _down_rays(np.random.default_rng(3), 400, 0.95 * reach - 5 * 3.0, 3.0)
     o[:, :2] = np.where(np.abs(o[:, :2]) < 0.5, 0.5, o[:, :2])  # not through the box at the origin
@@ -136,7 +136,7 @@ def test_infinite_floor_reaches_as_far_as_mujoco_draws_it(visual, far):
     np.testing.assert_allclose(hits.distance, ref, rtol=0, atol=1e-9)
     assert np.abs(o[:, :2]).max() > 10.0  # beyond the old square
     floor = cosim.scene.object("world").geometry
-    assert isinstance(floor, ts.Plane) and floor.size == pytest.approx((2 * reach, 2 * reach), rel=1e-12)
+    assert isinstance(floor, ts.Plane) and floor.size == pytest.approx((2 * reach, 2 * reach), rel=1e-12, abs=0.0)
 
 
 # --------------------------------------------------------------------------- the files MuJoCo reads
