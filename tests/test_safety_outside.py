@@ -19,7 +19,7 @@ import pytest
 import trimesh
 
 from twinsense.errors import ConfigError
-from twinsense.safety import SeparationMonitor, protective_separation_distance
+from twinsense.safety import SeparationMonitor, SeparationParameters, protective_separation_distance
 from twinsense.scene import Box, JointConstantVelocity, JointKeyframes, Pose, Scene, Sphere
 from twinsense.scene.articulated import ArticulatedBody, Joint, KinematicTree, Link
 from twinsense.scene.human import Reach, add_person
@@ -300,3 +300,19 @@ def test_protective_distance_takes_integers_and_arrays():
     np.testing.assert_allclose(protective_separation_distance(np.array([[0, 1], [2, 3]])),
                                0.9 + 0.25 * np.array([[0, 1], [2, 3]]), rtol=0, atol=1e-12)
     assert protective_separation_distance(1) == pytest.approx(1.15, rel=0, abs=1e-12)
+
+
+def test_protective_distance_with_the_robot_speeding_up_during_its_reaction():
+    # ISO/TS 15066: with the robot's current speed, S_p must allow for its acceleration capability during
+    # T_r. At a = 2 m/s^2, v_r = 0.5 m/s, the defaults (v_h 1.6 m/s, T_r 0.1 s, T_s 0.3 s, C + Z_d + Z_r
+    # 0.26 m): S_h = 0.64; S_r = 0.5 * 0.1 + 2 * 0.1^2 / 2 = 0.06; the stop starts from 0.5 + 2 * 0.1 =
+    # 0.7 m/s: S_s = 0.7 * 0.3 / 2 = 0.105 -> S_p = 1.065 m (1.025 m at a = 0). A measured S_s of 0.1 m
+    # replaces the 0.105: 1.06 m. Sums of a few decimals: 1e-12 m.
+    p = SeparationParameters(robot_acceleration=2.0)
+    assert protective_separation_distance(0.5, p) == pytest.approx(1.065, rel=0, abs=1e-12)
+    assert protective_separation_distance(0.5) == pytest.approx(1.025, rel=0, abs=1e-12)
+    p = SeparationParameters(robot_acceleration=2.0, stopping_distance=0.1)
+    assert protective_separation_distance(0.5, p) == pytest.approx(1.06, rel=0, abs=1e-12)
+    for bad in (-1.0, float("nan"), "2"):
+        with pytest.raises(ConfigError, match=r"robot_acceleration = .*>= 0 \[m/s\^2\]"):
+            SeparationParameters(robot_acceleration=bad)

@@ -8,17 +8,22 @@ distance a robot must keep from a person at time t0::
 - ``S_h = v_h (T_r + T_s)``: the person's travel while the robot reacts and
   stops (v_h = 1.6 m/s, the walking speed of ISO 13855, unless a risk
   assessment gives another);
-- ``S_r = v_r T_r``: the robot's travel during its reaction time;
-- ``S_s``: the robot's stopping distance (here ``v_r T_s / 2``, a constant
-  deceleration from v_r to rest over T_s, unless a measured figure is given);
+- ``S_r = v_r T_r``: the robot's travel during its reaction time (plus
+  ``a T_r^2 / 2`` when the robot may speed up at ``robot_acceleration`` a
+  meanwhile, which the TS asks to account for when v_r is the current speed);
+- ``S_s``: the robot's stopping distance (here ``v_r' T_s / 2``, a constant
+  deceleration from v_r' = v_r + a T_r to rest over T_s, unless a measured
+  figure is given);
 - ``C``: the intrusion distance (how far a body part reaches past the
   detection before it is detected, ISO 13855);
 - ``Z_d``, ``Z_r``: the position uncertainties of the person (the sensing)
   and of the robot (its measurement system).
 
-This is the TS's constant-speed form: v_h and v_r held over T_r + T_s and
-T_r, and a constant deceleration, in place of the TS's integrals of v_h, v_r
-and the stopping speed v_s over those times. Left to the caller: v_h other than 1.6 m/s (ISO 13855 takes 2.0 m/s
+This is the TS's constant-speed form: v_h held over T_r + T_s, v_r over T_r
+(or a constant acceleration), and a constant deceleration, in place of the
+TS's integrals of v_h, v_r and the stopping speed v_s over those times. A
+robot whose speed is not monitored takes its maximum speed as v_r (the TS).
+Left to the caller: v_h other than 1.6 m/s (ISO 13855 takes 2.0 m/s
 for a hand or arm approach where the distance it gives is at most 0.5 m:
 ``SeparationParameters(human_speed=2.0)``), C from the sensing's detection
 capability d (ISO 13855: 8 (d - 14 mm) for d <= 40 mm, 0.208 m at 40 mm;
@@ -80,7 +85,10 @@ MAX_ROBOT_POINTS = 5_000_000
 class SeparationParameters:
     """The terms of ISO/TS 15066's S_p that do not come from the robot's motion (SI units).
 
-    ``stopping_distance`` [m]: a measured S_s; None takes ``v_r T_s / 2``.
+    ``stopping_distance`` [m]: a measured S_s; None takes ``v_r' T_s / 2``.
+    ``robot_acceleration`` [m/s^2]: the most the robot can speed up towards the person during T_r (the
+    TS asks for it when S_p uses the robot's current speed): S_r = v_r T_r + a T_r^2 / 2 and the stop
+    starts from v_r' = v_r + a T_r. 0 takes the speed as held.
     """
 
     human_speed: float = 1.6          # v_h [m/s], ISO 13855's walking speed
@@ -89,7 +97,8 @@ class SeparationParameters:
     intrusion_distance: float = 0.2   # C [m]: a hand reaching past its detection
     human_uncertainty: float = 0.05   # Z_d [m]: the sensing's position error
     robot_uncertainty: float = 0.01   # Z_r [m]: the robot's position error
-    stopping_distance: float | None = None  # S_s [m]; None: v_r T_s / 2
+    stopping_distance: float | None = None  # S_s [m]; None: v_r' T_s / 2
+    robot_acceleration: float = 0.0   # a [m/s^2]: speeding up towards the person during T_r
 
     def __post_init__(self) -> None:
         V.non_negative("human_speed", self.human_speed, "m/s")
@@ -99,6 +108,7 @@ class SeparationParameters:
             V.non_negative(name, getattr(self, name), "m")
         if self.stopping_distance is not None:
             V.non_negative("stopping_distance", self.stopping_distance, "m")
+        V.non_negative("robot_acceleration", self.robot_acceleration, "m/s^2")
 
 
 def protective_separation_distance(robot_speed, params: SeparationParameters = SeparationParameters()):
@@ -119,8 +129,10 @@ def protective_separation_distance(robot_speed, params: SeparationParameters = S
         raise ConfigError("params", params, "a twinsense.safety.SeparationParameters")
     p = params
     s_h = p.human_speed * (p.reaction_time + p.stopping_time)
-    s_r = v_r * p.reaction_time
-    s_s = v_r * p.stopping_time / 2 if p.stopping_distance is None else np.full_like(v_r, p.stopping_distance)
+    a, t_r = p.robot_acceleration, p.reaction_time
+    s_r = v_r * t_r + 0.5 * a * t_r**2
+    v_stop = v_r + a * t_r  # the speed when the stop begins
+    s_s = v_stop * p.stopping_time / 2 if p.stopping_distance is None else np.full_like(v_r, p.stopping_distance)
     out = s_h + s_r + s_s + p.intrusion_distance + p.human_uncertainty + p.robot_uncertainty
     return float(out) if out.ndim == 0 else out
 
