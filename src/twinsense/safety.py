@@ -243,7 +243,8 @@ class SeparationMonitor:
     bodies: ``[o.name for o in cosim.scene.objects if o.name != "world"]``). ``person``: an articulated body
     whose segments are capsules, spheres or boxes (:func:`~twinsense.scene.human.add_person`).
     ``spacing`` [m]: the largest edge of the subdivided robot meshes (the distance is exact to
-    ``spacing / sqrt(3)``, from above).
+    ``spacing / sqrt(3)``, from above). Attributes ``robot`` (the ArticulatedBody; None for a list of
+    objects) and ``person`` (the ArticulatedBody).
     """
 
     def __init__(self, scene, robot, person: str, spacing: float = 0.01):
