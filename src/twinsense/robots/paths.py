@@ -14,6 +14,7 @@ import importlib.metadata
 import importlib.resources
 import importlib.util
 from pathlib import Path
+from urllib.parse import unquote
 
 from twinsense.errors import ConfigError
 from twinsense.robots.deps import INSTALL_HINT
@@ -67,10 +68,18 @@ def resolve_uri(uri: str, base_dir: Path, packages: dict[str, Path] | None = Non
     """A mesh reference of a URDF as a path: ``package://pkg/rest``, ``file://path``, or relative to the URDF.
 
     A package's folder is :func:`package_folder`'s (``packages`` first); a package found
-    nowhere leaves ``rest`` relative to the URDF (the missing file is then reported).
+    nowhere leaves ``rest`` relative to the URDF (the missing file is then reported). A
+    ``file://`` URI is RFC 8089's: percent-encoded octets decoded (``%20`` a space), an empty or
+    ``localhost`` authority (``file:///abs``, ``file://localhost/abs``); a path it leaves
+    relative (``file://meshes/a.stl``, not a valid file URI but written) is taken from the
+    URDF's folder, as a plain relative path is.
     """
     if uri.startswith("file://"):
-        return Path(uri[len("file://"):])
+        rest = unquote(uri[len("file://"):])
+        if rest.startswith("localhost/"):
+            rest = rest[len("localhost"):]
+        p = Path(rest)
+        return p if p.is_absolute() else base_dir / p
     if uri.startswith("package://"):
         # "package:///pkg/rest" (an empty authority, as some descriptions write it) is "package://pkg/rest".
         pkg, _, sub = uri[len("package://"):].lstrip("/").partition("/")
