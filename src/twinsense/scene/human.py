@@ -1001,9 +1001,15 @@ def Walker(name: str = "person", height: float = 1.75, speed: float = 1.3, start
     ``start_time`` [s], through the waypoints ``path`` (then stops), or
     without a path endlessly along ``heading_deg``.
     """
-    walk = Walk(speed, None if path is None else tuple(map(tuple, np.atleast_2d(
-        V._floats("walk.path", path, "waypoints (n, 2) or (n, 3) [m]")))),
-                heading_deg if path is None else None, start_time, turn_length)
+    pts = None if path is None else tuple(tuple(float(c) for c in row) for row in np.atleast_2d(
+        V._floats("walk.path", path, "waypoints (n, 2) or (n, 3) [m]")))
+    try:
+        walk = Walk(speed, pts, heading_deg if path is None else None, start_time, turn_length)
+    except ConfigError as e:
+        if e.field != "walk.path":
+            raise
+        # Name the path as given: the tuple built above shows [] as ((),) and NaN as np.float64(nan).
+        raise ConfigError("walk.path", path, e.allowed) from None
     return person_body(name, height, start, heading_deg if heading_deg is not None else 0.0, walk=walk,
                        reach=reach, clothing=clothing)
 
@@ -1025,5 +1031,11 @@ def add_person(scene, name: str = "person", height: float = 1.75, position=(0.0,
     """Build a person (see :func:`person_body`) and add its links to ``scene`` as ``f"{name}/{link}"``."""
     body = person_body(name, height, position, heading_deg, walk=walk, turn=turn, reach=reach, sway=sway,
                        clothing=clothing)
-    body.add_to(scene)
+    try:
+        body.add_to(scene)
+    except ConfigError as e:
+        if e.field != f"{name}.name":
+            raise
+        # The body's check speaks of a robot; here it is the person's name that is taken.
+        raise ConfigError("person.name", name, e.allowed.replace("a robot name", "a person name")) from None
     return body
