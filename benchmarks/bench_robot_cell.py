@@ -269,6 +269,20 @@ def cell_runs(seconds: float, repeats: int = 1) -> None:
     whole_cell(seconds, T_REACH, " (hand reaching for the skin)", repeats)
 
 
+def separation(scene) -> None:
+    """``SeparationMonitor.at`` per time, and its nearest-segment pass against the NumPy functions' pass
+    (the anchor: ``_human_distances_numpy``, segment by segment) on the same points."""
+    mon = SeparationMonitor(scene, ROBOT, PERSON)
+    best, med = best_and_median(lambda: mon.at(T0), 9)
+    pts, _, _ = mon.robot_points(T0)
+    print(f"  true separation (SeparationMonitor.at, {len(pts)} robot surface points): {med * 1e3:.1f} ms median "
+          f"({best * 1e3:.1f} best)")
+    _, med_c = best_and_median(lambda: mon.human_distances(pts, T0, gradient=True), 9)
+    _, med_n = best_and_median(lambda: mon._human_distances_numpy(pts, T0, gradient=True), 9)
+    print(f"  nearest body segment of each point, compiled pass {med_c * 1e3:.1f} ms median; anchor: NumPy "
+          f"functions segment by segment {med_n * 1e3:.1f} ms; measured / anchor = {med_c / med_n:.3f}")
+
+
 def mesh_error() -> None:
     """How far the UR5e's visual surface lies from its collision surface, per link."""
     vis, col = arm("visual"), arm("collision")
@@ -350,6 +364,8 @@ def main() -> None:
     ap.add_argument("--cell-only", action="store_true", help="only the whole cell (both windows, both ways)")
     ap.add_argument("--repeats", type=int, default=1, help="whole-cell runs of each way per window")
     ap.add_argument("--skin-only", action="store_true", help="only the forearm skin's cases")
+    ap.add_argument("--separation-only", action="store_true", help="only SeparationMonitor.at and its nearest-"
+                    "segment pass")
     ap.add_argument("--wrist-tof-only", action="store_true", help="only the wrist ToF camera (collision meshes)")
     ap.add_argument("--radar-resolutions", action="store_true",
                     help="only the flange radar at 1, 1/4 and 1/16 of its render rays")
@@ -367,6 +383,10 @@ def main() -> None:
         print_load_at_end()
         return
     scene, sensors = build_arm_cell()
+    if args.separation_only:
+        separation(scene)
+        print_load_at_end()
+        return
     if args.skin_only:
         skin_frames(scene, sensors[3], args.frames)
         skin_frames(scene, sensors[3], args.frames, T_REACH, ", the person's hand reaching for it")
@@ -389,10 +409,7 @@ def main() -> None:
     skin_frames(scene, sensors[3], args.frames, T_REACH, ", the person's hand reaching for it")
     skin_solver_paths(scene, sensors[3], args.frames)
     cell_runs(args.seconds, args.repeats)
-    mon = SeparationMonitor(scene, ROBOT, PERSON)
-    best, med = best_and_median(lambda: mon.at(T0), 9)
-    print(f"  true separation (SeparationMonitor.at, {sum(len(p) for _, p in mon._robot_points)} robot surface "
-          f"points): {med * 1e3:.1f} ms median ({best * 1e3:.1f} best)")
+    separation(scene)
 
     print("\n== the same cell with the UR5e's visual meshes")
     heavy = build_arm_cell_scene(shapes="visual")

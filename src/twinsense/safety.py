@@ -66,6 +66,7 @@ import numpy as np
 import trimesh
 
 from twinsense import validation as V
+from twinsense.compiled import jit
 from twinsense.errors import ConfigError
 from twinsense.scene.articulated import ArticulatedBody
 from twinsense.scene.geometry import Box, Capsule, Sphere
@@ -172,6 +173,62 @@ def point_box_distance(points_local, size, gradient: bool = False):
     g[inside] = 0.0
     g[inside, np.argmax(q[inside], axis=1)] = 1.0
     return d, g * np.where(p < 0.0, -1.0, 1.0)
+
+
+@jit
+def _nearest_segments(pts, kind, link, a, ab, den, radius, half, rot, best, which, grad):  # pragma: no cover
+    """Per point (n, 3): the distance to the nearest segment [m] into ``best`` (n,), its link into ``which``
+    (n,) and the distance's gradient into ``grad`` (n, 3); segments in order, the first of equals kept.
+
+    Segment j: ``kind`` 0 a capsule (axis start ``a[j]``, axis ``ab[j]``, ``den[j]`` = |ab|^2, ``radius[j]``;
+    a sphere has ab = 0), 1 a box (centre ``a[j]``, rotation ``rot[j]`` box -> world, half sizes ``half[j]``).
+    The formulas of point_capsule_distance and point_box_distance, term by term."""
+    n, m = pts.shape[0], kind.shape[0]
+    for k in range(n):
+        px, py, pz = pts[k, 0], pts[k, 1], pts[k, 2]
+        bd, bw, g0, g1, g2 = np.inf, -1, 0.0, 0.0, 0.0
+        for j in range(m):
+            dx, dy, dz = px - a[j, 0], py - a[j, 1], pz - a[j, 2]
+            if kind[j] == 0:
+                s = 0.0
+                if den[j] != 0.0:
+                    s = min(max((dx * ab[j, 0] + dy * ab[j, 1] + dz * ab[j, 2]) / den[j], 0.0), 1.0)
+                ox, oy, oz = dx - s * ab[j, 0], dy - s * ab[j, 1], dz - s * ab[j, 2]
+                r = np.sqrt(ox * ox + oy * oy + oz * oz)
+                d = r - radius[j]
+                if d < bd:
+                    inv = 1.0 / max(r, 1e-300)
+                    bd, bw, g0, g1, g2 = d, link[j], ox * inv, oy * inv, oz * inv
+            else:
+                # The point in the box frame: (p - centre) R.
+                lx = dx * rot[j, 0, 0] + dy * rot[j, 1, 0] + dz * rot[j, 2, 0]
+                ly = dx * rot[j, 0, 1] + dy * rot[j, 1, 1] + dz * rot[j, 2, 1]
+                lz = dx * rot[j, 0, 2] + dy * rot[j, 1, 2] + dz * rot[j, 2, 2]
+                qx, qy, qz = abs(lx) - half[j, 0], abs(ly) - half[j, 1], abs(lz) - half[j, 2]
+                ux, uy, uz = max(qx, 0.0), max(qy, 0.0), max(qz, 0.0)
+                outside = np.sqrt(ux * ux + uy * uy + uz * uz)
+                d = outside + min(max(qx, max(qy, qz)), 0.0)
+                if d < bd:
+                    if outside == 0.0:  # inside: the nearest face's normal (the first of equal q)
+                        hx, hy, hz = 0.0, 0.0, 0.0
+                        if qx >= qy and qx >= qz:
+                            hx = 1.0
+                        elif qy >= qz:
+                            hy = 1.0
+                        else:
+                            hz = 1.0
+                    else:
+                        inv = 1.0 / max(outside, 1e-300)
+                        hx, hy, hz = ux * inv, uy * inv, uz * inv
+                    hx = -hx if lx < 0.0 else hx
+                    hy = -hy if ly < 0.0 else hy
+                    hz = -hz if lz < 0.0 else hz
+                    # Back to the world: h R^T.
+                    bd, bw = d, link[j]
+                    g0 = hx * rot[j, 0, 0] + hy * rot[j, 0, 1] + hz * rot[j, 0, 2]
+                    g1 = hx * rot[j, 1, 0] + hy * rot[j, 1, 1] + hz * rot[j, 1, 2]
+                    g2 = hx * rot[j, 2, 0] + hy * rot[j, 2, 1] + hz * rot[j, 2, 2]
+        best[k], which[k], grad[k, 0], grad[k, 1], grad[k, 2] = bd, bw, g0, g1, g2
 
 
 @dataclass(frozen=True)
@@ -328,7 +385,33 @@ class SeparationMonitor:
 
         ``gradient``: also the distance's gradient (n, 3) (unit vectors pointing away from the body: minus
         the direction from each point to its nearest body point), as a third item.
+
+        One compiled pass over the points and segments (:func:`_nearest_segments`); the same formulas as
+        :func:`point_capsule_distance` and :func:`point_box_distance` (``_human_distances_numpy``, the
+        reference the tests compare it with), about 10x faster for a robot's ~10^5 surface points.
         """
+        st = self.person.state(t)
+        pts = np.ascontiguousarray(points, dtype=float).reshape(-1, 3)
+        m = len(self._prims)
+        kind, link = np.zeros(m, np.int64), np.zeros(m, np.int64)
+        a, ab, den = np.zeros((m, 3)), np.zeros((m, 3)), np.zeros(m)
+        radius, half, rot = np.zeros(m), np.zeros((m, 3)), np.zeros((m, 3, 3))
+        for j, (i, g, origin) in enumerate(self._prims):
+            pose = st.pose(i) @ origin
+            link[j] = i
+            if isinstance(g, Box):
+                kind[j], a[j], rot[j], half[j] = 1, pose.position, pose.rotation, 0.5 * np.asarray(g.size, float)
+            else:
+                h = 0.0 if isinstance(g, Sphere) else 0.5 * g.height
+                a[j] = pose.apply(np.array([[0.0, 0.0, -h]]))[0]
+                ab[j] = pose.apply(np.array([[0.0, 0.0, h]]))[0] - a[j]
+                den[j], radius[j] = float(ab[j] @ ab[j]), g.radius
+        best, which, grad = np.empty(len(pts)), np.empty(len(pts), np.int64), np.empty((len(pts), 3))
+        _nearest_segments(pts, kind, link, a, ab, den, radius, half, rot, best, which, grad)
+        return (best, which, grad) if gradient else (best, which)
+
+    def _human_distances_numpy(self, points, t: float, gradient: bool = False):
+        """:meth:`human_distances` by the NumPy point-to-segment functions, segment by segment (the reference)."""
         st = self.person.state(t)
         pts = np.asarray(points, dtype=float)
         best = np.full(len(pts), np.inf)
