@@ -132,3 +132,27 @@ def test_readme_point_cloud_export_commands_run(tmp_path):
         valid = int((f["tof"]["depth"][frame] > 0).sum())
     assert valid > 1000 and f"POINTS {valid}\n" in header
     assert "VERSION 0.7" in header and text.count("PCD v0.7") == 1
+
+
+def test_people_doc_gait_table_is_boulics_closed_form():
+    """docs/people.md's table for H = 1.75 m against Boulic et al. (1990):
+    H_t = 0.530 H, RV = v / H_t, D_c = 1.346 / sqrt(RV), stride v D_c,
+    cadence 120 / D_c, D_s / D_c = 0.752 - 0.143 / D_c; and GaitTiming gives the same."""
+    from twinsense.scene.gait import GaitTiming
+
+    text = (ROOT / "docs" / "people.md").read_text()
+    assert "For H = 1.75 m:" in text
+    rows = re.findall(r"^\| (\d\.\d) \| ([\d.]+) \| ([\d.]+) \| ([\d.]+) \| ([\d.]+) \| ([\d.]+) \|$", text, flags=re.M)
+    assert len(rows) == 4
+    h_t = 0.530 * 1.75
+    for row in rows:
+        v, rv, d_c, stride, cadence, duty = map(float, row)
+        exact_d_c = 1.346 / np.sqrt(v / h_t)
+        expected = (v / h_t, exact_d_c, v * exact_d_c, 120.0 / exact_d_c, 0.752 - 0.143 / exact_d_c)
+        # The table rounds to 3 decimals (1 for the cadence): half a unit of the last place.
+        for shown, exact, half_ulp in zip((rv, d_c, stride, cadence, duty), expected,
+                                          (5e-4, 5e-4, 5e-4, 0.05, 5e-4)):
+            assert abs(shown - exact) <= half_ulp + 1e-12, (v, shown, exact)
+        g = GaitTiming(v, h_t)
+        got = (g.relative_velocity, g.cycle_duration, g.stride_length, g.cadence, g.relative_support)
+        np.testing.assert_allclose(got, expected, rtol=1e-12, atol=0)
