@@ -156,3 +156,33 @@ def test_people_doc_gait_table_is_boulics_closed_form():
         g = GaitTiming(v, h_t)
         got = (g.relative_velocity, g.cycle_duration, g.stride_length, g.cadence, g.relative_support)
         np.testing.assert_allclose(got, expected, rtol=1e-12, atol=0)
+
+
+def test_robots_doc_scenario_fragment_is_the_python_robot():
+    """docs/robots.md's `robots:` fragment builds as written (plus a name and a
+    duration), and is the robot its Python API builds from the same numbers."""
+    from twinsense.robots import load_robot
+    from twinsense.scene import JointKeyframes
+
+    doc = ROOT / "docs" / "robots.md"
+    (fragment,) = [b for b in _blocks(doc, "yaml") if b.startswith("robots:")]
+    data = yaml.safe_load(fragment)
+    data.update(name="robots_doc", duration=2.0)
+    scenario = scenario_from_dict(data, source=str(doc))
+    entry = data["robots"][0]
+    keyframes = entry["joints"]["keyframes"]
+    robot = load_robot("ur5", joints=JointKeyframes(keyframes["times"], keyframes["values"]),
+                       base=ts.Pose(tuple(entry["base"]["position"])), materials=entry["materials"])
+    scene = ts.Scene()
+    scene.add_articulated(robot)
+    (wrist,) = scenario.sensors
+    tool0 = ts.Mount(ts.Pose(), parent="ur5/tool0")   # the flange frame, which has no geometry
+    for t in (0.0, 0.4, 1.0, 1.7):
+        flange = tool0.pose_at(scene, t).matrix
+        built = tool0.pose_at(scenario.scene, t).matrix
+        # Same kinematics from the same numbers: equal to float rounding (1e-12 m).
+        np.testing.assert_allclose(built, flange, rtol=0, atol=1e-12)
+        # "mount: {parent: ur5/tool0, pose: {position: [0, 0, 0.02]}}": 2 cm along the flange's z.
+        sensor = wrist.mount.pose_at(scenario.scene, t).matrix
+        np.testing.assert_allclose(sensor[:3, 3], flange[:3, 3] + 0.02 * flange[:3, 2], rtol=0, atol=1e-12)
+    assert next(o for o in scenario.scene.objects if o.name == "ur5/base_link").material.name == "mild_steel"
