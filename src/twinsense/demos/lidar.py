@@ -1,4 +1,4 @@
-"""A Velodyne VLP-16 over the robot cell: point cloud pictures with the walking person's true position."""
+"""A Velodyne VLP-16 over the cylinder cell: point cloud pictures with the walking person's true position."""
 
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ TARGET = (2.0, 0.0, 1.6 - 2.8 * np.tan(np.deg2rad(12.0)))
 
 
 def run_lidar_demo(out_dir, duration: float = 0.3, progress: bool = False, scenario=None) -> dict[str, Path]:
-    """Simulate the VLP-16 for ``duration`` [s] (10 revolutions per second) in the robot cell.
+    """Simulate the VLP-16 for ``duration`` [s] (10 revolutions per second) in the cylinder cell.
 
     Writes ``lidar_top.png`` (top view of the last revolution's points, world
     frame, coloured by intensity, with the person's true position),
@@ -66,7 +66,7 @@ def _top_view(frame, p_true, person_id: int, path: Path) -> Path:
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.legend(loc="lower left", fontsize=8)
-    ax.set_title(f"robot cell, VLP-16 revolution at t = {frame.t:.2f} s: {frame.n_points} points")
+    ax.set_title(f"cylinder cell, VLP-16 revolution at t = {frame.t:.2f} s: {frame.n_points} points")
     return save_figure(fig, path)
 
 

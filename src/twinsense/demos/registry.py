@@ -25,12 +25,12 @@ DEMOS: dict[str, tuple[str, str, str]] = {
     "depth": ("twinsense.demos.depth", "run_depth_demo",
               "office scene, ideal depth camera: depth PNG and recording"),
     "lidar": ("twinsense.demos.lidar", "run_lidar_demo",
-              "robot cell, Velodyne VLP-16: top view and range image by intensity, walking person, recording"),
+              "cylinder cell, Velodyne VLP-16: top view and range image by intensity, walking person, recording"),
     "inductive": ("twinsense.demos.inductive", "run_inductive_demo",
                   "gripper jaws with steel and aluminium plates closing onto M18 inductive switches: switching "
                   "points per material, impedance change vs distance, recording"),
     "ultrasonic": ("twinsense.demos.ultrasonic", "run_ultrasonic_demo",
-                   "robot cell, 8-transducer 40 kHz ring on a pillar: A-scans and first-echo distances vs the "
+                   "cylinder cell, 8-transducer 40 kHz ring on a pillar: A-scans and first-echo distances vs the "
                    "walking person, recording"),
     "magnetic": ("twinsense.demos.magnetic", "run_magnetic_demo",
                  "angle encoder (error vs angle for an eccentric sensor, against theory) and a Hall end stop "

@@ -1,4 +1,4 @@
-"""Ultrasonic ring demo: an 8-transducer ring on a pillar in the robot cell, a person walking past.
+"""Ultrasonic ring demo: an 8-transducer ring on a pillar in the cylinder cell, a person walking past.
 
 Writes:
 
@@ -39,7 +39,8 @@ def _plt():
 
 
 def build_cell(scenario=None):
-    """The robot cell's scene with a 0.2 m pillar, and the ring sensor on it (facing +x first)."""
+    """The cylinder cell's scene (examples/cylinder_cell.yaml) with a 0.2 m pillar and the ring sensor on it
+    (facing +x first)."""
     scene = load_scenario(Path(scenario)).scene if scenario else build_cylinder_cell_scene()
     scene.add_object("ring_pillar", Box((0.2, 0.2, RING_HEIGHT - 0.05)), "plastic",
                      pose=Pose((*PILLAR_XY, 0.5 * (RING_HEIGHT - 0.05))))
@@ -68,7 +69,7 @@ def person_distance(scene, ring, t: float) -> np.ndarray:
 
 
 def run_ultrasonic_demo(out_dir, duration: float = 2.5, progress: bool = False, scenario=None) -> dict[str, Path]:
-    """Run the ring in the robot cell for ``duration`` [s]; write the figures and the recording."""
+    """Run the ring in the cylinder cell for ``duration`` [s]; write the figures and the recording."""
     plt = _plt()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
