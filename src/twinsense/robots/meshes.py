@@ -135,16 +135,20 @@ class LinkMesh(TriangleMesh):
         return np.asarray(ConvexHull(np.asarray(self.mesh.vertices)).equations, dtype=float)
 
 
-def merge(parts: list[tuple[np.ndarray, np.ndarray, Pose]], name: str) -> Geometry | None:
-    """One LinkMesh from parts (vertices (n, 3), faces (m, 3), part -> link pose); None if no parts."""
-    if not parts:
-        return None
+def stack_parts(parts: list[tuple[np.ndarray, np.ndarray, Pose]]) -> tuple[np.ndarray, np.ndarray]:
+    """Parts (vertices (n, 3), faces (m, 3), part -> link pose), at least one, as one vertex array [m] in the
+    link frame and one face array indexing it."""
     verts, faces, off = [], [], 0
     for v, f, pose in parts:
         verts.append(pose.apply(v))
         faces.append(np.asarray(f) + off)
         off += len(v)
-    return LinkMesh(np.vstack(verts), np.vstack(faces), name=name)
+    return np.vstack(verts), np.vstack(faces)
+
+
+def merge(parts: list[tuple[np.ndarray, np.ndarray, Pose]], name: str) -> Geometry | None:
+    """One LinkMesh from parts (vertices (n, 3), faces (m, 3), part -> link pose); None if no parts."""
+    return LinkMesh(*stack_parts(parts), name=name) if parts else None
 
 
 def primitive_mesh(geometry: Geometry) -> tuple[np.ndarray, np.ndarray]:

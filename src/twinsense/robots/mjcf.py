@@ -38,7 +38,7 @@ from twinsense.inputs import note_input, noting
 from twinsense.robots.deps import require
 from twinsense.robots.descriptions import resolve
 from twinsense.robots.materials import link_materials
-from twinsense.robots.meshes import primitive_mesh
+from twinsense.robots.meshes import primitive_mesh, stack_parts
 from twinsense.scene.articulated import ArticulatedBody, Joint, JointMotion, KinematicTree, Link
 from twinsense.scene.geometry import Box, Capsule, Cylinder, Geometry, Plane, Sphere, TriangleMesh
 from twinsense.scene.motion import Motion
@@ -445,21 +445,19 @@ def body_geometry(model, b: int, which: str = "visual", field: str = "mjcf") -> 
         prim = geom_primitive(model, g)
         if prim is not None and pose.isclose(Pose(), atol=0.0):
             return prim
-    verts, faces, solids, off = [], [], [], 0
+    parts, solids = [], []
     for g in ids:
         mesh = geom_mesh(model, g, field)
         if mesh is None:
             continue
         pose = _quat_pose(model.geom_pos[g], model.geom_quat[g])
-        verts.append(pose.apply(mesh[0]))
-        faces.append(np.asarray(mesh[1]) + off)
-        off += len(mesh[0])
+        parts.append((*mesh, pose))
         volume = geom_volume(model, g, mesh)
         if volume is not None:
             solids.append((volume, pose))
-    if not verts:
+    if not parts:
         return None
-    return GeomsMesh(np.vstack(verts), np.vstack(faces), name=body_name(model, b), solids=tuple(solids))
+    return GeomsMesh(*stack_parts(parts), name=body_name(model, b), solids=tuple(solids))
 
 
 #: How ``mjcf_tree`` takes MuJoCo ball joints.
