@@ -9,6 +9,7 @@ meshes value for value: float64 copied into float64 fields, tolerance 0.
 
 from __future__ import annotations
 
+import copy
 import re
 from pathlib import Path
 
@@ -17,6 +18,7 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.typesys import Stores, get_typestore
 
+from scene_dicts import FLANGE_HALL, OBJECTS
 from twinsense.io import mcap as M
 from twinsense.io.recording import open_recording
 from twinsense.scenario import scenario_from_dict
@@ -31,14 +33,9 @@ def _scenario() -> dict:
     without), seen by one magnetic sensor at 10 Hz over 0.2 s (frame times 0 and 0.1 s)."""
     return {
         "name": "scene_markers", "duration": 0.2, "seed": 3,
-        "objects": [{"name": "floor", "geometry": {"type": "plane", "size": [6.0, 6.0]}, "material": "concrete"},
-                    {"name": "crate", "geometry": {"type": "box", "size": [0.4, 0.3, 0.2]}, "material": "wood",
-                     "pose": {"position": [1.0, 0.5, 0.1]}},
-                    {"name": "ball", "geometry": {"type": "sphere", "radius": 0.1}, "material": "metal",
-                     "motion": {"type": "waypoints", "points": [[2.0, 0.0, 0.1], [1.0, 0.0, 0.1]], "speed": 0.5}}],
+        "objects": copy.deepcopy(OBJECTS),
         "robots": [{"name": "ur5", "description": "ur5", "base": {"position": [0.0, 0.0, 0.8]}}],
-        "sensors": [{"name": "hall", "kind": "magnetic", "preset": "tle493d", "frame_rate": 10,
-                     "mount": {"parent": "ur5/tool0", "pose": {"position": [0.0, 0.0, 0.02]}}}],
+        "sensors": copy.deepcopy(FLANGE_HALL),
     }
 
 

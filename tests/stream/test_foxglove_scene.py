@@ -10,6 +10,7 @@ their edge lengths; a client joining late gets the scene too, and an added objec
 from __future__ import annotations
 
 import base64
+import copy
 import json
 import struct
 import threading
@@ -20,6 +21,7 @@ import trimesh
 from test_foxglove_stream import _decoder, handle_text, serve_with_client, subscribing_client
 from websockets.sync.client import connect
 
+from scene_dicts import FLANGE_HALL, OBJECTS
 from twinsense.io.mcap import MATERIAL_COLORS, OTHER_COLOR
 from twinsense.scenario import scenario_from_dict
 from twinsense.scene import Box, Cylinder, Pose, Scene, SceneObject, Sphere, TriangleMesh
@@ -34,17 +36,12 @@ def _scenario():
     """A floor, a crate (box), a rolling ball and a UR5 whose joints move, a magnetic sensor on its flange."""
     return scenario_from_dict({
         "name": "fox_scene", "duration": 10.0, "seed": 2,
-        "objects": [{"name": "floor", "geometry": {"type": "plane", "size": [6.0, 6.0]}, "material": "concrete"},
-                    {"name": "crate", "geometry": {"type": "box", "size": [0.4, 0.3, 0.2]}, "material": "wood",
-                     "pose": {"position": [1.0, 0.5, 0.1]}},
-                    {"name": "ball", "geometry": {"type": "sphere", "radius": 0.1}, "material": "metal",
-                     "motion": {"type": "waypoints", "points": [[2.0, 0.0, 0.1], [1.0, 0.0, 0.1]], "speed": 0.5}}],
+        "objects": copy.deepcopy(OBJECTS),
         "robots": [{"name": "ur5", "description": "ur5", "base": {"position": [0.0, 0.0, 0.8]},
                     "joints": {"keyframes": {"times": [0.0, 10.0],
                                              "values": [[0.0, -1.57, 1.57, -1.57, -1.57, 0.0],
                                                         [0.5, -1.30, 1.45, -1.72, -1.57, 0.3]]}}}],
-        "sensors": [{"name": "hall", "kind": "magnetic", "preset": "tle493d", "frame_rate": 10,
-                     "mount": {"parent": "ur5/tool0", "pose": {"position": [0.0, 0.0, 0.02]}}}],
+        "sensors": copy.deepcopy(FLANGE_HALL),
     }, base_dir=ROOT / "examples")
 
 
