@@ -20,23 +20,51 @@ def load_robot(name_or_path, **kwargs) -> ArticulatedBody:
 
     Keyword arguments go to :func:`~twinsense.robots.urdf.load_urdf` or
     :func:`~twinsense.robots.mjcf.load_mjcf` (``name``, ``joints``, ``materials``, ``base``;
-    a xacro file's ``xacro_args`` and ``packages``).
+    a xacro file's ``xacro_args`` and ``packages``). The path of a named description's file gives the
+    named robot (the meshed human's ``human_skin`` included).
     """
     if isinstance(name_or_path, str) and name_or_path in ROBOTS:
         desc = ROBOTS[name_or_path]
         kwargs.setdefault("name", desc.name.replace("-", "_"))
-        given = kwargs.get("materials")
-        if desc.material is not None and desc.fmt == "urdf" and (given is None or isinstance(given, dict)):
-            # The description's material on every link, the caller's ``materials`` over it (a link
-            # the file lacks is still refused by the loader, naming the links).
-            links = [e.get("name") for e in ElementTree.parse(desc.path()).getroot().findall("link")]
-            kwargs["materials"] = {**dict.fromkeys(links, desc.material), **(given or {})}
+        _description_materials(desc, kwargs)
         return _load(load_urdf if desc.fmt == "urdf" else load_mjcf, desc.path(), kwargs)
     p = Path(name_or_path) if isinstance(name_or_path, (str, Path)) else None
     if p is None or p.suffix.lower() not in (".urdf", ".xacro", ".xml", ".mjcf"):
         raise UnknownNameError("robot", name_or_path, [*robot_names(), "<path>.urdf", "<path>.xacro (xacro URDF)",
                                                        "<path>.xml (MJCF)"])
+    desc = _named_file(p)
+    if desc is not None:  # the file of a named description: the same robot as by its name
+        _description_materials(desc, kwargs)
     return _load(load_urdf if p.suffix.lower() in (".urdf", ".xacro") else load_mjcf, p, kwargs)
+
+
+def _named_file(path: Path) -> RobotDescription | None:
+    """The named description with a material of its own (the meshed human) whose file ``path`` is, or None.
+
+    Only those differ from their file read alone; a description whose package is not installed is skipped.
+    """
+    try:
+        target = path.resolve()
+    except OSError:
+        return None
+    for desc in ROBOTS.values():
+        if desc.material is None:
+            continue
+        try:
+            if desc.path().resolve() == target:
+                return desc
+        except (ConfigError, OSError):
+            continue
+    return None
+
+
+def _description_materials(desc: RobotDescription, kwargs: dict) -> None:
+    """``kwargs["materials"]``: the description's material on every link, the caller's ``materials`` over it
+    (a link the file lacks is still refused by the loader, naming the links)."""
+    given = kwargs.get("materials")
+    if desc.material is not None and desc.fmt == "urdf" and (given is None or isinstance(given, dict)):
+        links = [e.get("name") for e in ElementTree.parse(desc.path()).getroot().findall("link")]
+        kwargs["materials"] = {**dict.fromkeys(links, desc.material), **(given or {})}
 
 
 def _load(loader, path: Path, kwargs: dict) -> ArticulatedBody:
