@@ -92,7 +92,21 @@ def joint_motion_from_dict(data: Any, field: str = "joints", base_dir: Path | No
         return JointSetpoints(value, names)
     except ConfigError as e:
         f = e.field if e.field.startswith(f"{field}.") else f"{field}.{e.field.removeprefix('joints.')}"
-        raise ConfigError(f, e.value, e.allowed) from None
+        raise ConfigError(_entry_field(f, field, kind), e.value, e.allowed) from None
+
+
+def _entry_field(f: str, field: str, kind: str) -> str:
+    """The scenario field behind a joint motion's field: ``joint_names`` sits beside the motion's key (the
+    motions name it inside theirs), a ``fixed:`` list is built as a constant velocity's ``q0`` and a
+    ``setpoints:`` list is the setpoints' ``q0``."""
+    inner = f.removeprefix(f"{field}.")
+    for motion in ("keyframes", "constant_velocity", "setpoints"):
+        if inner == f"{motion}.joint_names":
+            return f"{field}.joint_names"
+    src = {"fixed": "constant_velocity.q0", "setpoints": "setpoints.q0"}.get(kind)
+    if src is not None and (inner == src or inner.startswith(f"{src}[")):
+        return f"{field}.{kind}{inner.removeprefix(src)}"
+    return f
 
 
 def check_joints_over_run(body: ArticulatedBody, duration: float) -> None:
@@ -140,6 +154,9 @@ def _entry_error(e: ConfigError, name: str, joints: Any) -> ConfigError:
         return ConfigError("description", e.value, allowed)
     if tail.endswith("materials.link"):
         return ConfigError(f"materials.{e.value}", e.value, allowed)
+    m = re.fullmatch(r"joints\.setpoints\.q0(\[\d+\])", tail)
+    if m:  # a scenario's setpoints: are the list q0 is built from
+        return ConfigError(f"joints.setpoints{m.group(1)}", e.value, allowed)
     fixed = joints.get("fixed") if isinstance(joints, dict) else None
     if fixed is None:
         return e

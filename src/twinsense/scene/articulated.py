@@ -1057,6 +1057,14 @@ class JointConstantVelocity(JointMotion):
             t_lo = np.where(self.qdot < 0, (lo - self.q0) / self.qdot, np.inf)
         return np.minimum(t_hi, t_lo)
 
+    def entry_time(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """Per column, the last time t <= 0 [s] before which q lies outside [lo, hi] (-inf if never):
+        the exit time of the motion run backwards, for a time asked before t = 0."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t_lo = np.where(self.qdot > 0, (lo - self.q0) / self.qdot, -np.inf)
+            t_hi = np.where(self.qdot < 0, (hi - self.q0) / self.qdot, -np.inf)
+        return np.maximum(t_lo, t_hi)
+
     def check(self, tree, columns, field_name):
         for k, col in enumerate(columns):
             if col < 0:
@@ -1078,6 +1086,11 @@ class JointSetpoints(JointMotion):
     setpoint at or before t' moved on by its velocity (q_k + qd_k (t' - t_k)),
     ``q0`` before any. The last ``history`` setpoints are kept; a time before
     the oldest kept one raises ConfigError.
+
+    Limits: ``q0`` and every setpoint already kept are checked when a body is
+    built with this motion (a ConfigError naming the joint and its limits); a
+    setpoint pushed later, or one moved on by its velocity past a limit, raises
+    when that time is asked (naming the joint, the value and the time).
     """
 
     def __init__(self, q0, joint_names=None, history: int = 256):
@@ -1109,8 +1122,11 @@ class JointSetpoints(JointMotion):
         q = np.array(V._floats("setpoints.q", q, f"{n} finite joint positions"), dtype=float)
         qd = np.zeros(n) if qd is None else np.array(V._floats("setpoints.qd", qd, f"{n} finite velocities"),
                                                      dtype=float)
-        if q.shape != (n,) or qd.shape != (n,) or not (np.all(np.isfinite(q)) and np.all(np.isfinite(qd))):
-            raise ConfigError("setpoints.q", q.tolist(), f"{n} finite joint positions and velocities")
+        # Each array is named on its own: a bad velocity is reported as setpoints.qd with its own values.
+        for f, a, what in (("setpoints.q", q, "joint positions [rad or m]"), ("setpoints.qd", qd,
+                                                                             "joint velocities [rad/s or m/s]")):
+            if a.shape != (n,) or not np.all(np.isfinite(a)):
+                raise ConfigError(f, a.tolist(), f"{n} finite {what}, one per column")
         with self._lock:
             if t < self._t[-1]:
                 raise ConfigError("setpoints.t", t, f"a time >= the last setpoint's ({self._t[-1]:g} s)")
@@ -1146,6 +1162,20 @@ class JointSetpoints(JointMotion):
         t = check_time(t)
         with self._lock:
             return self._qd[self._at(t)].copy()
+
+    def check(self, tree, columns, field_name):
+        with self._lock:
+            kept = list(zip(self._t, self._q, strict=True))
+        for t_i, q_i in kept:
+            for k, col in enumerate(columns):
+                if col < 0:
+                    continue
+                lo, hi = tree.limits[col]
+                if not lo <= q_i[k] <= hi:  # NaN cannot be here: set() refuses it
+                    if math.isfinite(t_i):
+                        raise ConfigError(f"{field_name}.setpoints.q[{k}]", f"{q_i[k]:.9g} at t = {t_i:.9g} s",
+                                          _limits_text(tree, col))
+                    raise ConfigError(f"{field_name}.setpoints.q0[{k}]", float(q_i[k]), _limits_text(tree, col))
 
     def to_dict(self):
         return {"type": "setpoints", "n_joints": self.n_columns,
@@ -1284,8 +1314,13 @@ class ArticulatedBody:
                 hi = np.full(m.n_columns, np.inf)
                 used = slice(None) if self._keep is None else self._keep
                 lo[used], hi[used] = self.tree.limits[self._cols, 0], self.tree.limits[self._cols, 1]
-                te = m.exit_time(lo, hi)
-                when = f" (the constant velocity leaves them at t = {float(np.min(te)):.9g} s; asked at t = {t:.9g} s)"
+                if t >= 0:
+                    te = float(np.min(m.exit_time(lo, hi)))
+                    when = f" (the constant velocity leaves them at t = {te:.9g} s; asked at t = {t:.9g} s)"
+                else:  # before t = 0 q ran backwards from q0: it left them going back in time
+                    te = float(np.max(m.entry_time(lo, hi)))
+                    when = (f" (the constant velocity is within them only from t = {te:.9g} s on; asked at "
+                            f"t = {t:.9g} s)")
             self.tree.check_limits(q, None, when)
         return q, qd
 
