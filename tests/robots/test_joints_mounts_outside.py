@@ -307,3 +307,17 @@ def test_scenario_joint_errors_name_the_field_as_written(urdf, joints, field):
         scenario_from_dict(_scenario(urdf, joints))
     assert [p[0] for p in e.value.problems] == [field]
 
+
+
+def test_keyframes_too_fast_for_a_joint_name_the_value_instead_of_overflowing():
+    # 1e308 rad one second after 0: a cubic through it overflows (its coefficients were NaN and the
+    # message spoke of 'nan at t = 0 s' overshooting [-inf, inf]); refused like a constant joint
+    # velocity above 1e6 rad/s, naming the keyframe.
+    with pytest.raises(ConfigError) as e:
+        JointKeyframes([0, 1, 2], [[0, 0], [0, 1e308], [0, 0]])
+    assert e.value.field == "joints.keyframes.values[1][1]" and e.value.value == 1e308
+    assert "joint speeds <= 1e+06" in str(e.value)
+    JointKeyframes([0, 1], [[0], [1e6]])  # exactly the bound: accepted
+    with pytest.raises(ConfigError) as e:
+        JointConstantVelocity([[0.0]], [[0.0]])
+    assert e.value.field == "joints.constant_velocity.q0"  # it named qd

@@ -713,6 +713,21 @@ def _joint_names(field_name: str, names) -> tuple | None:
     return tuple(names)
 
 
+def _check_speeds(field_name: str, t: np.ndarray, q: np.ndarray) -> None:
+    """ConfigError naming the first row whose step from the previous one is faster than
+    ``ANGULAR_SPEED_MAX`` (1e6 rad/s or m/s, the bound of a constant joint velocity): a cubic through
+    such rows would overflow (values near 1e308 give NaN coefficients) or claim absurd joint speeds."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        speed = np.abs(np.diff(q, axis=0)) / np.diff(t)[:, None]
+    bad = np.argwhere(~(speed <= V.ANGULAR_SPEED_MAX))
+    if bad.size:
+        i, k = (int(x) for x in bad[0])
+        raise ConfigError(f"{field_name}[{i + 1}][{k}]", float(q[i + 1, k]),
+                          f"a joint value within {V.ANGULAR_SPEED_MAX:g} rad/s or m/s times "
+                          f"{t[i + 1] - t[i]:.6g} s of the previous one ({q[i, k]:.6g} at t = {t[i]:.6g} s): "
+                          f"joint speeds <= {V.ANGULAR_SPEED_MAX:g}")
+
+
 def _limits_text(tree: KinematicTree, col: int) -> str:
     j = tree.joint(tree.joint_names[col])
     return f"within the limits [{j.lower:g}, {j.upper:g}] {j.unit} of joint {j.name!r}"
@@ -749,6 +764,7 @@ class JointKeyframes(JointMotion):
                               f"one row per keyframe time: shape ({len(t)}, n_joints)")
         if not np.all(np.isfinite(vals)):
             raise ConfigError("joints.keyframes.values", "array with NaN or inf", "finite joint positions")
+        _check_speeds("joints.keyframes.values", t, vals)
         self.joint_names = _joint_names("joints.keyframes.joint_names", joint_names)
         if self.joint_names is not None and len(self.joint_names) != vals.shape[1]:
             raise ConfigError("joints.keyframes.joint_names", list(self.joint_names),
@@ -1021,8 +1037,10 @@ class JointConstantVelocity(JointMotion):
     def __init__(self, q0, qd, joint_names=None):
         q0 = np.asarray(V._floats("joints.constant_velocity.q0", q0, "finite joint positions"), dtype=float)
         qd = np.asarray(V._floats("joints.constant_velocity.qd", qd, "finite joint velocities"), dtype=float)
-        if q0.ndim != 1 or qd.shape != q0.shape:
-            raise ConfigError("joints.constant_velocity.qd", qd.tolist(), f"one velocity per joint ({q0.shape})")
+        if q0.ndim != 1:
+            raise ConfigError("joints.constant_velocity.q0", q0.tolist(), "a list of joint positions [rad or m]")
+        if qd.shape != q0.shape:
+            raise ConfigError("joints.constant_velocity.qd", qd.tolist(), f"one velocity per joint ({len(q0)})")
         if not (np.all(np.isfinite(q0)) and np.all(np.isfinite(qd))):
             raise ConfigError("joints.constant_velocity", "NaN or inf", "finite joint positions and velocities")
         if np.any(np.abs(qd) > V.ANGULAR_SPEED_MAX):
