@@ -321,3 +321,17 @@ def test_keyframes_too_fast_for_a_joint_name_the_value_instead_of_overflowing():
     with pytest.raises(ConfigError) as e:
         JointConstantVelocity([[0.0]], [[0.0]])
     assert e.value.field == "joints.constant_velocity.q0"  # it named qd
+
+
+def test_a_missing_urdf_mesh_in_a_scenario_is_named_where_docs_robots_md_says(tmp_path):
+    (tmp_path / "arm.urdf").write_text(
+        '<robot name="arm"><link name="base"/><link name="upper"><visual><geometry>'
+        '<mesh filename="meshes/upper.stl"/></geometry></visual></link>'
+        '<joint name="j" type="revolute"><parent link="base"/><child link="upper"/><axis xyz="0 0 1"/>'
+        '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>')
+    with pytest.raises(ScenarioError) as e:
+        scenario_from_dict({"name": "s", "duration": 0.1, "robots": [{"name": "a", "description": "arm.urdf"}],
+                            "outputs": {}}, base_dir=tmp_path)
+    [(field, value, allowed)] = e.value.problems
+    assert field == "robots[0].urdf[arm.urdf].links[upper].visual[0].mesh"
+    assert value == str(tmp_path / "meshes" / "upper.stl") and "link 'upper'" in allowed
