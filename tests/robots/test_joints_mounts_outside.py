@@ -335,3 +335,24 @@ def test_a_missing_urdf_mesh_in_a_scenario_is_named_where_docs_robots_md_says(tm
     [(field, value, allowed)] = e.value.problems
     assert field == "robots[0].urdf[arm.urdf].links[upper].visual[0].mesh"
     assert value == str(tmp_path / "meshes" / "upper.stl") and "link 'upper'" in allowed
+
+
+def test_a_keyframe_on_a_limit_does_not_fail_at_times_next_to_it():
+    # Keyframes that touch the upper limit 1 rad and turn there (a gripper opening fully, twice): the
+    # check at load allows the spline's rounding past the limit (1e-12 of the limit's size), but q(t) one
+    # ulp of time before the keyframe was 1.0000000000000002 and the body refused it part-way through a run
+    # (found by a random search over such keyframes). Now q(t) is put back on the limit there.
+    a, dt, start = 0.4600451393090961, 1.913204247394201, 0.7577288453082914
+    times = np.arange(5) * dt + start
+    tree = KinematicTree("g", [Link("b"), Link("c")], [Joint("j", "revolute", "b", "c", lower=0.0, upper=1.0)])
+    body = ArticulatedBody("g", tree, JointKeyframes(times, [[a], [1.0], [a], [1.0], [a]]))
+    for tk in (times[1], times[3]):
+        t = float(tk)
+        for _ in range(64):  # the 64 representable times before the keyframe, then the 64 after
+            t = float(np.nextafter(t, -np.inf))
+            q, qd = body.joint_state(t)
+            assert 0.0 <= q[0] <= 1.0 and abs(qd[0]) < 1e-12  # the spline turns there: qd ~ |q''| * 1e-14 s
+        t = float(tk)
+        for _ in range(64):
+            t = float(np.nextafter(t, np.inf))
+            assert 0.0 <= body.joint_state(t)[0][0] <= 1.0

@@ -739,7 +739,10 @@ class JointKeyframes(JointMotion):
     Before the first and after the last keyframe the joints hold still, so the
     velocity is continuous there too. The spline may swing past a keyframe
     between two keyframes; the check at load covers the whole curve (its
-    extrema), not only the keyframes.
+    extrema), not only the keyframes. A keyframe on a limit with the curve
+    turning there rounds past it by an ulp or so: the check takes 1e-12 of the
+    limit's size for rounding, and ``q(t)`` puts such values back on the limit
+    (the velocity there is ~0), so a time near that keyframe does not fail.
 
     Parameters
     ----------
@@ -773,6 +776,10 @@ class JointKeyframes(JointMotion):
         self.values = vals
         self._spline = CubicSpline(t, vals, axis=0, bc_type="clamped")
         self._dspline = self._spline.derivative()
+        # Clip bounds of q(t): the limits of the bodies it drives (set by check), +-inf until then.
+        self._lo = np.full(vals.shape[1], -np.inf)
+        self._hi = np.full(vals.shape[1], np.inf)
+        self._clipping = False
 
     @property
     def n_columns(self) -> int:
@@ -790,7 +797,10 @@ class JointKeyframes(JointMotion):
         tc, held = self._clip_time(t)
         if held:  # the keyframe itself, not the spline's rounding of it
             return self.values[0 if tc == self.times[0] else -1].copy()
-        return np.asarray(self._spline(tc), dtype=float)
+        q = np.asarray(self._spline(tc), dtype=float)
+        if self._clipping:  # the spline's rounding past a limit the check let through, back on the limit
+            np.clip(q, self._lo, self._hi, out=q)
+        return q
 
     def qd(self, t):
         tc, held = self._clip_time(t)
@@ -833,6 +843,7 @@ class JointKeyframes(JointMotion):
                     raise ConfigError(f"{field_name}.keyframes.values[{i}][{k}]", float(v),
                                       _limits_text(tree, col))
         vmin, vmax, tmin, tmax = self.extrema()
+        near = False
         for k, col in enumerate(columns):
             if col < 0:
                 continue
@@ -845,6 +856,14 @@ class JointKeyframes(JointMotion):
                     raise ConfigError(f"{field_name}.keyframes", f"{float(v):.6g} at t = {float(tv):.6g} s",
                                       _limits_text(tree, col) + " along the whole spline between the keyframes "
                                       "(the cubic overshoots here: add a keyframe or move it away from the limit)")
+            # Within that allowance of a limit the spline, evaluated at other times than its extremum, may
+            # round past it: q(t) then clips onto the limits (of every body this motion drives).
+            near = near or vmin[k] < lo + tol or vmax[k] > hi - tol
+        cols = np.asarray(columns)
+        used = cols >= 0
+        self._lo[used] = np.maximum(self._lo[used], tree.limits[cols[used], 0])
+        self._hi[used] = np.minimum(self._hi[used], tree.limits[cols[used], 1])
+        self._clipping = self._clipping or bool(near)
 
     def to_dict(self):
         return {"type": "keyframes", "times": self.times.tolist(), "values": self.values.tolist(),
