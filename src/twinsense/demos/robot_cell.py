@@ -27,6 +27,7 @@ HDF5 recording of every sensor.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from os import PathLike
 from pathlib import Path
 
 import numpy as np
@@ -298,6 +299,14 @@ def run_robot_cell_demo(out_dir, duration: float = CYCLE, progress: bool = False
     the same outputs either way).
     """
     # Every argument checked, and the cell built, before the output folder or any file is written.
+    if not isinstance(out_dir, (str, PathLike)):
+        raise ConfigError("out_dir", out_dir, "a folder path (str or os.PathLike)")
+    if Path(out_dir).exists() and not Path(out_dir).is_dir():
+        raise ConfigError("out_dir", str(out_dir), "a folder to write into (this path is a file)")
+    for name, flag in (("fast", fast), ("progress", progress)):
+        # Not truthiness: fast="no" would otherwise run the coarse settings.
+        if not isinstance(flag, (bool, np.bool_)):
+            raise ConfigError(name, flag, "True or False")
     V.positive("duration", duration, "s")
     for name, rate in (("tof_rate", tof_rate), ("radar_rate", radar_rate), ("skin_rate", skin_rate)):
         V.positive(name, rate, "Hz")
