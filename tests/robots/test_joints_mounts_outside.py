@@ -356,3 +356,22 @@ def test_a_keyframe_on_a_limit_does_not_fail_at_times_next_to_it():
         for _ in range(64):
             t = float(np.nextafter(t, np.inf))
             assert 0.0 <= body.joint_state(t)[0][0] <= 1.0
+
+
+def test_a_setpoint_moved_on_by_its_velocity_stops_at_the_limit(urdf):
+    body = load_robot(urdf, name="three")
+    sp = JointSetpoints([0.0, 0.0])
+    body.joint_motion = sp
+    # A driver's push 1 cm before the prismatic joint's upper limit 0.5 m at 0.1 m/s, the revolute joint
+    # 0.01 rad inside its lower limit -2 rad at -1 rad/s: the guess q + qd (t - t_k) left the limits
+    # 0.1 s and 0.01 s later and the body refused the run there. Closed form: min(0.49 + 0.1 t, 0.5) and
+    # max(-1.99 - t, -2); the velocity is the pushed one until the stop, 0 after.
+    sp.set(0.0, [0.49, -1.99], [0.1, -1.0])
+    for t in (0.005, 0.05, 0.2, 3.0):
+        q, qd = body.joint_state(t)
+        np.testing.assert_allclose(q, [min(0.49 + 0.1 * t, 0.5), max(-1.99 - t, -2.0)], rtol=0, atol=1e-15)
+        np.testing.assert_array_equal(qd, [0.1 if 0.49 + 0.1 * t < 0.5 else 0.0, -1.0 if t < 0.01 else 0.0])
+    # A pushed value outside the limits is still refused, naming the joint and the value.
+    sp.set(3.0, [0.7, 0.0])
+    with pytest.raises(ConfigError, match=r"three.joints\[slide\] = 0.7 .*\[-0.5, 0.5\] m of joint 'slide'"):
+        body.state(3.1)

@@ -1126,8 +1126,13 @@ class JointSetpoints(JointMotion):
 
     Limits: ``q0`` and every setpoint already kept are checked when a body is
     built with this motion (a ConfigError naming the joint and its limits); a
-    setpoint pushed later, or one moved on by its velocity past a limit, raises
-    when that time is asked (naming the joint, the value and the time).
+    setpoint pushed later outside them raises when a time on or after it is
+    asked (naming the joint, the value and the time). Moving a setpoint on by
+    its velocity is this class's own guess between pushes, and a joint cannot
+    run past its limit: the guess stops at the limit (the position held there,
+    the velocity 0) instead of failing the run, for the limits of the bodies
+    the motion drives (a robot driver's last push 1 mm before a limit at
+    0.1 m/s would otherwise leave it 10 ms later).
     """
 
     def __init__(self, q0, joint_names=None, history: int = 256):
@@ -1143,6 +1148,9 @@ class JointSetpoints(JointMotion):
         self._qd = [np.zeros_like(q0)]
         self._version = 0
         self._lock = ForkSafeLock()
+        # Where the guess between pushes stops: the limits of the bodies it drives (set by check).
+        self._lo = np.full(len(q0), -np.inf)
+        self._hi = np.full(len(q0), np.inf)
 
     @property
     def n_columns(self):
@@ -1184,7 +1192,8 @@ class JointSetpoints(JointMotion):
                               f"the last {self._history} setpoints are kept)")
         return i
 
-    def q(self, t):
+    def _state(self, t) -> tuple[np.ndarray, np.ndarray]:
+        """(q, qd) at t: the latest setpoint moved on by its velocity, stopped at a limit it runs into."""
         t = check_time(t)
         # Read under the lock: a push from another thread may drop the oldest setpoint between the
         # search and the reads, which would pair one setpoint's time with another's values.
@@ -1192,13 +1201,21 @@ class JointSetpoints(JointMotion):
             i = self._at(t)
             t_i, q_i, qd_i = self._t[i], self._q[i], self._qd[i]
         if not math.isfinite(t_i):
-            return q_i.copy()
-        return q_i + qd_i * (t - t_i)
+            return q_i.copy(), qd_i.copy()
+        q = q_i + qd_i * (t - t_i)
+        # Past a limit the setpoint itself is within: the joint stops there. A setpoint already
+        # outside keeps its value (and the body refuses it, naming the push's value).
+        lo, hi = np.minimum(self._lo, q_i), np.maximum(self._hi, q_i)
+        stopped = (q < lo) | (q > hi)
+        if not stopped.any():
+            return q, qd_i.copy()
+        return np.clip(q, lo, hi), np.where(stopped, 0.0, qd_i)
+
+    def q(self, t):
+        return self._state(t)[0]
 
     def qd(self, t):
-        t = check_time(t)
-        with self._lock:
-            return self._qd[self._at(t)].copy()
+        return self._state(t)[1]
 
     def check(self, tree, columns, field_name):
         with self._lock:
@@ -1213,6 +1230,11 @@ class JointSetpoints(JointMotion):
                         raise ConfigError(f"{field_name}.setpoints.q[{k}]", f"{q_i[k]:.9g} at t = {t_i:.9g} s",
                                           _limits_text(tree, col))
                     raise ConfigError(f"{field_name}.setpoints.q0[{k}]", float(q_i[k]), _limits_text(tree, col))
+        cols = np.asarray(columns)
+        used = cols >= 0
+        with self._lock:
+            self._lo[used] = np.maximum(self._lo[used], tree.limits[cols[used], 0])
+            self._hi[used] = np.minimum(self._hi[used], tree.limits[cols[used], 1])
 
     def to_dict(self):
         return {"type": "setpoints", "n_joints": self.n_columns,
