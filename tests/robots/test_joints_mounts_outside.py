@@ -34,7 +34,9 @@ from twinsense.scene import (
 )
 from twinsense.tof import ToFCamera
 
-INERTIAL = '<inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>'
+# The centres of mass off the link origins: MuJoCo's inertial frames differ from the link frames.
+INERTIAL = ('<inertial><origin xyz="0.05 0.02 -0.01"/><mass value="1"/>'
+            '<inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>')
 # fusestatic="false": MuJoCo keeps the fixed joint's child as a body of its own (its default merges it).
 THREE_LINK_URDF = f"""<?xml version="1.0"?>
 <robot name="three">
@@ -82,7 +84,8 @@ def test_link_poses_and_velocities_equal_mujoco(urdf):
         for link in LINKS:
             b = m.body(link).id
             v6 = np.zeros(6)
-            mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, b, v6, 0)  # world frame: (w, v)
+            # XBODY: the body frame (BODY is the inertial frame, here 0.05 m off). World frame: (w, v).
+            mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_XBODY, b, v6, 0)
             i = st.index(link)
             # Both sides are a few products of unit rotations and lengths < 1 m: rounding is ~1e-15;
             # 1e-9 is the agreement asked of two implementations of the same convention.
