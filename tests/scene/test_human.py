@@ -163,14 +163,14 @@ def test_walk_along_a_path_turns_smoothly_and_stops_at_its_end():
     body = person_body("p", H, (0.0, 0.0), 0.0, walk=Walk(1.2, ((3.0, 0.0), (3.0, 3.0)), start_time=0.5))
     # (the walk starts at the person's position; the path's waypoints follow)
     person = body.joint_motion.person
-    t_end = person.stop_time
+    t_end = person.arrival_time
     # The walk's rate ramps up over the first 0.6 s and down over the last 0.6 s (each ramp covers
     # half of what full speed would): it arrives 0.6 s after start + L / v, give or take what the
     # pelvis's forward sway a_a H_t sin(...) (a_a = 0.021, H_t = 0.53 H) puts it ahead of or behind
     # v t at the start and the end: |dt| <= 2 a_a H_t / v = 0.033 s (measured 0.018 s).
     assert t_end == pytest.approx(0.5 + person.path.length / 1.2 + 0.6, rel=0, abs=2 * 0.021 * 0.53 * H / 1.2)
     yaw = []
-    for t in np.arange(0.0, t_end + 1.0, 0.03):
+    for t in np.arange(0.0, person.stop_time + 1.0, 0.03):
         rot = body.base.state(t).pose.rotation  # the pelvis (root link) alone: no forward kinematics
         yaw.append(math.atan2(rot[1, 0], rot[0, 0]))
     # The heading turns through 90 deg without a jump: between 30 ms samples the pelvis yaw moves
@@ -178,7 +178,7 @@ def test_walk_along_a_path_turns_smoothly_and_stops_at_its_end():
     # rate 4 RV deg x 2 pi / D_c = 0.5 rad/s) x 30 ms < 0.13 rad.
     assert np.max(np.abs(np.diff(np.unwrap(yaw)))) < 0.13
     assert np.unwrap(yaw)[-1] - np.unwrap(yaw)[0] == pytest.approx(math.pi / 2, rel=0, abs=1e-9)
-    end = body.state(t_end + 0.5)
+    end = body.state(person.stop_time + 0.5)
     # Standing at the path's end, facing +y: the fillet rejoins the last segment, so the walk ends
     # on the last waypoint (position spline and Gauss-Legendre nodes: 1e-6 m).
     pelvis = end.pose("pelvis")

@@ -331,8 +331,8 @@ def test_path_corners_heading_speed_and_arrival():
     # mean speed, then the person stands on the last waypoint.
     for t, heading in ((0.5 + 1.5 / 1.2, 0.0), (0.5 + 6.0 / 1.2, math.pi / 2)):
         assert abs(math.remainder(_yaw(body.state(t).pose("head").rotation) - heading, 2 * math.pi)) < 2e-3
-    end = person.stop_time
-    st = body.state(end + 1.0)
+    end = person.arrival_time
+    st = body.state(person.stop_time + 1.0)
     pelvis = st.pose("pelvis").position
     np.testing.assert_allclose(pelvis[:2], (0.0, 4.0), rtol=0, atol=1e-9)
     assert abs(math.remainder(_yaw(st.pose("pelvis").rotation) - math.pi, 2 * math.pi)) < 1e-9

@@ -27,8 +27,8 @@ H_FD = 1e-6  # [s] central-difference step
 def test_the_ramps_meet_without_a_jump(height, speed, length, start):
     body = person_body("p", height, (0.0, 0.0), 0.0, walk=Walk(speed, path=((length, 0.0),), start_time=start))
     person = body.joint_motion.person
-    assert person.stop_time == pytest.approx(start + 2 * B, rel=0, abs=1e-12)  # a walk shorter than a ramp
-    for t_m in (start + B, person.stop_time - B, 18 / 30 if start == 0.0 else start + B):
+    assert person.arrival_time == pytest.approx(start + 2 * B, rel=0, abs=1e-12)  # a walk shorter than a ramp
+    for t_m in (start + B, person.arrival_time - B, 18 / 30 if start == 0.0 else start + B):
         s, before = body.state(t_m), body.state(t_m - 1e-9)
         # Positions: links move at most a few m/s (a swinging toe: 4.5 v), so 1 ns earlier they are at
         # most 1e-8 m away (+ rounding 1e-15 m); before the fix, 0.13-0.88 m.
@@ -48,4 +48,4 @@ def test_the_ramps_meet_without_a_jump(height, speed, length, start):
     # And the walk still ends on its waypoint, standing.
     np.testing.assert_allclose(body.base.state(person.stop_time).pose.position[:2], (length, 0.0),
                                rtol=0, atol=1e-6)
-    assert math.isfinite(person.stop_time)
+    assert math.isfinite(person.arrival_time)

@@ -58,7 +58,8 @@ def test_a_turn_before_the_walk_keeps_the_standing_foot_put():
     assert slip < SLIP and lift < 0.005
     # The walk is the same one: it arrives on its waypoint at the same time.
     assert facing.joint_motion.person.stop_time == turned.joint_motion.person.stop_time
-    np.testing.assert_allclose(facing.base.state(4.0).pose.position[:2], (0.0, 3.0), rtol=0, atol=1e-6)
+    stop = facing.joint_motion.person.stop_time
+    np.testing.assert_allclose(facing.base.state(stop).pose.position[:2], (0.0, 3.0), rtol=0, atol=1e-6)
 
 
 def test_the_swinging_foot_in_the_start_stays_within_the_documented_depth():

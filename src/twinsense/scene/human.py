@@ -22,8 +22,12 @@ the joint trajectory, each with exact time derivatives:
   around each waypoint, so the yaw rate is continuous);
 - starting and stopping: the gait played at a gait time whose rate ramps
   smoothly from 0 to 1 (1 to 0) over START_BLEND, so the body never moves
-  faster than its steady gait, while the standing pose fades out (in); the
-  walk starts at the right foot's mid-stance, where standing puts that foot;
+  faster than its steady gait; the standing pose fades out over the start
+  (the walk starts at the right foot's mid-stance, where standing puts that
+  foot); at a path's end the gait comes to rest wherever in its cycle it
+  is, and two closing steps (one foot, then the other, lifted and set down
+  on the standing footholds by closed-form leg inverse kinematics while the
+  other foot stays put) bring the person into the standing pose;
 - standing: legs straight, arms hanging, optional sway of the pelvis;
 - turning on the spot: the heading ramps to a new value;
 - reaching: analytic two-link inverse kinematics of shoulder (flexion,
@@ -443,6 +447,18 @@ class Turn:
 # before a path's end) while the standing pose fades out (in); the walk arrives START_BLEND later
 # than start_time + L / v (each ramp covers half of what full speed would).
 START_BLEND = 0.6
+# [s] each of the two steps that close the stance after a path's end (the walk stops at an arbitrary
+# phase of its cycle: one foot steps beside where the standing pose puts it, then the other).
+CLOSE_STEP = 0.4
+# A closing step lifts the foot straight up by CLOSE_LIFT H (4.4 cm at 1.75 m), carries it over an apex
+# that high above the higher of its two places and sets it straight down (STEP_KNOTS).
+CLOSE_LIFT = 0.025
+STEP_KNOTS = (0.0, 0.2, 0.5, 0.8, 1.0)  # a closing step: its start, lifted, apex, lifted over the foothold, on it
+PLANTED_KNOTS = 9  # closed-form leg poses along the pelvis's path over a standing foot
+LIMIT_MARGIN = 0.05  # [rad] the closed-form leg poses of the closing steps stay this far inside the joint limits
+PELVIS_DIP = 0.01  # [H] the pelvis's pause between the closing steps: this far below its lower end height
+LEG_JOINTS = ("hip_rotation", "hip_flexion", "hip_abduction", "knee", "ankle")
+CONTACT_HEIGHT = 0.005  # [m] a sole point this far above the floor is off it
 SWAY_FREQUENCY = 0.2  # [Hz] of a standing person's lateral sway
 
 
@@ -454,6 +470,26 @@ def _pair(vd) -> tuple[float, float]:
 def _rot_z(a: float) -> np.ndarray:
     c, s = math.cos(a), math.sin(a)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _rot_y(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def _joint_spline(knots, values, lift: bool = False) -> CubicHermiteSpline:
+    """C1 spline through joint vectors ``values`` at ``knots`` (increasing, from 0 to 1), at rest at both
+    ends. Inner slopes: Catmull-Rom; with ``lift`` (a step's start, lifted start, ..., lifted end, end)
+    the second and second-last take the slopes of the first and last chords, so that those pieces run along
+    their chords (the foot goes straight up and straight down, as nearly as a straight line in joint
+    space does over a few centimetres) and the middle one arcs over."""
+    x, y = np.asarray(knots, float), np.asarray(values, float)
+    dy = np.zeros_like(y)
+    dy[1:-1] = (y[2:] - y[:-2]) / (x[2:] - x[:-2])[:, None]
+    if lift:
+        dy[1] = (y[1] - y[0]) / (x[1] - x[0])
+        dy[-2] = (y[-1] - y[-2]) / (x[-1] - x[-2])
+    return CubicHermiteSpline(x, y, dy, axis=0)
 
 
 def _rot_x(a: float) -> np.ndarray:
@@ -558,9 +594,10 @@ class PersonMotion(_ReadOnly):
     sway : float
         Lateral sway amplitude of a standing person [m] (0.2 Hz).
 
-    ``stop_time`` [s] is when a walk along a path arrives (start_time + L / v + START_BLEND, give or
-    take the forward sway; inf without a path); :attr:`gait_origin` where the steady gait's phases
-    count from.
+    ``arrival_time`` [s] is when a walk along a path arrives, its gait at rest (start_time + L / v +
+    START_BLEND, give or take the forward sway; inf without a path); ``stop_time`` [s] = arrival_time
+    + 2 CLOSE_STEP is when the two steps that close the stance end and the person stands on the path's
+    end; :attr:`gait_origin` where the steady gait's phases count from.
     """
 
     def __init__(self, tree: KinematicTree, height: float, position=(0.0, 0.0), heading_deg: float = 0.0,
@@ -592,7 +629,7 @@ class PersonMotion(_ReadOnly):
         self._q_rest = q_rest
         self.cycle = None
         self.path = None
-        self.stop_time = math.inf
+        self.stop_time = self.arrival_time = math.inf
         self.start_xy = start_xy = pos[:2].copy()
         if walk is not None:
             if walk.path is not None:
@@ -609,6 +646,7 @@ class PersonMotion(_ReadOnly):
         self._start_turn = 0.0
         self._gait0 = self._gait_end = self._x0 = 0.0
         self._rate = 1.0
+        self._close = None
         if walk is not None:
             # "auto": the planted body where it can walk (its leg sweeps the stance under the pelvis and
             # its swing keeps the joints within their limits), else the smooth one.
@@ -632,6 +670,7 @@ class PersonMotion(_ReadOnly):
             self._stand0_yaw = self._standing(walk.start_time, start_xy, self.heading).yaw
             if math.isfinite(self.stop_time):
                 self._ref_end = self._walking(self._gait_end, 0.0)
+                self._close = self._closing_steps()
         self.start_xy.setflags(write=False)
         self._q_rest.setflags(write=False)
         self._seal()
@@ -686,7 +725,7 @@ class PersonMotion(_ReadOnly):
         length, v = self.path.length, walk.speed
         if not math.isfinite(length):
             self._gait_end, self._rate = math.inf, 1.0
-            self.stop_time = math.inf
+            self.arrival_time = self.stop_time = math.inf
             return
 
         def short(t):
@@ -698,7 +737,8 @@ class PersonMotion(_ReadOnly):
         self._gait_end = float(brentq(short, lo, hi, xtol=1e-13, rtol=4 * np.finfo(float).eps))
         g = self._gait_end - self._gait0
         self._rate = min(1.0, g / START_BLEND)
-        self.stop_time = walk.start_time + START_BLEND + max(g, START_BLEND)
+        self.arrival_time = walk.start_time + START_BLEND + max(g, START_BLEND)
+        self.stop_time = self.arrival_time + 2 * CLOSE_STEP
 
     @property
     def gait_origin(self) -> float:
@@ -721,7 +761,7 @@ class PersonMotion(_ReadOnly):
         """
         B, r = START_BLEND, self._rate
         tau = t - self.walk.start_time
-        left = self.stop_time - t
+        left = self.arrival_time - t
         # A walk shorter than B of gait (r < 1) has no steady part: its two ramps meet at
         # start_time + B, where tau = left = B (give or take rounding), and the time belongs to
         # whichever ramp is nearer. The steady branch there would put the gait at gait0 + B / 2
@@ -735,8 +775,9 @@ class PersonMotion(_ReadOnly):
         return self._gait0 + tau - 0.5 * B, 1.0
 
     # ------------------------------------------------------------ pieces
-    def _standing(self, t: float, xy, heading: float, turning: bool = True) -> _Plan:
-        """Standing at ``xy`` facing ``heading`` at ``t``, swaying; the turn on the spot if ``turning``."""
+    def _standing(self, t: float, xy, heading: float, turning: bool = True, sway: bool = True) -> _Plan:
+        """Standing at ``xy`` facing ``heading`` at ``t``, swaying (if ``sway``); the turn on the spot if
+        ``turning``."""
         yaw, yaw_d = heading, 0.0
         if self.turn is not None and turning:
             w, wd = smoothstep((t - self.turn.start_time) / self.turn.duration)
@@ -744,7 +785,7 @@ class PersonMotion(_ReadOnly):
             yaw, yaw_d = heading + dturn * float(w), dturn * float(wd) / self.turn.duration
         q, qd = self._q_rest.copy(), np.zeros(self.tree.n_joints)
         d, dd = 0.0, 0.0
-        if self.sway > 0:
+        if self.sway > 0 and sway:
             arg = 2 * math.pi * SWAY_FREQUENCY * t
             d, dd = self.sway * math.sin(arg), self.sway * 2 * math.pi * SWAY_FREQUENCY * math.cos(arg)
         self._hip_abduction(q, qd, d, dd, 0.0, 0.0)
@@ -804,6 +845,8 @@ class PersonMotion(_ReadOnly):
         elif t >= self.stop_time:
             end_xy, _, end_psi, _ = self.path.at(self.path.length)
             plan = self._standing(t, end_xy, end_psi, turning=False)
+        elif t >= self.arrival_time:
+            plan = self._closing(t)
         else:
             plan = self._walking(*self._phase(t))
             tau = t - walk.start_time
@@ -814,15 +857,163 @@ class PersonMotion(_ReadOnly):
                 stand = self._standing(t, self.start_xy, self.heading)
                 dyaw = stand.yaw - self._stand0_yaw - self._start_turn
                 plan = plan.fade(stand, self._ref0, 1.0 - float(w), -float(wd) / START_BLEND, dyaw)
-            if self.stop_time - t < START_BLEND:
-                w, wd = smoothstep((t - self.stop_time + START_BLEND) / START_BLEND)
-                end_xy, _, end_psi, _ = self.path.at(self.path.length)
-                stand = self._standing(t, end_xy, end_psi, turning=False)
-                dyaw = float(_wrap(stand.yaw - self._ref_end.yaw))
-                plan = plan.fade(stand, self._ref_end, float(w), float(wd) / START_BLEND, dyaw)
         if reach and self.reach is not None:
             self._apply_reach(t, plan)
         return plan
+
+    # ------------------------------------------------------------ closing the stance after a path's end
+    def _foot_poses(self, plan: _Plan) -> dict:
+        """World pose of each foot link ({"right": Pose, "left": Pose}) in ``plan``."""
+        base = Pose._trusted(plan.p, _rot_z(plan.yaw) @ _rot_x(plan.roll))
+        st = self.tree.forward(plan.q, None, base)
+        return {side: st.pose(f"{side}_foot") for side, _ in SIDES}
+
+    def _leg_columns(self, side: str) -> np.ndarray:
+        return np.array([self._col[f"{side}_{j}"] for j in LEG_JOINTS])
+
+    def _leg_ik(self, pelvis: tuple, side: str, foot: Pose) -> np.ndarray:
+        """(5,) angles of ``side``'s LEG_JOINTS [rad] that put its foot link (origin at the ankle joint)
+        at ``foot`` (world) with the pelvis at ``pelvis`` = (position (3,) [m], yaw, roll [rad]).
+
+        Closed form: the knee from the hip-ankle distance (clamped into the leg's reach), the leg's
+        plane through the hip, the ankle and the foot's forward axis (the foot's roll follows that
+        plane: the leg has no joint to set it), the hip's Z-Y-X angles from the thigh's rotation,
+        and the ankle from the foot's forward axis in the shank's frame.
+        """
+        pos, yaw, roll = pelvis
+        H, s = self.height, (1.0 if side == "left" else -1.0)
+        T, S = THIGH * H, SHANK * H
+        rb = _rot_z(yaw) @ _rot_x(roll)
+        d = rb.T @ (foot.position - np.asarray(pos, float)) - np.array([0.0, s * HIP_JOINT_HALF_WIDTH * H, 0.0])
+        fx = rb.T @ foot.rotation[:, 0]
+        r = float(np.linalg.norm(d))
+        r_c = min(max(r, abs(T - S) + 1e-9), (T + S) * (1.0 - 1e-12))
+        knee = math.acos(max(-1.0, min(1.0, (r_c * r_c - T * T - S * S) / (2 * T * S))))
+        leg = np.array([-S * math.sin(knee), 0.0, -T - S * math.cos(knee)])
+        e1, e2 = leg / np.linalg.norm(leg), np.array([0.0, 1.0, 0.0])
+        f1 = d / r
+        n = np.cross(fx, f1)
+        f2 = n / np.linalg.norm(n)
+        rot = np.column_stack([f1, f2, np.cross(f1, f2)]) @ np.column_stack([e1, e2, np.cross(e1, e2)]).T
+        theta = math.asin(max(-1.0, min(1.0, -rot[2, 0])))
+        turn, chi = math.atan2(rot[1, 0], rot[0, 0]), math.atan2(rot[2, 1], rot[2, 2])
+        c = (rot @ _rot_y(knee)).T @ fx
+        out = np.array([turn, -theta, s * chi, knee, math.atan2(c[2], c[0])])
+        # Into the joint limits, LIMIT_MARGIN inside them: the splines through these poses may overshoot
+        # a little between them (a foot on its foothold then tilts by the clipped angle).
+        lo, hi = self.tree.limits[self._leg_columns(side)].T
+        return np.clip(out, lo + LIMIT_MARGIN, hi - LIMIT_MARGIN)
+
+    def _closing_steps(self) -> tuple:
+        """The closing steps after the walk's arrival (see :meth:`_closing`): (first side, second side,
+        the pelvis's (position (3,), yaw, roll) where the gait stopped, between the steps and standing,
+        and per step the stepping leg's joint spline over the step (u in [0, 1]) and the standing
+        leg's over the pelvis's fade weight)."""
+        ref = self._ref_end
+        end_xy, _, end_psi, _ = self.path.at(self.path.length)
+        still = self._standing(0.0, end_xy, end_psi, turning=False, sway=False)
+        at_end, standing = self._foot_poses(ref), self._foot_poses(still)
+        sole = foot_sole_points(self.height)
+        low = {side: float(at_end[side].apply(sole)[:, 2].min()) for side, _ in SIDES}
+        forward = np.array([math.cos(end_psi), math.sin(end_psi), 0.0])
+        if abs(low["right"] - low["left"]) > CONTACT_HEIGHT:
+            # One foot in its swing: it is the free one and steps first.
+            first = "right" if low["right"] > low["left"] else "left"
+        else:  # both on the floor: the one behind (in its push-off) steps first
+            first = min(("right", "left"), key=lambda side: float(at_end[side].position @ forward))
+        second = "left" if first == "right" else "right"
+        # Between the steps the pelvis pauses halfway, PELVIS_DIP below the lower of its two heights: the
+        # first foot's foothold (under the standing hip) is then within the leg's reach with the knee bent,
+        # also when the gait stopped with the pelvis higher than standing (on the stance foot's toe).
+        dyaw = float(_wrap(still.yaw - ref.yaw))
+        mid = 0.5 * (ref.p + still.p)
+        mid[2] = min(ref.p[2], still.p[2]) - PELVIS_DIP * self.height
+        poses = ((ref.p, ref.yaw, ref.roll), (mid, ref.yaw + 0.5 * dyaw, 0.5 * (ref.roll + still.roll)),
+                 (still.p, ref.yaw + dyaw, still.roll))
+        lift = np.array([0.0, 0.0, CLOSE_LIFT * self.height])
+
+        def pelvis(k, w):
+            (pa, ya, ra), (pb, yb, rb) = poses[k], poses[k + 1]
+            return pa + w * (pb - pa), ya + w * (yb - ya), ra + w * (rb - ra)
+
+        def step(k, side, start_q, end_q):
+            """Joint spline of step k (0, 1) of ``side`` from its angles ``start_q`` to its standing
+            foothold: straight up by the lift, over an apex halfway, straight down."""
+            a, b = at_end[side], standing[side]
+            top = max(a.position[2], b.position[2]) + lift[2]
+            apex = 0.5 * (a.position + b.position)
+            apex[2] = top
+            at = [float(smoothstep(u)[0]) for u in STEP_KNOTS]
+            keys = [start_q,
+                    self._leg_ik(pelvis(k, at[1]), side, Pose._trusted(a.position + lift, a.rotation)),
+                    self._leg_ik(pelvis(k, at[2]), side, Pose._trusted(apex, b.rotation)),
+                    self._leg_ik(pelvis(k, at[3]), side, Pose._trusted(b.position + lift, b.rotation)),
+                    self._leg_ik(pelvis(k, 1.0), side, b) if end_q is None else end_q]
+            return _joint_spline(STEP_KNOTS, keys, lift=True)
+
+        def planted(k, side, foot, start_q, end_q):
+            """Joint spline over the fade weight w of step k of ``side`` standing on ``foot``."""
+            ws = np.linspace(0.0, 1.0, PLANTED_KNOTS)
+            inner = [self._leg_ik(pelvis(k, w), side, foot) for w in ws[1:-1]]
+            return _joint_spline(ws, [start_q, *inner, self._leg_ik(pelvis(k, 1.0), side, foot)
+                                      if end_q is None else end_q])
+
+        cf, cs = self._leg_columns(first), self._leg_columns(second)
+        first_step = step(0, first, ref.q[cf], None)
+        second_stands = planted(0, second, at_end[second], ref.q[cs], None)
+        first_stands = planted(1, first, standing[first], first_step(1.0), still.q[cf])
+        # The second step ends at the standing angles themselves (the pelvis there is the standing one).
+        second_step = step(1, second, second_stands(1.0), still.q[cs])
+        return first, second, poses, ((first_step, second_stands), (second_step, first_stands))
+
+    def _closing(self, t: float) -> _Plan:
+        """The pose at ``t`` between the arrival and ``stop_time``: the stance closes in two steps.
+
+        The gait stops (its rate ramps to 0) wherever in its cycle the path ends, with the feet
+        apart. In each of two steps of CLOSE_STEP one foot steps to where the standing pose puts it,
+        straight up by CLOSE_LIFT H, over an apex halfway and straight down (its leg's angles a C1
+        spline through the closed-form angles of :meth:`_leg_ik` at those poses), while the other
+        stands (its leg's angles through the closed form at five points of the pelvis's path) and
+        the pelvis moves, C1, from where the gait stopped to a pause halfway and on into the
+        standing pose. The free foot (or, in double support, the one behind) steps first. The arms,
+        trunk and head fade into standing over both steps.
+        """
+        first, second, poses, steps = self._close
+        T = CLOSE_STEP
+        ref = self._ref_end
+        end_xy, _, end_psi, _ = self.path.at(self.path.length)
+        stand = self._standing(t, end_xy, end_psi, turning=False)
+        tau = t - self.arrival_time
+        k, kd = (float(x) for x in smoothstep(tau / (2 * T)))
+        kd /= 2 * T
+        # The upper body over both steps (the legs and pelvis below); the standing sway (pelvis offset
+        # and hip abduction) weighted in with the same weight.
+        q = ref.q + k * (stand.q - ref.q)
+        qd = k * stand.qd + kd * (stand.q - ref.q)
+        i = 0 if tau < T else 1
+        u = min(max(tau / T - i, 0.0), 1.0)
+        w, wd = (float(x) for x in smoothstep(u))
+        wd /= T
+        (pa, ya, ra), (pb, yb, rb) = poses[i], poses[i + 1]
+        sway_p = stand.p - np.array([*end_xy, self.floor + self.leg.leg_length])
+        p = pa + w * (pb - pa) + k * sway_p
+        v = wd * (pb - pa) + k * stand.v + kd * sway_p
+        yaw, yaw_d = ya + w * (yb - ya), wd * (yb - ya)
+        roll, roll_d = ra + w * (rb - ra), wd * (rb - ra)
+        stepping, standing = (first, second) if i == 0 else (second, first)
+        step, stands = steps[i]
+        sway_q = stand.q - self._q_rest
+        lim = self.tree.limits
+        for side, q_side, qd_side in ((stepping, step(u), step(u, 1) / T), (standing, stands(w), stands(w, 1) * wd)):
+            c = self._leg_columns(side)
+            q[c] = q_side + k * sway_q[c]
+            qd[c] = qd_side + k * stand.qd[c] + kd * sway_q[c]
+            # Never past a limit (a spline's overshoot beyond the margin): held there, at rest.
+            out = (q[c] < lim[c, 0]) | (q[c] > lim[c, 1])
+            if out.any():
+                q[c] = np.clip(q[c], lim[c, 0], lim[c, 1])
+                qd[c[out]] = 0.0
+        return _Plan(p, v, yaw, yaw_d, roll, roll_d, q, qd)
 
     # ------------------------------------------------------------ reaching
     def _warn_short_reach(self, q0, qd0, base) -> None:
