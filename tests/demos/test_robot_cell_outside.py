@@ -92,9 +92,9 @@ def test_separation_of_a_rotating_box_link_matches_trimesh(person, centre, radiu
 
 
 def test_robot_cell_trace_draws_s_p_for_the_fastest_approach():
-    # The demo's cell at 3.6 s: the hand holds beside the forearm (5 cm) while the arm lifts away; the closest
-    # point recedes (0 m/s towards the person), a part of the forearm 11 cm from the body approaches at about
-    # 0.33 m/s. The figure's S_p must be the one for that approach: 0.9 + 0.25 * 0.33 = 0.98 m, not 0.90.
+    # The demo's cell at 3.6 s: the hand holds beside the forearm (28 mm) while the arm lifts away; the closest
+    # point recedes (0.01 m/s towards the person), a part of the forearm 10 cm from the hand approaches at
+    # 0.37 m/s. The figure's S_p must be the one for that approach: 0.9 + 0.25 * 0.37 = 0.99 m, not 0.90.
     scene = build_arm_cell_scene()
     monitor = SeparationMonitor(scene, ROBOT, PERSON)
     times = np.array([2.4, 3.6])
@@ -102,7 +102,7 @@ def test_robot_cell_trace_draws_s_p_for_the_fastest_approach():
     samples = [monitor.at(float(t)) for t in times]
     np.testing.assert_array_equal(trace.robot_speed, [s.approach_speed for s in samples])
     np.testing.assert_allclose(trace.protective, 0.9 + 0.25 * trace.robot_speed, rtol=0, atol=1e-12)
-    assert samples[1].robot_speed < 0.01 and samples[1].approach_speed > 0.25  # measured 0.0 and 0.333 m/s
+    assert samples[1].robot_speed < 0.01 and samples[1].approach_speed > 0.25  # measured 0.009 and 0.374 m/s
     assert all(s.approach_speed >= s.robot_speed for s in samples)
 
 

@@ -225,8 +225,8 @@ def separation_trace(monitor: SeparationMonitor, times, params: SeparationParame
     v_r is the fastest approach of any robot surface point towards the person
     (``SeparationSample.approach_speed``), not the closest point's: while the
     hand holds by the forearm (3.6 s) the closest point moves away and a part
-    of the forearm 11 cm from the body approaches at 0.33 m/s, which S_p must
-    cover (+0.08 m)."""
+    of the forearm 10 cm from the hand approaches at 0.37 m/s, which S_p must
+    cover (+0.09 m)."""
     samples = [monitor.at(float(t)) for t in times]
     speed = np.array([s.approach_speed for s in samples])
     return SeparationTrace(np.asarray(times, dtype=float), np.array([s.distance for s in samples]), speed,
