@@ -8,6 +8,7 @@ Both the single-Tx seed-paper radar (the robot-cell demo's waveform) and the 3-T
 """
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -100,3 +101,51 @@ def test_one_moving_radar_frame_after_frame_follows_the_plate(preset):
         k = int(np.argmax(det.snr_db))
         assert det.range[k] == pytest.approx(PLATE_X - PLATE_T / 2 - t, rel=0, abs=dr), t
         assert det.velocity[k] == pytest.approx(-1.0, rel=0, abs=dv / 4), t
+
+
+def test_radar_on_the_robot_cell_wrist_sees_the_still_cell_at_minus_its_mujoco_velocity():
+    # The IWR6843 3 cm out along the flange of the robot-cell UR5e (turning and moving with six joints), the
+    # cell without the person. Every still scatterer (floor, walls, table, part, pedestal) closes at the
+    # range rate -v_o . u, v_o the radar origin's world velocity and u the world direction to it (the
+    # turn w x r adds nothing along r). Reference: the flange posed by MuJoCo's mj_kinematics on the shipped
+    # MJCF along scipy's clamped spline through the keyframes, v_o by central differences over +-1 us.
+    import mujoco
+    from scipy.interpolate import CubicSpline
+
+    import twinsense
+    from twinsense.demos import robot_cell as rc
+
+    scene = rc.build_arm_cell_scene(person=False)
+    offset = np.array([0.0, 0.0, 0.03])
+    radar = make_radar("ti_iwr6843", mount=Mount(Pose(tuple(offset)), parent=f"{rc.ROBOT}/{rc.WRIST_LINK}"),
+                       render_width=64, render_height=64)
+    model = mujoco.MjModel.from_xml_path(str(Path(twinsense.__file__).parent / "data/robots/ur5e/ur5e.xml"))
+    data = mujoco.MjData(model)
+    joints = CubicSpline(rc.TIMES, np.array(rc.KEYFRAMES), bc_type="clamped")
+    flange = model.body(rc.WRIST_LINK).id
+
+    def origin(t):
+        data.qpos[:] = joints(t)
+        mujoco.mj_kinematics(model, data)
+        return data.xpos[flange] + data.xmat[flange].reshape(3, 3) @ offset + np.array([0.0, 0.0, 0.8])
+
+    still = [i for i, o in enumerate(scene.objects) if not o.name.startswith(f"{rc.ROBOT}/")]
+    dv, _ = _bins(radar)
+    h = 1e-6
+    for t in (0.4, 2.3, 3.5):  # 0.39, 0.75, 0.34 m/s
+        f = radar.capture(scene, t, np.random.default_rng(0))
+        np.testing.assert_allclose(f.pose.position, origin(t), rtol=0, atol=1e-9)
+        v_o = (origin(t + h) - origin(t - h)) / (2 * h)
+        s = f.scatterers
+        keep = np.isin(s.object_id, still)
+        p, vel = s.points[keep], s.velocities[keep]  # radar frame
+        assert keep.sum() > 1000
+        rate = np.sum(p * vel, axis=1) / np.linalg.norm(p, axis=1)
+        u_world = (p / np.linalg.norm(p, axis=1)[:, None]) @ f.pose.rotation.T
+        # Two float64 kinematics chains (1e-15 m) and central differences of a C2 spline over +-1 us
+        # (truncation ~1e-12 m/s, rounding 1e-16 m / 1e-6 s = 1e-10 m/s): 1e-8 m/s (1.4e-10 seen).
+        np.testing.assert_allclose(rate, -u_world @ v_o, rtol=0, atol=1e-8)
+        # The map's strongest cell lies among the still cell's range rates, to one Doppler bin.
+        pr = f.processed
+        i, _ = np.unravel_index(np.argmax(pr.power), pr.power.shape)
+        assert rate.min() - dv <= pr.velocity_axis[i] <= rate.max() + dv
