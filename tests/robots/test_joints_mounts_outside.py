@@ -378,3 +378,36 @@ def test_a_setpoint_moved_on_by_its_velocity_stops_at_the_limit(urdf):
     sp.set(3.0, [0.7, 0.0])
     with pytest.raises(ConfigError, match=r"three.joints\[slide\] = 0.7 .*\[-0.5, 0.5\] m of joint 'slide'"):
         body.state(3.1)
+
+
+def test_a_urdf_robot_driven_by_mujoco_through_joint_setpoints_follows_mujocos_bodies(urdf):
+    from twinsense.robots.mujoco_cosim import MujocoCosim
+
+    m = mujoco.MjModel.from_xml_path(str(urdf))  # MuJoCo compiles the same URDF
+    m.opt.timestep = 0.002
+    m.opt.gravity[:] = 0.0  # a constant generalised force alone: the joints stay within their limits to 0.3 s
+
+    def push(model, data):
+        data.qfrc_applied[:] = (0.5, -0.3)
+
+    cosim = MujocoCosim(m, control=push, geoms="all")
+    body = load_robot(urdf, name="three")
+    body.joint_motion = cosim.joint_setpoints({"slide": "slide", "turn": "turn"})
+    for k in (0, 25, 50, 100, 150):  # step times: the same qpos and qvel on both sides
+        t = k * 0.002
+        st = body.state(t)
+        for link in LINKS:
+            ref = cosim.body_state(link, t)
+            i = st.index(link)
+            # Two forward kinematics of one state: rounding (~1e-15), 1e-12 allowed.
+            np.testing.assert_allclose(st.positions[i], ref.pose.position, rtol=0, atol=1e-12)
+            np.testing.assert_allclose(st.rotations[i], ref.pose.rotation, rtol=0, atol=1e-12)
+            np.testing.assert_allclose(st.linear_velocities[i], ref.linear_velocity, rtol=0, atol=1e-12)
+            np.testing.assert_allclose(st.angular_velocities[i], ref.angular_velocity, rtol=0, atol=1e-12)
+    # Between two steps the joints are the last step's moved on by its velocities: q_k + qd_k tau.
+    t = 0.3013
+    cosim.step_to(t)
+    step = cosim.data
+    q, qd = body.joint_state(t)
+    np.testing.assert_allclose(q, step.qpos + step.qvel * (t - step.time), rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(qd, step.qvel)
