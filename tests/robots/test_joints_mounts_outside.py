@@ -411,3 +411,24 @@ def test_a_urdf_robot_driven_by_mujoco_through_joint_setpoints_follows_mujocos_b
     q, qd = body.joint_state(t)
     np.testing.assert_allclose(q, step.qpos + step.qvel * (t - step.time), rtol=0, atol=1e-15)
     np.testing.assert_array_equal(qd, step.qvel)
+
+
+@pytest.mark.parametrize("name", ["kinova", "xarm7", "ur10", "panda-mjcf"])
+def test_installed_robots_link_velocities_are_the_differences_of_their_poses(name):
+    body = load_robot(name, shapes="collision")
+    lo, hi = np.maximum(body.tree.limits[:, 0], -2.0), np.minimum(body.tree.limits[:, 1], 2.0)
+    rng = np.random.default_rng(3)
+    # Four keyframes 1 s apart in the middle 40 % of each joint's range (<= 2 rad from 0).
+    body.joint_motion = JointKeyframes([0, 1, 2, 3], rng.uniform(lo + 0.3 * (hi - lo), hi - 0.3 * (hi - lo),
+                                                                  (4, body.tree.n_joints)))
+    h = 1e-5
+    # As above: |q'''| <= 6 max|c3| < 30 rad/s^3 for steps < 2.4 rad, links within 1.5 m of the base and
+    # turning at < 10 rad/s give |x'''| < 1e3 and central differences within h^2 / 6 * 1e3 = 1.7e-8 plus
+    # rounding 2 eps * 2 m / h = 4e-11; tolerance 1e-7.
+    for t in (0.4, 1.0, 2.6):
+        s1, s0, s = body.state(t + h), body.state(t - h), body.state(t)
+        v = (s1.positions - s0.positions) / (2 * h)
+        wx = np.einsum("nij,nkj->nik", (s1.rotations - s0.rotations) / (2 * h), s.rotations)
+        w = 0.5 * np.stack([wx[:, 2, 1] - wx[:, 1, 2], wx[:, 0, 2] - wx[:, 2, 0], wx[:, 1, 0] - wx[:, 0, 1]], 1)
+        np.testing.assert_allclose(s.linear_velocities, v, rtol=0, atol=1e-7)
+        np.testing.assert_allclose(s.angular_velocities, w, rtol=0, atol=1e-7)
