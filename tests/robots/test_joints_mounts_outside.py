@@ -432,3 +432,15 @@ def test_installed_robots_link_velocities_are_the_differences_of_their_poses(nam
         w = 0.5 * np.stack([wx[:, 2, 1] - wx[:, 1, 2], wx[:, 0, 2] - wx[:, 2, 0], wx[:, 1, 0] - wx[:, 0, 1]], 1)
         np.testing.assert_allclose(s.linear_velocities, v, rtol=0, atol=1e-7)
         np.testing.assert_allclose(s.angular_velocities, w, rtol=0, atol=1e-7)
+
+
+def test_an_object_keyframe_that_is_no_pose_is_named_by_its_index():
+    from twinsense.scene import Keyframes
+
+    with pytest.raises(ConfigError) as e:
+        Keyframes(np.array([0.0, 1.0]), (Pose(), "x"))
+    # It said motion.poses = '2 poses': expected one Pose per keyframe time (2), true of the count.
+    assert e.value.field == "motion.poses[1]" and e.value.value == "x"
+    with pytest.raises(ConfigError) as e:
+        Keyframes(np.array([0.0, 1.0]), (Pose(),))
+    assert e.value.field == "motion.poses" and e.value.value == "1 poses"

@@ -236,10 +236,12 @@ class Keyframes(Motion):
         if len(t) < 2 or np.any(np.diff(t) <= 0) or np.any(np.abs(t) > V.TIME_MAX):
             raise ConfigError("motion.times", self.times,
                               f"at least 2 strictly increasing times within +-{V.TIME_MAX:g} [s]")
-        if (not isinstance(self.poses, (tuple, list)) or len(self.poses) != len(t)
-                or not all(isinstance(p, Pose) for p in self.poses)):
-            n = len(self.poses) if isinstance(self.poses, (tuple, list)) else self.poses
-            raise ConfigError("motion.poses", f"{n} poses", f"one Pose per keyframe time ({len(t)})")
+        if not isinstance(self.poses, (tuple, list)) or len(self.poses) != len(t):
+            n = f"{len(self.poses)} poses" if isinstance(self.poses, (tuple, list)) else self.poses
+            raise ConfigError("motion.poses", n, f"one Pose per keyframe time ({len(t)})")
+        for i, p in enumerate(self.poses):
+            if not isinstance(p, Pose):  # named on its own: the count is right, this entry is not
+                raise ConfigError(f"motion.poses[{i}]", p, "a twinsense Pose")
         object.__setattr__(self, "times", t)
         pos = np.array([p.position for p in self.poses])
         rots = Rotation.from_matrix(np.array([p.rotation for p in self.poses]))
