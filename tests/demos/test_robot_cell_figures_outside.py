@@ -9,7 +9,9 @@
 """
 
 import math
+import re
 from pathlib import Path
+from types import SimpleNamespace
 
 import mujoco
 import numpy as np
@@ -19,7 +21,7 @@ from scipy.interpolate import CubicSpline
 import twinsense
 from twinsense.demos import robot_cell as rc
 from twinsense.errors import ConfigError
-from twinsense.safety import SeparationMonitor
+from twinsense.safety import SeparationMonitor, SeparationParameters, protective_separation_distance
 from twinsense.scene import Box, Sphere
 
 C = 299_792_458.0
@@ -225,3 +227,34 @@ def test_true_distance_against_trimesh_on_mujocos_own_meshes(cell):
                 d = float(trimesh.proximity.closest_point(robot, pts[keep])[1].min()) - radius
                 ref, err = (d, e) if d < ref else (ref, err)
         assert -err - 1e-6 <= got - ref <= bound + 1e-6, (t, got, ref)  # measured 0 and -2.6 um
+
+
+@pytest.mark.parametrize("params", [SeparationParameters(),
+                                    SeparationParameters(stopping_distance=0.12, robot_acceleration=2.0,
+                                                         human_uncertainty=0.08)])
+def test_separation_figure_legend_gives_every_term_of_its_s_p_curve(tmp_path, monkeypatch, params):
+    # A reader of separation.png recomputes the red curve from its legend by ISO/TS 15066 5.5.4.2.3:
+    # S_p = v_h (T_r + T_s) + v_r T_r + a T_r^2 / 2 + S_s + C + Z_d + Z_r, S_s = (v_r + a T_r) T_s / 2 unless
+    # given. The legend named v_h, T_r, T_s and C only: the reader's S_p came out Z_d + Z_r = 0.06 m under
+    # the curve at every speed.
+    speed = np.array([0.0, 0.25, 0.5, 1.2])
+    trace = rc.SeparationTrace(np.arange(4) * 0.5, np.full(4, 1.0), speed,
+                               np.asarray(protective_separation_distance(speed, params)))
+    shown = {}
+    save = rc.save_figure
+
+    def keep(fig, path):
+        (line,) = [ln for ln in fig.axes[0].get_lines() if ln.get_linestyle() == "--"]
+        shown["label"], shown["y"] = line.get_label(), np.asarray(line.get_ydata())
+        return save(fig, path)
+
+    monkeypatch.setattr(rc, "save_figure", keep)
+    rc._separation_figure(trace, [], [], [], SimpleNamespace(spacing=0.01), params, tmp_path / "s.png")
+    terms = {k: float(v) for k, v in re.findall(r"\b(v_h|T_r|T_s|C|Z_d|Z_r|S_s|a) ([0-9.]+)", shown["label"])}
+    assert {"v_h", "T_r", "T_s", "C", "Z_d", "Z_r"} <= set(terms)
+    a = terms.get("a", 0.0)
+    s_s = terms["S_s"] if "S_s" in terms else (speed + a * terms["T_r"]) * terms["T_s"] / 2
+    by_hand = (terms["v_h"] * (terms["T_r"] + terms["T_s"]) + speed * terms["T_r"] + a * terms["T_r"] ** 2 / 2
+               + s_s + terms["C"] + terms["Z_d"] + terms["Z_r"])
+    # The legend prints the parameters as given (%g: these have at most 3 digits): float rounding only.
+    np.testing.assert_allclose(shown["y"], by_hand, rtol=0, atol=1e-12)

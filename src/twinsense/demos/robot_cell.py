@@ -397,13 +397,24 @@ def _doppler_figure(t, vel, power, truth, path: Path) -> Path:
     return save_figure(fig, path)
 
 
+def _protective_label(params: SeparationParameters) -> str:
+    """The S_p curve's legend: every term the curve adds up (Z_d and Z_r too: without them a reader's S_p
+    from the legend came out 0.06 m under the curve), S_s and the acceleration when they are set."""
+    terms = (f"v_h {params.human_speed:g} m/s, T_r {params.reaction_time:g} s, T_s {params.stopping_time:g} s,\n"
+             f"C {params.intrusion_distance:g} m, Z_d {params.human_uncertainty:g} m, "
+             f"Z_r {params.robot_uncertainty:g} m")
+    if params.stopping_distance is not None:
+        terms += f", S_s {params.stopping_distance:g} m"
+    if params.robot_acceleration:
+        terms += f", a {params.robot_acceleration:g} m/s^2"
+    return f"ISO/TS 15066 S_p (v_r: fastest robot point towards the person; {terms})"
+
+
 def _separation_figure(trace: SeparationTrace, tof, radar, skin, monitor, params, path: Path) -> Path:
     plt = pyplot()
     fig, (ax, ax2) = plt.subplots(2, 1, figsize=(8.0, 6.4), sharex=True, height_ratios=(3, 1))
     ax.plot(trace.times, trace.true, "k-", lw=2, label="true minimum distance (robot surface to body)")
-    ax.plot(trace.times, trace.protective, "r--", lw=1.5,
-            label=f"ISO/TS 15066 S_p (v_r: fastest robot point towards the person; v_h {params.human_speed} m/s,"
-                  f"\nT_r {params.reaction_time} s, T_s {params.stopping_time} s, C {params.intrusion_distance} m)")
+    ax.plot(trace.times, trace.protective, "r--", lw=1.5, label=_protective_label(params))
     stop = trace.true < trace.protective
     ax.fill_between(trace.times, 0, 1, where=stop, color="r", alpha=0.1, transform=ax.get_xaxis_transform(),
                     label="protective stop required")
