@@ -24,8 +24,10 @@ the joint trajectory, each with exact time derivatives:
   smoothly from 0 to 1 (1 to 0) over START_BLEND, so the body never moves
   faster than its steady gait; the standing pose fades out over the start
   (the walk starts at the right foot's mid-stance, where standing puts that
-  foot); at a path's end the gait comes to rest wherever in its cycle it
-  is, and two closing steps (one foot, then the other, lifted and set down
+  foot, and the left foot rises from its place into the gait's swing along
+  a world-space blend, by closed-form leg inverse kinematics); at a path's
+  end the gait comes to rest wherever in its cycle it is, and two closing
+  steps (one foot, then the other, lifted and set down
   on the standing footholds by closed-form leg inverse kinematics while the
   other foot stays put) bring the person into the standing pose;
 - standing: legs straight, arms hanging, optional sway of the pelvis;
@@ -46,7 +48,7 @@ import warnings
 from dataclasses import FrozenInstanceError, dataclass
 
 import numpy as np
-from scipy.interpolate import CubicHermiteSpline
+from scipy.interpolate import CubicHermiteSpline, make_interp_spline
 
 from twinsense import validation as V
 from twinsense.errors import ConfigError, UnknownNameError
@@ -454,6 +456,9 @@ CLOSE_STEP = 0.4
 # that high above the higher of its two places and sets it straight down (STEP_KNOTS).
 CLOSE_LIFT = 0.025
 STEP_KNOTS = (0.0, 0.2, 0.5, 0.8, 1.0)  # a closing step: its start, lifted, apex, lifted over the foothold, on it
+START_SWING = "left"  # the leg that swings as the walk starts (the reference right foot is in mid-stance)
+START_KNOTS = 13  # closed-form poses of the swinging leg over the start ramp (both ends: the plan's own)
+START_LIFT_ONLY = 0.15  # share of the start ramp over which the swinging foot only rises
 PLANTED_KNOTS = 9  # closed-form leg poses along the pelvis's path over a standing foot
 LIMIT_MARGIN = 0.05  # [rad] the closed-form leg poses of the closing steps stay this far inside the joint limits
 PELVIS_DIP = 0.01  # [H] the pelvis's pause between the closing steps: this far below its lower end height
@@ -647,6 +652,7 @@ class PersonMotion(_ReadOnly):
         self._gait0 = self._gait_end = self._x0 = 0.0
         self._rate = 1.0
         self._close = None
+        self._start_swing = None
         if walk is not None:
             # "auto": the planted body where it can walk (its leg sweeps the stance under the pelvis and
             # its swing keeps the joints within their limits), else the smooth one.
@@ -671,6 +677,8 @@ class PersonMotion(_ReadOnly):
             if math.isfinite(self.stop_time):
                 self._ref_end = self._walking(self._gait_end, 0.0)
                 self._close = self._closing_steps()
+            self._start_swing = self._starting_step()
+            self._last = None  # states cached while the start's step was solved lack it
         self.start_xy.setflags(write=False)
         self._q_rest.setflags(write=False)
         self._seal()
@@ -857,6 +865,8 @@ class PersonMotion(_ReadOnly):
                 stand = self._standing(t, self.start_xy, self.heading)
                 dyaw = stand.yaw - self._stand0_yaw - self._start_turn
                 plan = plan.fade(stand, self._ref0, 1.0 - float(w), -float(wd) / START_BLEND, dyaw)
+                if self._start_swing is not None:
+                    self._set_leg(plan, START_SWING, self._start_swing(tau), self._start_swing(tau, nu=1))
         if reach and self.reach is not None:
             self._apply_reach(t, plan)
         return plan
@@ -966,6 +976,69 @@ class PersonMotion(_ReadOnly):
         second_step = step(1, second, second_stands(1.0), still.q[cs])
         return first, second, poses, ((first_step, second_stands), (second_step, first_stands))
 
+    def _set_leg(self, plan: _Plan, side: str, q: np.ndarray, qd: np.ndarray) -> None:
+        """Put ``side``'s LEG_JOINTS angles and rates into ``plan``, never past a joint limit: a spline
+        through poses LIMIT_MARGIN inside the limits may overshoot them a little between its knots,
+        and is then held at the limit, at rest."""
+        c = self._leg_columns(side)
+        lo, hi = self.tree.limits[c].T
+        out = (q < lo) | (q > hi)
+        plan.q[c] = np.clip(q, lo, hi)
+        plan.qd[c] = np.where(out, 0.0, qd)
+
+    def _starting_step(self):
+        """The swinging (left) leg's angles over the start ramp, a C1 spline in tau = t - start_time.
+
+        The gait starts at the right foot's mid-stance with the left foot swinging beside it; fading
+        the left leg's angles from standing into that swing put its foot up to 5.4 cm into the floor,
+        sliding at up to 2.8 m/s. Instead its foot follows, in the world, the blend (1 - w) S + w G(t)
+        of its standing foothold S and the gait's own foot G(t) (w the fade weight, both on or above
+        the floor) at its toe, lifted by CLOSE_LIFT H sin^2(pi tau / B), its forward axis blended
+        likewise (the foot rolls about its toe as its pitch changes), the weight held at 0 over the
+        first START_LIFT_ONLY of the ramp (the foot rises straight up first). The angles are a
+        quintic spline through the closed form (:meth:`_leg_ik`) at START_KNOTS times, with the
+        pelvis of the start's own plan there, and through the plan's own angles, rates and
+        accelerations at both ends.
+        """
+        walk, B = self.walk, START_BLEND
+        c = self._leg_columns(START_SWING)
+        taus = np.linspace(0.0, B, START_KNOTS)
+        keys, slopes, accels = [], [], []
+        lift = CLOSE_LIFT * self.height
+        sole = foot_sole_points(self.height)
+        for k, tau in enumerate(taus):
+            t = walk.start_time + float(tau)
+            plan = self._plan(t, reach=False)
+            if k in (0, len(taus) - 1):
+                keys.append(plan.q[c].copy())
+                slopes.append(plan.qd[c].copy())
+                # The plan's angular accelerations there (central differences of its exact rates), so
+                # that the spline joins it C2.
+                h = 1e-6
+                accels.append((self._plan(t + h, reach=False).qd[c] - self._plan(t - h, reach=False).qd[c]) / (2 * h))
+                continue
+            stand = self._standing(t, self.start_xy, self.heading)
+            s_foot = self._foot_poses(stand)[START_SWING]
+            g_foot = self._foot_poses(self._walking(*self._phase(t)))[START_SWING]
+            # The foot first rises (the blend waits START_LIFT_ONLY of the ramp: it would move the toe
+            # along the floor), then blends; the weight ends at 1 at rest, so the foot joins G C1.
+            w = float(smoothstep((tau / B - START_LIFT_ONLY) / (1.0 - START_LIFT_ONLY))[0])
+            # The toe's blend (the foot rolls about it as its pitch changes, rather than about the ankle,
+            # which would push the toe into the floor), and the ankle where that puts it.
+            toe = (1.0 - w) * s_foot.apply(sole[1:])[0] + w * g_foot.apply(sole[1:])[0]
+            toe[2] += lift * math.sin(math.pi * tau / B) ** 2
+            fx = (1.0 - w) * s_foot.rotation[:, 0] + w * g_foot.rotation[:, 0]
+            fx /= np.linalg.norm(fx)
+            fy = np.cross(np.array([0.0, 0.0, 1.0]), fx)
+            fy /= np.linalg.norm(fy)
+            rot = np.column_stack([fx, fy, np.cross(fx, fy)])
+            target = Pose._trusted(toe - rot @ sole[1], rot)
+            keys.append(self._leg_ik((plan.p, plan.yaw, plan.roll), START_SWING, target))
+        # Quintic, C2 into the plan's own rates and accelerations at both ends: no jump of the
+        # acceleration anywhere (a C1 join put 100 rad/s^2 jumps into the foot at the ramp's ends).
+        return make_interp_spline(taus, np.array(keys), k=5, axis=0,
+                                  bc_type=([(1, slopes[0]), (2, accels[0])], [(1, slopes[1]), (2, accels[1])]))
+
     def _closing(self, t: float) -> _Plan:
         """The pose at ``t`` between the arrival and ``stop_time``: the stance closes in two steps.
 
@@ -1003,17 +1076,11 @@ class PersonMotion(_ReadOnly):
         stepping, standing = (first, second) if i == 0 else (second, first)
         step, stands = steps[i]
         sway_q = stand.q - self._q_rest
-        lim = self.tree.limits
+        plan = _Plan(p, v, yaw, yaw_d, roll, roll_d, q, qd)
         for side, q_side, qd_side in ((stepping, step(u), step(u, 1) / T), (standing, stands(w), stands(w, 1) * wd)):
             c = self._leg_columns(side)
-            q[c] = q_side + k * sway_q[c]
-            qd[c] = qd_side + k * stand.qd[c] + kd * sway_q[c]
-            # Never past a limit (a spline's overshoot beyond the margin): held there, at rest.
-            out = (q[c] < lim[c, 0]) | (q[c] > lim[c, 1])
-            if out.any():
-                q[c] = np.clip(q[c], lim[c, 0], lim[c, 1])
-                qd[c[out]] = 0.0
-        return _Plan(p, v, yaw, yaw_d, roll, roll_d, q, qd)
+            self._set_leg(plan, side, q_side + k * sway_q[c], qd_side + k * stand.qd[c] + kd * sway_q[c])
+        return plan
 
     # ------------------------------------------------------------ reaching
     def _warn_short_reach(self, q0, qd0, base) -> None:
