@@ -101,7 +101,7 @@ def test_separation_and_s_p_match_mujoco_kinematics_and_the_ts_formula(cell):
         # figure's v_h 1.6 m/s, T_r 0.1 s, T_s 0.3 s, C 0.2 m, Z_d 0.05 m, Z_r 0.01 m.
         s_p = 1.6 * (0.1 + 0.3) + v_r * 0.1 + v_r * 0.3 / 2 + 0.2 + 0.05 + 0.01
         assert trace.protective[k] == pytest.approx(s_p, rel=0, abs=1e-7)
-    # The figure's shading: the person crosses S_p between 1.5 and 1.55 s (docs/robots.md: 1.56 s, 0.90 m).
+    # The figure's shading: the person crosses S_p between 1.5 and 1.55 s (docs/robots.md: 1.54 s, 0.90 m).
     assert trace.true[1] < trace.protective[1]
     # At 3.6 s the closest point recedes and a part of the forearm 10 cm from the hand approaches at
     # 0.37 m/s (docs/robots.md): S_p 0.99 m, 0.09 m above that of the closest point's speed.
