@@ -84,11 +84,26 @@ class MujocoJointSetpoints(JointSetpoints):
     def __init__(self, cosim: MujocoCosim, qadr: np.ndarray, dadr: np.ndarray, joint_names, history: int):
         self._cosim, self._qadr, self._dadr = cosim, qadr, dadr
         super().__init__(cosim.data.qpos[qadr].copy(), joint_names, history)
+        self._warned = np.zeros(len(qadr), bool)
         self.push()
 
     def push(self) -> None:
         d = self._cosim.data
-        self.set(float(d.time), d.qpos[self._qadr], d.qvel[self._dadr])
+        q = d.qpos[self._qadr].copy()
+        # MuJoCo's joint limits are soft constraints: a joint pressed against its range sits a little
+        # past it (a hinge dropped onto its limit by gravity: 0.018 rad at the impact, 0.6 mrad at rest).
+        # The bodies that follow hold it at their limit instead of refusing MuJoCo's state mid-run (the
+        # move-on between steps then stops there too); once per joint a warning says so.
+        past = (q < self._lo) | (q > self._hi)
+        if past.any():
+            for k in np.nonzero(past & ~self._warned)[0]:
+                lim = self._lo[k] if q[k] < self._lo[k] else self._hi[k]
+                warnings.warn(f"cosim.joints[{self.joint_names[k]}]: MuJoCo's joint is at {q[k]:.6g}, past the "
+                              f"following body's limit {lim:.6g} (MuJoCo's limits are soft); held at the limit",
+                              UserWarning, stacklevel=3)
+                self._warned[k] = True
+            q = np.clip(q, self._lo, self._hi)
+        self.set(float(d.time), q, d.qvel[self._dadr])
 
     def q(self, t):
         self._cosim.step_to(t)

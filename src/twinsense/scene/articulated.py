@@ -1206,7 +1206,8 @@ class JointSetpoints(JointMotion):
         # Past a limit the setpoint itself is within: the joint stops there. A setpoint already
         # outside keeps its value (and the body refuses it, naming the push's value).
         lo, hi = np.minimum(self._lo, q_i), np.maximum(self._hi, q_i)
-        stopped = (q < lo) | (q > hi)
+        # At a limit and moving into it (a co-simulation's value held there) it stays, at rest, too.
+        stopped = (q < lo) | (q > hi) | ((q <= lo) & (qd_i < 0)) | ((q >= hi) & (qd_i > 0))
         if not stopped.any():
             return q, qd_i.copy()
         return np.clip(q, lo, hi), np.where(stopped, 0.0, qd_i)
