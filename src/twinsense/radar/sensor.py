@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -399,8 +399,17 @@ class FMCWRadar:
                             carrier_frequency=cfg.chirp.centre_frequency,
                             chirp_repetition_time=cfg.chirp.chirp_repetition_time,
                             rx_positions=arr.rx_positions, tx_positions=tx,
-                            real_if=not cfg.if_chain.complex_if, settings=self.processing,
+                            real_if=not cfg.if_chain.complex_if, settings=self._settings(),
                             pose=pose)
+
+    def _settings(self) -> ProcessingSettings:
+        """The processing settings, with a complex IF's ``max_range`` at its anti-alias filter's cutoff
+        when unset: beyond it the range bins also hold the negative beat frequencies next to DC
+        (ProcessingSettings.max_range)."""
+        s, ifc, ch = self.processing, self.config.if_chain, self.config.chirp
+        if s.max_range is not None or not ifc.complex_if or ifc.aaf_cutoff <= 0:
+            return s
+        return replace(s, max_range=SPEED_OF_LIGHT * ifc.aaf_cutoff / (2.0 * ch.slope))
 
     def __repr__(self) -> str:
         c = self.config.chirp

@@ -64,6 +64,15 @@ class ProcessingSettings:
         in :data:`~twinsense.radar.processing.doa.DOA_METHODS`.
     min_range : float
         Detections nearer than this [m] are dropped (Tx-Rx leakage, DC).
+    max_range : float or None
+        Detections further than this [m] are dropped (None: none). A radar
+        with a complex IF sets it, when it is None, to the range of its
+        anti-alias filter's cutoff (:meth:`FMCWRadar.process_cube`): the
+        bins beyond it also hold the negative beat frequencies next to DC,
+        where the Tx-Rx leakage's window skirts wrap to (a still
+        IWR6843 reported a point at its last bin, 11.1 m, 12 dB over the
+        noise); TI's demo configurations keep their CFAR field of view
+        below it as well.
     max_detections : int
         Keep at most this many detections (the strongest).
     compensate_tdm_doppler : bool
@@ -86,6 +95,7 @@ class ProcessingSettings:
     grouping: str = "local_max"
     doa: str = "auto"
     min_range: float = 0.0
+    max_range: float | None = None
     max_detections: int = 128
     compensate_tdm_doppler: bool = True
     interpolate: bool = True
@@ -119,6 +129,8 @@ class ProcessingSettings:
         if self.doa != "auto" and self.doa not in DOA_METHODS:
             raise UnknownNameError(f"{name}.doa", self.doa, ["auto", *DOA_METHODS])
         V.non_negative(f"{name}.min_range", self.min_range, "m")
+        if self.max_range is not None:
+            V.positive(f"{name}.max_range", self.max_range, "m")
         V.integer(f"{name}.max_detections", self.max_detections, lo=0)
 
 
@@ -296,7 +308,10 @@ def _detect(power: np.ndarray, r_axis: np.ndarray,
     else:
         # Too few Doppler bins for a 2-D window (static or short frames).
         cf = cfar_1d(power, s.cfar, guard=gr, train=tr, pfa=s.pfa, rank=s.os_rank, axis=-1)
-    mask = cf.mask & (r_axis >= s.min_range)[None, :]
+    keep = r_axis >= s.min_range
+    if s.max_range is not None:
+        keep &= r_axis <= s.max_range
+    mask = cf.mask & keep[None, :]
     d_idx, r_idx = group_peaks(power, mask, s.grouping)
     return cf, d_idx[: s.max_detections], r_idx[: s.max_detections]
 
