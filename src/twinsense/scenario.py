@@ -81,6 +81,19 @@ def _number_only(value: Any) -> Any:
     return value
 
 
+def _hold_number(value: Any) -> Any:
+    """A reach's ``hold``: a number, .inf allowed (keep the hand there), NaN refused as what it is (the
+    ``ge=0`` check after this would call it "not >= 0")."""
+    value = _number_only(value)
+    try:
+        nan = float(value) != float(value)  # also the text "nan", which pydantic would read as NaN
+    except (TypeError, ValueError, OverflowError):
+        nan = False  # not a number: the float check after this names it
+    if nan:
+        raise ValueError("a time >= 0 [s], or .inf to keep the hand there (not NaN)")
+    return value
+
+
 Num = Annotated[float, BeforeValidator(_number_only)]
 Int = Annotated[int, BeforeValidator(_number_only)]
 # The constraints before the number check: a BeforeValidator under them makes pydantic test gt/ge on
@@ -284,7 +297,7 @@ class PersonReachSpec(_Model):
     target: Vec3
     start_time: Finite = 0.0
     duration: Pos = 1.0
-    hold: Annotated[float, Field(ge=0), BeforeValidator(_number_only)] = 1.0  # inf: keep the hand there
+    hold: Annotated[float, Field(ge=0), BeforeValidator(_hold_number)] = 1.0  # inf: keep the hand there
     side: Literal["right", "left"] = "right"
 
 
@@ -572,7 +585,9 @@ def scenario_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None 
     problems += _topic_clashes(spec)
     parents = [o.name for o in spec.objects] + [n for n in (*[o.name for o in scene.objects], *scene.frame_names)
                                                 if "/" in n]
-    failed_robots = {r.name for r in spec.robots} - {n.split("/")[0] for n in parents}  # reported once, above
+    # A robot or person that failed to build is reported once, above: a sensor mounted on one of its links is
+    # not reported again as an unknown parent.
+    failed_bodies = {b.name for b in (*spec.robots, *spec.people)} - {n.split("/")[0] for n in parents}
     sensors = []
     from twinsense.io.mcap import OPTICAL_KINDS  # a sensor's ROS frames: <name>, or <name>_link and _optical_frame
 
@@ -585,7 +600,7 @@ def scenario_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None 
                              f"frame of {frames[taken[0]]})"))
             continue
         frames.update((f, f"sensor '{ss.name}'") for f in own)
-        if ss.mount.parent is not None and ss.mount.parent.split("/")[0] in failed_robots:
+        if ss.mount.parent is not None and ss.mount.parent.split("/")[0] in failed_bodies:
             continue
         if ss.mount.parent is not None and ss.mount.parent not in parents:
             problems.append((f"sensors[{i}].mount.parent", ss.mount.parent,

@@ -66,9 +66,9 @@ BAD = [
     ("times not increasing", _data([_ur5(joints={"keyframes": {"times": [0, 1, 1], "values": [HOME6] * 3}})]),
      "robots[0].joints.keyframes.times", "increasing"),
     ("NaN keyframe", _data([_ur5(joints={"keyframes": {"times": [0, 1], "values": [HOME6, [math.nan] * 6]}})]),
-     "robots[0].joints.keyframes.values", "finite"),
+     "robots[0].joints.keyframes.values[1][0]", "finite"),  # the first NaN, named as in the file
     ("NaN velocity", _data([_ur5(joints={"constant_velocity": {"q0": HOME6, "qd": [math.nan, 0, 0, 0, 0, 0]}})]),
-     "robots[0].joints.constant_velocity", "finite"),
+     "robots[0].joints.constant_velocity.qd[0]", "finite"),
     ("short row", _data([_ur5(joints={"keyframes": {"times": [0, 1], "values": [HOME6, HOME6[:5]]}})]),
      "robots[0].joints.keyframes.values", "(n_times, n_joints)"),
     ("five columns", _data([_ur5(joints={"keyframes": {"times": [0, 1], "values": [HOME6[:5], HOME6[:5]]}})]),

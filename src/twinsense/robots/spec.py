@@ -75,6 +75,7 @@ def joint_motion_from_dict(data: Any, field: str = "joints", base_dir: Path | No
                           f"joint_names beside {kind} ({field}.joint_names), not inside it")
     if kind == "recording":
         return _recording(value, names, f"{field}.recording", base_dir)
+    _check_numbers(kind, value, field)
     try:
         if kind == "keyframes":
             if not isinstance(value, dict) or set(value) != {"times", "values"}:
@@ -132,6 +133,44 @@ def check_joints_over_run(body: ArticulatedBody, duration: float) -> None:
         raise ConfigError(f"joints.constant_velocity.qd[{k}]", float(m.qdot[k]),
                           f"a velocity that keeps joint '{names[k]}' within its limits [{lo[k]:g}, {hi[k]:g}] over "
                           f"the run (0 to {duration:g} s): it leaves them at t = {t_exit[k]:.9g} s")
+
+
+def _check_numbers(kind: str, value: Any, field: str) -> None:
+    """Each number of a ``keyframes`` / ``constant_velocity`` / ``setpoints`` entry a finite real number, or
+    a ConfigError naming it (``joints.keyframes.values[1][2]``).
+
+    The motions take their lists as arrays, which reads a true/false among numbers as 1/0 and names only
+    the whole array for a NaN, an inf or a text; here the element itself is named. Lists of the wrong
+    shape are left to the motions' own checks, which name the shape."""
+    if kind == "keyframes" and isinstance(value, dict):
+        entries = [(f"{field}.keyframes.times", value.get("times"), "a finite time [s]"),
+                   (f"{field}.keyframes.values", value.get("values"), "a finite joint position [rad or m]")]
+    elif kind == "constant_velocity" and isinstance(value, dict):
+        entries = [(f"{field}.constant_velocity.q0", value.get("q0"), "a finite joint position [rad or m]"),
+                   (f"{field}.constant_velocity.qd", value.get("qd"), "a finite joint velocity [rad/s or m/s]")]
+    elif kind == "setpoints":
+        entries = [(f"{field}.setpoints", value, "a finite joint position [rad or m]")]
+    else:
+        return
+    for path, seq, allowed in entries:
+        if not isinstance(seq, (list, tuple)):
+            continue
+        for i, row in enumerate(seq):
+            items = [(f"{path}[{i}][{j}]", v) for j, v in enumerate(row)] if isinstance(row, (list, tuple)) \
+                else [(f"{path}[{i}]", row)]
+            for where, v in items:
+                if not _is_finite_number(v):
+                    raise ConfigError(where, v, allowed)
+
+
+def _is_finite_number(value: Any) -> bool:
+    """A real number other than true/false that is finite as a float (a huge int is not)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        return False
+    try:
+        return bool(np.isfinite(float(value)))
+    except OverflowError:
+        return False
 
 
 def _fixed_value(field: str, value: Any) -> None:
