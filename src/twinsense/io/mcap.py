@@ -212,7 +212,7 @@ def scene_transforms(scene: Scene) -> tuple[list[tuple[str, str, Pose]], list]:
     (objects and frames whose motion is not static: robot links, flanges,
     sites, people) as the items themselves, to be posed at each frame time
     with ``item.pose_at(t)``. Mount frames are what links without geometry
-    become (a flange such as ``ur5/tool0``, an MJCF site): sensors hang from
+    become (a flange such as ``ur5/tool0``, a geomless MJCF body, a co-simulation's site): sensors hang from
     them, so they are published like the objects.
     """
     static: list[tuple[str, str, Pose]] = []
