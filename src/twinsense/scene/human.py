@@ -903,15 +903,23 @@ class PersonMotion(_ReadOnly):
         e1, e2 = leg / np.linalg.norm(leg), np.array([0.0, 1.0, 0.0])
         f1 = d / r
         n = np.cross(fx, f1)
-        f2 = n / np.linalg.norm(n)
+        # The leg plane's normal is the thigh's (and foot's) lateral axis: on the side of the foot's own
+        # lateral axis. fx x f1 alone flips for a foot pointing behind the hip-ankle line (knee past
+        # about 90 deg, ankle plantarflexed), which was solved in the mirrored plane.
+        f2 = n / (np.linalg.norm(n) * (1.0 if n @ (rb.T @ foot.rotation[:, 1]) >= 0.0 else -1.0))
         rot = np.column_stack([f1, f2, np.cross(f1, f2)]) @ np.column_stack([e1, e2, np.cross(e1, e2)]).T
+        lo, hi = self.tree.limits[self._leg_columns(side)].T
         theta = math.asin(max(-1.0, min(1.0, -rot[2, 0])))
         turn, chi = math.atan2(rot[1, 0], rot[0, 0]), math.atan2(rot[2, 1], rot[2, 2])
         c = (rot @ _rot_y(knee)).T @ fx
-        out = np.array([turn, -theta, s * chi, knee, math.atan2(c[2], c[0])])
+        ankle = math.atan2(c[2], c[0])
+        # Z-Y-X angles have two branches, (turn, theta, chi) and (turn + pi, pi - theta, chi + pi): the
+        # one within the limits (a hip flexed past 90 deg, theta < -90 deg, is on the second).
+        out = min((np.array([turn, -theta, s * chi, knee, ankle]),
+                   np.array([_wrap(turn + math.pi), -_wrap(math.pi - theta), s * _wrap(chi + math.pi), knee, ankle])),
+                  key=lambda x: float(np.sum(np.maximum(lo - x, 0.0) + np.maximum(x - hi, 0.0))))
         # Into the joint limits, LIMIT_MARGIN inside them: the splines through these poses may overshoot
         # a little between them (a foot on its foothold then tilts by the clipped angle).
-        lo, hi = self.tree.limits[self._leg_columns(side)].T
         return np.clip(out, lo + LIMIT_MARGIN, hi - LIMIT_MARGIN)
 
     def _closing_steps(self) -> tuple:
