@@ -1002,7 +1002,7 @@ class PersonMotion(_ReadOnly):
         plan.qd[c] = np.where(over != 0.0, 1.0 - th * th, 1.0) * qd
 
     def _starting_step(self):
-        """The swinging (left) leg's angles over the start ramp, a C1 spline in tau = t - start_time.
+        """The swinging (left) leg's angles over the start ramp, a quintic spline in tau = t - start_time.
 
         The gait starts at the right foot's mid-stance with the left foot swinging beside it; fading
         the left leg's angles from standing into that swing put its foot up to 5.4 cm into the floor,
@@ -1061,7 +1061,7 @@ class PersonMotion(_ReadOnly):
         apart. In each of two steps of CLOSE_STEP one foot steps to where the standing pose puts it,
         straight up by CLOSE_LIFT H, over an apex halfway and straight down (its leg's angles a C1
         spline through the closed-form angles of :meth:`_leg_ik` at those poses), while the other
-        stands (its leg's angles through the closed form at five points of the pelvis's path) and
+        stands (its leg's angles through the closed form at PLANTED_KNOTS points of the pelvis's path) and
         the pelvis moves, C1, from where the gait stopped to a pause halfway and on into the
         standing pose. The free foot (or, in double support, the one behind) steps first. The arms,
         trunk and head fade into standing over both steps.
