@@ -21,7 +21,6 @@ body, is expressed with frame-only intermediate links named
 
 from __future__ import annotations
 
-import functools
 import math
 import os
 import warnings
@@ -30,17 +29,16 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial import ConvexHull, QhullError
 from scipy.spatial.transform import Rotation
 
-from twinsense.errors import ConfigError, GeometryError
+from twinsense.errors import ConfigError
 from twinsense.inputs import note_input, noting
 from twinsense.robots.deps import require
 from twinsense.robots.descriptions import resolve
 from twinsense.robots.materials import link_materials
-from twinsense.robots.meshes import primitive_mesh, stack_parts
+from twinsense.robots.meshes import MeshVolume, PartsMesh, primitive_mesh, stack_parts
 from twinsense.scene.articulated import ArticulatedBody, Joint, JointMotion, KinematicTree, Link
-from twinsense.scene.geometry import Box, Capsule, Cylinder, Geometry, Plane, Sphere, TriangleMesh
+from twinsense.scene.geometry import Box, Capsule, Cylinder, Geometry, Plane, Sphere
 from twinsense.scene.motion import Motion
 from twinsense.scene.pose import Pose
 from twinsense.validation import LENGTH_MAX
@@ -314,32 +312,6 @@ class _Ellipsoid:
         return np.sum((p / self.radii) ** 2, axis=1) <= 1.0
 
 
-@dataclass(frozen=True, eq=False)
-class _MeshVolume:
-    """A MuJoCo mesh geom, vertices (n, 3) [m] and faces (m, 3) in the geom frame; its inside test is the
-    mesh's own when it is closed (:attr:`closed`); an open one is hulled by :class:`GeomsMesh`, together
-    with the open meshes it touches."""
-
-    vertices: np.ndarray
-    faces: np.ndarray
-
-    @functools.cached_property
-    def closed(self) -> TriangleMesh | None:
-        """The mesh when it is closed (watertight), else None."""
-        try:
-            mesh = TriangleMesh(self.vertices, self.faces, name="mjcf mesh geom")
-            return mesh if mesh.mesh.is_watertight else None
-        except GeometryError:  # degenerate triangles only: an open mesh
-            return None
-
-    def contains(self, points) -> np.ndarray:
-        return np.asarray(self.closed.contains(points), dtype=bool)
-
-
-#: Open meshes of one body whose bounding boxes come this close [m] are hulled together (see GeomsMesh).
-OPEN_MESH_GAP = 1e-3
-
-
 def geom_volume(model, g: int, mesh: tuple[np.ndarray, np.ndarray] | None = None):
     """Geom g's inside test in its geom frame (an object with ``contains(points (n, 3)) -> bool (n,)``), or
     None for a geom without volume (a plane; an SDF or plugin geom, which twinsense does not draw).
@@ -350,80 +322,27 @@ def geom_volume(model, g: int, mesh: tuple[np.ndarray, np.ndarray] | None = None
     if t == GEOM_ELLIPSOID:
         return _Ellipsoid(np.asarray(model.geom_size[g], dtype=float).copy())
     if t in (GEOM_MESH, GEOM_HFIELD):  # a height field is a closed prism: its own mesh's test is exact
-        return _MeshVolume(*(mesh if mesh is not None else geom_mesh(model, g, "mjcf")))
+        return MeshVolume(*(mesh if mesh is not None else geom_mesh(model, g, "mjcf")))
     return geom_primitive(model, g)
 
 
 @dataclass(frozen=True, eq=False)
-class GeomsMesh(TriangleMesh):
+class GeomsMesh(PartsMesh):
     """A MuJoCo body's geoms merged into one triangle mesh in the body frame (what rays see), whose inside
-    test is the geoms' own: a point is inside when it lies inside one of them.
+    test is the geoms' own (:class:`~twinsense.robots.meshes.PartsMesh`, the rule of URDF links too): a
+    point is inside when it lies inside one of them.
 
     ``solids``: ((inside test in the geom frame, geom -> body pose), ...) of the geoms with a volume:
     primitives and ellipsoids exactly, closed meshes and height fields by their winding number; open
     meshes (vendor display meshes often are: shells that close only together) by the convex hull of
-    each group of them that touch (bounding boxes within OPEN_MESH_GAP), which for a link's shells is
-    the link's hull, as before, and for separate pieces keeps the air between them outside. A plane has
-    no inside. The merged mesh of a body with a plane (the world body of most MuJoCo scenes: a floor
-    beside a table) is open, and its inside test was the hull of everything: the air between a table
-    and the floor's far edge counted as inside.
+    each group of them that touch (bounding boxes within meshes.OPEN_MESH_GAP), which for a link's shells is
+    the link's hull, as before, and for separate pieces keeps the air between them outside (a group that
+    closes together by its winding number). A plane has no inside. The merged mesh of a body with a plane
+    (the world body of most MuJoCo scenes: a floor beside a table) is open, and its inside test was the
+    hull of everything: the air between a table and the floor's far edge counted as inside.
     """
 
     solids: tuple = ()
-
-    @functools.cached_property
-    def _tests(self) -> tuple[tuple, tuple]:
-        """((inside test, geom -> body pose), ...) of the exact solids and (facets (k, 4), ...) of the open
-        meshes' hulls in the body frame: outward unit normals and offsets. Arrays and geometries only,
-        no closures: a scene is copied by pickle."""
-        exact, parts = [], []
-        for solid, pose in self.solids:
-            if isinstance(solid, _MeshVolume) and solid.closed is None:
-                parts.append(pose.apply(solid.vertices))
-            else:
-                exact.append((solid, pose))
-        hulls = []
-        for group in _touching([(v.min(axis=0), v.max(axis=0)) for v in parts], OPEN_MESH_GAP):
-            try:
-                hulls.append(np.asarray(ConvexHull(np.vstack([parts[i] for i in group])).equations, float))
-            except QhullError:  # all in one plane (or fewer than four vertices): no volume
-                pass
-        return tuple(exact), tuple(hulls)
-
-    def contains(self, points):
-        p = np.asarray(points, dtype=float).reshape(-1, 3)
-        exact, hulls = self._tests
-        # Inside a hull: on the inner side of every facet plane (n . p + d <= 0), to rounding.
-        out = np.zeros(len(p), dtype=bool)
-        for eq in hulls:
-            out |= np.all(p @ eq[:, :3].T + eq[:, 3] <= 1e-12, axis=1)
-        for solid, pose in exact:
-            rest = np.flatnonzero(~out)
-            if len(rest) == 0:
-                break
-            # Body -> geom frame: R^T (p - t), written as a row product.
-            out[rest] = solid.contains((p[rest] - pose.position) @ pose.rotation)
-        return out
-
-
-def _touching(boxes: list[tuple[np.ndarray, np.ndarray]], gap: float) -> list[list[int]]:
-    """Groups of the boxes (lower (3,), upper (3,) corners [m]) linked by boxes within ``gap`` of each other."""
-    group = list(range(len(boxes)))
-
-    def root(i: int) -> int:
-        while group[i] != i:
-            i = group[i]
-        return i
-
-    for i, (lo_i, hi_i) in enumerate(boxes):
-        for j in range(i):
-            lo_j, hi_j = boxes[j]
-            if np.all(lo_i <= hi_j + gap) and np.all(lo_j <= hi_i + gap):
-                group[root(i)] = root(j)
-    out: dict[int, list[int]] = {}
-    for i in range(len(boxes)):
-        out.setdefault(root(i), []).append(i)
-    return list(out.values())
 
 
 def _compiled_mesh(model, g: int) -> tuple[np.ndarray, np.ndarray]:

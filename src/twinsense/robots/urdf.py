@@ -1,7 +1,8 @@
 """Robots from URDF files, parsed by yourdfpy, with their visual meshes.
 
 Every ``<link>``'s visuals (meshes with their declared ``scale``, boxes,
-cylinders, spheres) are merged into one mesh in the link frame; every
+cylinders, spheres) are merged into one mesh in the link frame, whose inside
+test is the parts' own (:class:`~twinsense.robots.meshes.LinkMesh`); every
 ``<joint>`` becomes a :class:`~twinsense.scene.articulated.Joint` (revolute,
 continuous, prismatic, fixed; a floating joint is taken as fixed: the base
 pose places the robot). A ``<mimic>`` joint follows its master
@@ -108,6 +109,8 @@ def _check_elements(root: ET.Element, field: str) -> None:
 
 
 def _shape_parts(link, source: str, base_dir: Path, field: str, packages: dict) -> list:
+    """The link's parts as :func:`~twinsense.robots.meshes.merge` takes them: (vertices (n, 3) [m], faces
+    (m, 3), part -> link pose, the primitive (box, cylinder, sphere) or None for a mesh file) each."""
     parts = []
     elements = link.visuals if source == "visual" else link.collisions
     for k, el in enumerate(elements):
@@ -123,16 +126,18 @@ def _shape_parts(link, source: str, base_dir: Path, field: str, packages: dict) 
                 # inside out; reversing the corners keeps the normals pointing out of the part, as trimesh's
                 # apply_transform does (an inside-out closed part has a negative volume and is no volume).
                 f = f[:, ::-1]
-            parts.append((v * scale, f, origin))
+            parts.append((v * scale, f, origin, None))
         else:
             try:  # name the link and element of a bad primitive, not only "box.size"
+                prim = None
                 if g.box is not None:
-                    parts.append((*primitive_mesh(Box(tuple(float(x) for x in g.box.size))), origin))
+                    prim = Box(tuple(float(x) for x in g.box.size))
                 elif g.cylinder is not None:
-                    parts.append((*primitive_mesh(Cylinder(float(g.cylinder.radius), float(g.cylinder.length))),
-                                  origin))
+                    prim = Cylinder(float(g.cylinder.radius), float(g.cylinder.length))
                 elif g.sphere is not None:
-                    parts.append((*primitive_mesh(Sphere(float(g.sphere.radius))), origin))
+                    prim = Sphere(float(g.sphere.radius))
+                if prim is not None:  # drawn as its mesh, inside exactly where the primitive is
+                    parts.append((*primitive_mesh(prim), origin, prim))
             except ConfigError as e:
                 raise ConfigError(f"{where}.{e.field}", e.value, e.allowed) from None
     return parts
