@@ -182,6 +182,29 @@ def test_reach_hold_nan_says_nan(files, hold):
     assert p[0] == "people[1].reach.hold" and "NaN" in p[2]  # not "should be >= 0"
 
 
+@pytest.mark.parametrize(("tag", "shapes"), [("collision", None), ("visual", "collision")])
+def test_shapes_the_description_lacks(files, tag, shapes):
+    """A URDF whose links carry only <collision> shapes, loaded with the default visual ones (or only <visual>,
+    with shapes: collision), had no geometry at all: every sensor saw through the robot without a word."""
+    text = URDF if tag == "visual" else URDF.replace("<visual>", "<collision>").replace("</visual>", "</collision>")
+    (files / f"only_{tag}.urdf").write_text(text)
+    entry = {"name": "arm", "description": f"only_{tag}.urdf"} | ({"shapes": shapes} if shapes else {})
+    probs = problems({"duration": 0.1, "robots": [entry]}, files)
+    wanted = "visual" if tag == "visual" else "collision"
+    assert [(p[0], p[1]) for p in probs] == [("robots[0].shapes", shapes or "visual")]
+    assert probs[0][2].startswith(f"{wanted}:")
+
+
+def test_frames_only_description_allowed(files):
+    """A description with no shapes in either set (frames to mount on) is built as frames."""
+    (files / "frames.urdf").write_text('<robot name="f"><link name="a"/><link name="b"/><joint name="j" '
+                                       'type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/>'
+                                       '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>')
+    sc = scenario_from_dict({"duration": 0.1, "robots": [{"name": "f", "description": "frames.urdf"}]},
+                            base_dir=files)
+    assert len(sc.scene.objects) == 0 and set(sc.scene.frame_names) == {"f/a", "f/b"}
+
+
 def test_bad_scenario_writes_nothing(files, tmp_path):
     """`twinsense run` on a file with two bad values: both named as in the file, exit 2, no output folder."""
     data = _set(_set(scenario(), (*ARM, "keyframes", "values", 1, 1), True), ("people", 0, "height"), 3.0)

@@ -661,16 +661,31 @@ def _add_robots(spec: ScenarioSpec, scene: Scene, base_dir: Path, local_mats: di
         try:
             from twinsense.robots.spec import check_joints_over_run, robot_from_dict
 
-            body = robot_from_dict(rs.name, rs.description, base=rs.base.build(f"robots[{i}].base"),
-                                   joints=rs.joints, base_dir=base_dir, shapes=rs.shapes,
-                                   materials={link: local_mats.get(m, m) for link, m in rs.materials.items()},
-                                   xacro_args=rs.xacro_args, packages=rs.packages)
+            kw = {"base": rs.base.build(f"robots[{i}].base"), "joints": rs.joints, "base_dir": base_dir,
+                  "materials": {link: local_mats.get(m, m) for link, m in rs.materials.items()},
+                  "xacro_args": rs.xacro_args, "packages": rs.packages}
+            body = robot_from_dict(rs.name, rs.description, shapes=rs.shapes, **kw)
+            if not _has_geometry(body):
+                # No link has the chosen shapes (a URDF without <collision>, or with collision shapes only and
+                # the default visual): every sensor would see through the robot. When the other set has
+                # shapes, the entry asks for the wrong one; a description of frames only stays allowed.
+                other = "visual" if rs.shapes == "collision" else "collision"
+                if _has_geometry(robot_from_dict(rs.name, rs.description, shapes=other, **kw)):
+                    problems.append((f"robots[{i}].shapes", rs.shapes,
+                                     f"{other}: no link of this description has {rs.shapes} shapes, so sensors "
+                                     f"would not see the robot; its {other} shapes would show it"))
+                    continue
             check_joints_over_run(body, spec.duration)  # here, not part-way through the run
             body.add_to(scene)
         except ConfigError as e:
             tail = e.field.removeprefix(f"{rs.name}.")
             problems.append((e.field if e.field.startswith("robots[") else f"robots[{i}].{tail}", e.value, e.allowed))
     return problems
+
+
+def _has_geometry(body) -> bool:
+    """Whether any link of an articulated body has geometry (a scene object, not only a mount frame)."""
+    return any(link.link_frame_geometry() is not None for link in body.tree.links)
 
 
 def _topic_clashes(spec: ScenarioSpec) -> list:
