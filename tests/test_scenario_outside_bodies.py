@@ -176,6 +176,21 @@ def test_failed_person_reported_once(files):
     assert [(p[0], p[1]) for p in probs] == [("people[0].height", 3.0)]
 
 
+@pytest.mark.parametrize("who", ["robot", "person"])
+def test_failed_own_material_reported_once(files, who):
+    """A scenario material that fails (unknown base), named by a robot link or a person's clothing: the
+    material's entry is the one problem. The robot's link was also called an unknown material (the list
+    left the scenario's own name out) and the sensors on either body unknown mount parents."""
+    data = scenario() | {"materials": [{"name": "paint", "base": "unobtainium"}]}
+    if who == "robot":
+        data["robots"][0]["materials"] = {"upper": "paint"}
+        data["sensors"][0]["mount"] = {"parent": "arm/tip"}
+    else:
+        data["people"][0]["clothing"] = "paint"
+    probs = problems(data, files)
+    assert [(p[0], p[1]) for p in probs] == [("materials[0].base", "unobtainium")]
+
+
 @pytest.mark.parametrize("hold", [math.nan, "nan"])
 def test_reach_hold_nan_says_nan(files, hold):
     (p,) = problems(_set(scenario(), ("people", 1, "reach", "hold"), hold), files)

@@ -580,7 +580,7 @@ def scenario_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None 
                 continue
         if len(parts) == 2:
             scene.add(SceneObject(os_.name, parts[0], mat, parts[1], frozenset(os_.layers), magnet))
-    problems += _add_robots(spec, scene, base_dir, local_mats)
+    problems += _add_robots(spec, scene, base_dir, local_mats, failed_mats)
     problems += _add_people(spec, scene, local_mats, failed_mats)
     problems += _topic_clashes(spec)
     parents = [o.name for o in spec.objects] + [n for n in (*[o.name for o in scene.objects], *scene.frame_names)
@@ -641,10 +641,12 @@ def scenario_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None 
                     spec.processes, base_dir)
 
 
-def _add_robots(spec: ScenarioSpec, scene: Scene, base_dir: Path, local_mats: dict[str, Material]) -> list:
+def _add_robots(spec: ScenarioSpec, scene: Scene, base_dir: Path, local_mats: dict[str, Material],
+                failed_mats: set = frozenset()) -> list:
     """Add the ``robots:`` entries to ``scene`` (one object per link, "robot/link"); their problems.
 
-    ``local_mats``: the scenario's own materials, which link ``materials`` may name as objects do."""
+    ``local_mats``: the scenario's own materials, which link ``materials`` may name as objects do;
+    ``failed_mats``: those whose own entry is reported (a robot naming one is left out, as a person is)."""
     problems = []
     objects = {o.name for o in spec.objects}
     for i, rs in enumerate(spec.robots):
@@ -652,6 +654,8 @@ def _add_robots(spec: ScenarioSpec, scene: Scene, base_dir: Path, local_mats: di
             problems.append((f"robots[{i}].name", rs.name, "a name no object of this scenario uses (its links "
                              f"are '{rs.name}/<link>')"))
             continue
+        if any(m in failed_mats for m in rs.materials.values()):
+            continue  # the material's own entry is reported, not again as unknown here
         unknown = [(link, m) for link, m in rs.materials.items() if m not in local_mats and m not in material_names()]
         if unknown:
             problems += [(f"robots[{i}].materials.{link}", m, "one of: " + ", ".join(sorted({*material_names(),
