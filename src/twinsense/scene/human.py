@@ -925,8 +925,8 @@ class PersonMotion(_ReadOnly):
     def _closing_steps(self) -> tuple:
         """The closing steps after the walk's arrival (see :meth:`_closing`): (first side, second side,
         the pelvis's (position (3,), yaw, roll) where the gait stopped, between the steps and standing,
-        and per step the stepping leg's joint spline over the step (u in [0, 1]) and the standing
-        leg's over the pelvis's fade weight)."""
+        per step the stepping leg's joint spline over the step (u in [0, 1]) and the standing leg's
+        over the pelvis's fade weight, and per side the standing sway's lever [m] over both steps)."""
         ref = self._ref_end
         end_xy, _, end_psi, _ = self.path.at(self.path.length)
         still = self._standing(0.0, end_xy, end_psi, turning=False, sway=False)
@@ -982,7 +982,38 @@ class PersonMotion(_ReadOnly):
         first_stands = planted(1, first, standing[first], first_step(1.0), still.q[cf])
         # The second step ends at the standing angles themselves (the pelvis there is the standing one).
         second_step = step(1, second, second_stands(1.0), still.q[cs])
-        return first, second, poses, ((first_step, second_stands), (second_step, first_stands))
+        # The standing sway's lever per leg (see :meth:`_closing`): at the standing knots, the sole centre's
+        # sideways motion per radian of hip abduction (times the side's sign), s d(sole . n) / d q_abd, with
+        # n the sway's direction; the leg's hip height above its sole when straight. A C1 spline in the time
+        # since the arrival through the knots where the leg stands, ending at the standing leg's lever.
+        n = np.array([-math.sin(still.yaw), math.cos(still.yaw), 0.0])
+        centre = sole.mean(axis=0)
+        ws = np.linspace(0.0, 1.0, PLANTED_KNOTS)
+        us = 0.5 - np.sin(np.arcsin(1.0 - 2.0 * ws) / 3.0)  # smoothstep(us) = ws
+        T = CLOSE_STEP
+
+        def lever(k, side, spline, w):
+            pos, yaw, roll = pelvis(k, w)
+            base = Pose._trusted(pos, _rot_z(yaw) @ _rot_x(roll))
+            c, sign = self._col[f"{side}_hip_abduction"], (1.0 if side == "left" else -1.0)
+            q = ref.q.copy()
+            q[self._leg_columns(side)] = spline(w)
+            lat = []
+            for e in (1e-6, -1e-6):
+                q[c] += e
+                lat.append(float(self.tree.forward(q, None, base).pose(f"{side}_foot").apply(centre[None])[0] @ n))
+                q[c] -= e
+            return sign * (lat[0] - lat[1]) / 2e-6
+
+        ht = self.leg.leg_length
+        levers = {
+            second: _joint_spline(np.r_[T * us, 2 * T] / (2 * T),
+                                  np.r_[[lever(0, second, second_stands, w) for w in ws], ht][:, None]),
+            first: _joint_spline(np.r_[0.0, T + T * us] / (2 * T),
+                                 np.r_[lever(1, first, first_stands, 0.0), [lever(1, first, first_stands, w)
+                                                                            for w in ws[:-1]], ht][:, None]),
+        }
+        return first, second, poses, ((first_step, second_stands), (second_step, first_stands)), levers
 
     def _set_leg(self, plan: _Plan, side: str, q: np.ndarray, qd: np.ndarray) -> None:
         """Put ``side``'s LEG_JOINTS angles ``q`` (5,) [rad] and rates ``qd`` (5,) [rad/s] into ``plan``,
@@ -1066,7 +1097,7 @@ class PersonMotion(_ReadOnly):
         standing pose. The free foot (or, in double support, the one behind) steps first. The arms,
         trunk and head fade into standing over both steps.
         """
-        first, second, poses, steps = self._close
+        first, second, poses, steps, levers = self._close
         T = CLOSE_STEP
         ref = self._ref_end
         end_xy, _, end_psi, _ = self.path.at(self.path.length)
@@ -1090,11 +1121,26 @@ class PersonMotion(_ReadOnly):
         roll, roll_d = ra + w * (rb - ra), wd * (rb - ra)
         stepping, standing = (first, second) if i == 0 else (second, first)
         step, stands = steps[i]
-        sway_q = stand.q - self._q_rest
+        # The standing sway (pelvis k d sideways, d = sway sin(2 pi f t)) is held off the feet by the hip
+        # abductions: -s atan(k d / lambda), lambda the leg's lever at this time (the sole centre's sideways
+        # motion per radian of abduction; standing straight, the hip's height above the sole, where this is
+        # the standing pose's own -s atan(d / h_t)). With h_t on a bent standing leg instead, its sole
+        # centre moved 2.6-3.7 mm sideways with the pelvis at 5-10 cm of sway.
+        d = dd = 0.0
+        if self.sway > 0:
+            arg = 2 * math.pi * SWAY_FREQUENCY * t
+            d, dd = self.sway * math.sin(arg), self.sway * 2 * math.pi * SWAY_FREQUENCY * math.cos(arg)
         plan = _Plan(p, v, yaw, yaw_d, roll, roll_d, q, qd)
+        x = tau / (2 * T)
         for side, q_side, qd_side in ((stepping, step(u), step(u, 1) / T), (standing, stands(w), stands(w, 1) * wd)):
             c = self._leg_columns(side)
-            self._set_leg(plan, side, q_side + k * sway_q[c], qd_side + k * stand.qd[c] + kd * sway_q[c])
+            lam, lam_d = float(levers[side](x)[0]), float(levers[side](x, 1)[0]) / (2 * T)
+            r = k * d / lam
+            r_d = (kd * d + k * dd) / lam - k * d * lam_d / (lam * lam)
+            sign = 1.0 if side == "left" else -1.0
+            comp, comp_d = np.zeros(len(c)), np.zeros(len(c))
+            comp[2], comp_d[2] = -sign * math.atan(r), -sign * r_d / (1.0 + r * r)  # LEG_JOINTS[2]: hip_abduction
+            self._set_leg(plan, side, q_side + comp, qd_side + comp_d)
         return plan
 
     # ------------------------------------------------------------ reaching
