@@ -274,6 +274,44 @@ class TriangleMesh(Geometry):
         return {"type": "mesh", "name": self.name, "n_faces": len(self.faces)}
 
 
+#: Ray directions of :func:`ray_parity_contains`: the first for every point, the second for the points whose
+#: forward and backward parities disagree (a ray through an edge or a vertex counted a hit twice or none).
+PARITY_DIRECTIONS = (np.array([0.4395064455, 0.617598629942, 0.652231566745]),
+                     np.array([-0.5812381937, 0.2365148372, 0.7786407556]))
+
+
+def ray_parity_contains(mesh: trimesh.Trimesh, points: np.ndarray) -> np.ndarray:
+    """(n,) points (n, 3) inside the closed ``mesh`` by ray parity (Embree through trimesh's intersector).
+
+    Each point casts a ray forward and backward along PARITY_DIRECTIONS[0] and counts every surface it
+    crosses; an odd count is inside. Where the two counts disagree and both rays hit something (a ray
+    through an edge or a vertex), the point is cast again along the second direction. trimesh's own
+    ``contains`` retries those along a direction drawn from an unseeded generator, so the same points
+    gave different answers from run to run (0.6772-0.6796 of a UR5's collision points inside); these
+    directions are fixed: the same points, the same answer.
+    """
+    points = np.asarray(points, dtype=float)
+    out = np.zeros(len(points), dtype=bool)
+    lo, hi = mesh.bounds
+    idx = np.nonzero(np.all((points >= lo) & (points <= hi), axis=1))[0]
+    for k, d in enumerate(PARITY_DIRECTIONS):
+        if len(idx) == 0:
+            break
+        p = points[idx]
+        dirs = np.broadcast_to(d, p.shape)
+        _, ray, _ = mesh.ray.intersects_location(np.vstack((p, p)), np.vstack((dirs, -dirs)), multiple_hits=True)
+        hits = np.bincount(ray, minlength=2 * len(p)).reshape(2, -1)
+        odd = hits % 2 == 1
+        agree = odd[0] == odd[1]
+        free = (hits == 0).any(axis=0)  # one way out hits nothing: outside, whatever the other counted
+        settled = agree | free | (k == len(PARITY_DIRECTIONS) - 1)
+        # Agreeing parities decide; a disagreement with a free way out (or left after both directions)
+        # is outside.
+        out[idx[settled]] = (odd[0] & agree)[settled]
+        idx = idx[~settled]
+    return out
+
+
 def _mesh_contains(mesh: trimesh.Trimesh, points: np.ndarray) -> np.ndarray:
     """Inside test for a closed mesh.
 
@@ -282,7 +320,7 @@ def _mesh_contains(mesh: trimesh.Trimesh, points: np.ndarray) -> np.ndarray:
     the number of points instead of points x triangles.
     """
     if len(points) * len(mesh.faces) > 2e7:
-        return np.asarray(mesh.contains(points), dtype=bool)
+        return ray_parity_contains(mesh, points)
     if len(points) == 0:
         return np.zeros(0, dtype=bool)
     out = np.zeros(len(points), dtype=bool)
