@@ -19,6 +19,7 @@ import pytest
 from scipy.interpolate import CubicSpline
 
 import twinsense
+from body_distance import person_to_mesh
 from twinsense.demos import robot_cell as rc
 from twinsense.errors import ConfigError
 from twinsense.safety import SeparationMonitor, SeparationParameters, protective_separation_distance
@@ -165,24 +166,6 @@ def test_demo_names_a_bad_flag_or_output_folder_before_building_anything(tmp_pat
     assert (tmp_path / "afile").read_text() == "keep"
 
 
-def _segment_samples(geometry, pose, h):
-    """Points (n, 3) [m] of a body segment, its radius [m] and the sampling bound [m]: a box's six faces as
-    grids of spacing <= h (a face point within h / sqrt(2) of one), a capsule's axis at spacing <= h (within
-    h / 2; the radius is subtracted after)."""
-    if isinstance(geometry, Box):
-        size = np.asarray(geometry.size, dtype=float)
-        faces = []
-        for axis in range(3):
-            for side in (-0.5, 0.5):
-                grid = [np.linspace(-s / 2, s / 2, int(np.ceil(s / h)) + 1) for s in size]
-                grid[axis] = np.array([side * size[axis]])
-                faces.append(np.stack(np.meshgrid(*grid, indexing="ij"), -1).reshape(-1, 3))
-        return pose.apply(np.concatenate(faces)), 0.0, h / math.sqrt(2.0)
-    half = 0.0 if isinstance(geometry, Sphere) else 0.5 * geometry.height
-    n = int(np.ceil(2 * half / h)) + 1
-    return pose.apply(np.c_[np.zeros(n), np.zeros(n), np.linspace(-half, half, n)]), geometry.radius, h / 2
-
-
 def test_true_distance_against_trimesh_on_mujocos_own_meshes(cell):
     # Brute force at two times the other checks do not use (the arm swinging to the place, 2.4 s; the hand
     # coming in, 3.0 s): MuJoCo's own copy of the link meshes (mesh_vert, float32: 1e-7 m) posed by its
@@ -214,18 +197,9 @@ def test_true_distance_against_trimesh_on_mujocos_own_meshes(cell):
         # Only as a filter: every point of the mesh subdivided to 10 mm edges is within 5.8 mm of a vertex.
         fine = trimesh.remesh.subdivide_to_size(robot.vertices, robot.faces, max_edge=0.01, max_iter=30)[0]
         near = cKDTree(fine)
-        body = monitor.person.state(t)
-        ref, err = math.inf, 0.0
-        for i, lk in enumerate(monitor.person.tree.links):
-            if lk.geometry is None:
-                continue
-            pts, radius, e = _segment_samples(lk.geometry, body.pose(i) @ lk.origin, 2e-3)
-            # A body point whose mesh distance could reach the monitor's value lies within that plus 5.8 mm
-            # of a vertex of the subdivided mesh.
-            keep = near.query(pts, distance_upper_bound=got + radius + 1.01 * bound)[0] < np.inf
-            if keep.any():
-                d = float(trimesh.proximity.closest_point(robot, pts[keep])[1].min()) - radius
-                ref, err = (d, e) if d < ref else (ref, err)
+        # A body point whose mesh distance could reach the monitor's value lies within that plus 5.8 mm
+        # of a vertex of the subdivided mesh.
+        ref, err = person_to_mesh(monitor.person, t, robot, near, got + 1.01 * bound)
         assert -err - 1e-6 <= got - ref <= bound + 1e-6, (t, got, ref)  # measured 0 and -2.6 um
 
 

@@ -17,6 +17,7 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
+from body_distance import person_to_mesh
 from tf_matrix import tf_matrix
 from twinsense.cli import app
 from twinsense.errors import ConfigError
@@ -443,26 +444,6 @@ def test_a_link_turning_at_constant_joint_velocity_has_the_doppler_of_its_twist(
 
 # --- the robot-cell demo's separation against trimesh's exact closest points ----------------------
 
-def _samples(geometry, pose, h: float):
-    """Points (n, 3) of a body segment for a distance from below: a box's faces as a grid of spacing <= h
-    (any face point within h / sqrt(2) of one), a capsule's axis at spacing <= h (within h / 2; the radius
-    is subtracted after). Returns (points, radius, sampling error bound) [m]."""
-    from twinsense.scene import Box, Sphere
-
-    if isinstance(geometry, Box):
-        size = np.asarray(geometry.size, dtype=float)
-        faces = []
-        for axis in range(3):
-            grid = [np.linspace(-s / 2, s / 2, int(np.ceil(s / h)) + 1) for s in size]
-            for side in (-1.0, 1.0):
-                grid[axis] = np.array([side * size[axis] / 2])
-                faces.append(np.stack(np.meshgrid(*grid, indexing="ij"), -1).reshape(-1, 3))
-        return pose.apply(np.concatenate(faces)), 0.0, h / math.sqrt(2.0)
-    half = 0.0 if isinstance(geometry, Sphere) else 0.5 * geometry.height
-    n = int(np.ceil(2 * half / h)) + 1
-    return pose.apply(np.c_[np.zeros(n), np.zeros(n), np.linspace(-half, half, n)]), geometry.radius, h / 2
-
-
 def test_demo_separation_matches_exact_closest_points_on_the_link_meshes():
     # The demo's true human-robot distance (SeparationMonitor: link meshes subdivided to 10 mm edges, as
     # vertices, against the person's exact capsules and boxes) at three times of its cycle: walking in,
@@ -492,16 +473,7 @@ def test_demo_separation_matches_exact_closest_points_on_the_link_meshes():
                                                           np.asarray(o.geometry.mesh.faces), process=False)
                                           for o, p in zip(links, poses, strict=True)])
         near = cKDTree(np.concatenate([p.apply(f) for f, p in zip(fine, poses, strict=True)]))
-        body = monitor.person.state(t)
-        ref, err = math.inf, 0.0
-        for i, lk in enumerate(monitor.person.tree.links):
-            if lk.geometry is None:
-                continue
-            pts, radius, e = _samples(lk.geometry, body.pose(i) @ lk.origin, 2e-3)
-            keep = near.query(pts, distance_upper_bound=got + radius + 1.01 * bound)[0] < np.inf
-            if keep.any():
-                d = float(trimesh.proximity.closest_point(robot, pts[keep])[1].min()) - radius
-                ref, err = (d, e) if d < ref else (ref, err)
+        ref, err = person_to_mesh(monitor.person, t, robot, near, got + 1.01 * bound)
         assert -err - 1e-9 <= got - ref <= bound + 1e-9, (t, got, ref)
         seen[t] = ref
     # The hand's closest approach to a link, as docs/robots.md gives it (29 mm), within the bounds above.
