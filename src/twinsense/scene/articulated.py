@@ -699,6 +699,14 @@ class JointMotion:
         body does not use (a mimic joint's, which follows its master), which is not checked.
         """
 
+    def _narrow_limits(self, tree: KinematicTree, columns) -> None:
+        """Narrow ``self._lo``, ``self._hi`` (per column) to the limits of ``tree``'s joints at ``columns``
+        (-1: unused): the bounds a motion that drives several bodies keeps its values within."""
+        cols = np.asarray(columns)
+        used = cols >= 0
+        self._lo[used] = np.maximum(self._lo[used], tree.limits[cols[used], 0])
+        self._hi[used] = np.minimum(self._hi[used], tree.limits[cols[used], 1])
+
     def to_dict(self) -> dict:  # pragma: no cover - abstract
         raise NotImplementedError
 
@@ -859,10 +867,7 @@ class JointKeyframes(JointMotion):
             # Within that allowance of a limit the spline, evaluated at other times than its extremum, may
             # round past it: q(t) then clips onto the limits (of every body this motion drives).
             near = near or vmin[k] < lo + tol or vmax[k] > hi - tol
-        cols = np.asarray(columns)
-        used = cols >= 0
-        self._lo[used] = np.maximum(self._lo[used], tree.limits[cols[used], 0])
-        self._hi[used] = np.minimum(self._hi[used], tree.limits[cols[used], 1])
+        self._narrow_limits(tree, columns)
         self._clipping = self._clipping or bool(near)
 
     def to_dict(self):
@@ -1036,9 +1041,7 @@ class JointSamples(JointMotion):
                                       _limits_text(tree, col) + f" (+-{tol:g}) along the whole interpolant between "
                                       "the samples (the cubic overshoots here, between two samples near the limit)")
         # Within the tolerance outside: q(t) clips onto the limits (of every body this motion drives).
-        used = np.asarray(columns) >= 0
-        self._lo[used] = np.maximum(self._lo[used], tree.limits[np.asarray(columns)[used], 0])
-        self._hi[used] = np.minimum(self._hi[used], tree.limits[np.asarray(columns)[used], 1])
+        self._narrow_limits(tree, columns)
         self._clipping = self._clipping or bool(np.any(vmin < self._lo) or np.any(vmax > self._hi))
 
     def to_dict(self):
@@ -1231,11 +1234,8 @@ class JointSetpoints(JointMotion):
                         raise ConfigError(f"{field_name}.setpoints.q[{k}]", f"{q_i[k]:.9g} at t = {t_i:.9g} s",
                                           _limits_text(tree, col))
                     raise ConfigError(f"{field_name}.setpoints.q0[{k}]", float(q_i[k]), _limits_text(tree, col))
-        cols = np.asarray(columns)
-        used = cols >= 0
         with self._lock:
-            self._lo[used] = np.maximum(self._lo[used], tree.limits[cols[used], 0])
-            self._hi[used] = np.minimum(self._hi[used], tree.limits[cols[used], 1])
+            self._narrow_limits(tree, columns)
 
     def to_dict(self):
         return {"type": "setpoints", "n_joints": self.n_columns,
