@@ -39,6 +39,22 @@ def main() -> None:
     base = person.base.state(0.5)
     _, a_med = best_and_median(lambda: person.tree.forward(q, qd, base), repeats=200)
     print_anchor("bare forward kinematics, same tree and q", a_med, med)
+    steady = med
+
+    # A walk along a 3 m path: its set-up (gait, the start's swinging-leg spline, the closing steps), and the
+    # state at new times in its start ramp and in its closing steps, against the steady walk's above.
+    def path_walker():
+        return add_person(Scene(), "p", 1.75, (0.0, 0.0), 0.0, walk=Walk(1.4, path=((3.0, 0.0),), start_time=0.5))
+
+    best, med = best_and_median(path_walker, repeats=5)
+    print(f"walker along a 3 m path, set-up: {best * 1e3:7.1f} ms best, {med * 1e3:7.1f} ms median")
+    walker = path_walker()
+    motion = walker.joint_motion.person
+    for what, t0, span in (("start ramp", 0.5, 0.6), ("closing steps", motion.arrival_time, 0.8)):
+        ts = iter(t0 + (np.arange(1e6) * 1e-3 + 0.1234) % span)
+        best, med = best_and_median(lambda ts=ts: walker.state(next(ts)), repeats=200)
+        print(f"person state in the {what}: {best * 1e3:6.2f} ms best, {med * 1e3:6.2f} ms median")
+        print_anchor("the steady walk's state", steady, med)
 
     radar = make_radar("paper_bgt60tr13c", num_samples=64, num_chirps=64, chirp_repetition_time=100e-6,
                        ramp_end_time=40e-6, frame_rate=20.0, render_width=96, render_height=48, process=False,
