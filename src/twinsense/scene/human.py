@@ -482,6 +482,11 @@ def _rot_y(a: float) -> np.ndarray:
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
+def _rot_x(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
 def _joint_spline(knots, values, lift: bool = False) -> CubicHermiteSpline:
     """C1 spline through joint vectors ``values`` at ``knots`` (increasing, from 0 to 1), at rest at both
     ends. Inner slopes: Catmull-Rom; with ``lift`` (a step's start, lifted start, ..., lifted end, end)
@@ -495,11 +500,6 @@ def _joint_spline(knots, values, lift: bool = False) -> CubicHermiteSpline:
         dy[1] = (y[1] - y[0]) / (x[1] - x[0])
         dy[-2] = (y[-1] - y[-2]) / (x[-1] - x[-2])
     return CubicHermiteSpline(x, y, dy, axis=0)
-
-
-def _rot_x(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
 @dataclass
