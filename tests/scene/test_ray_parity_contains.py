@@ -14,8 +14,8 @@ import sys
 import numpy as np
 import trimesh
 
-from twinsense.robots.meshes import _winding_inside
 from twinsense.scene.geometry import ray_parity_contains
+from twinsense.scene.geometry import winding_inside as _winding_inside
 
 SCRIPT = """
 import numpy as np, trimesh

@@ -23,10 +23,9 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 
-from twinsense.compiled import jit
 from twinsense.errors import ConfigError, GeometryError
 from twinsense.inputs import note_input
-from twinsense.scene.geometry import Geometry, TriangleMesh
+from twinsense.scene.geometry import WINDING_MAX_PAIRS, Geometry, TriangleMesh, ray_parity_contains, winding_inside
 from twinsense.scene.pose import Pose
 
 
@@ -149,41 +148,9 @@ class MeshVolume:
     def contains(self, points) -> np.ndarray:
         p = np.ascontiguousarray(np.asarray(points, dtype=float).reshape(-1, 3))
         tri, lo, hi = self._triangles
-        if len(p) * len(tri) > WINDING_MAX_PAIRS:  # linear in the points: the mesh's own ray test
-            return np.asarray(self.closed.contains(p), dtype=bool)
-        return _winding_inside(p, tri, lo, hi)
-
-
-#: Above this many point-triangle pairs a closed part is tested by ray parity (linear in the points), as
-#: scene geometry's own TriangleMesh does; below, by the compiled winding number.
-WINDING_MAX_PAIRS = 2e7
-
-
-@jit
-def _winding_inside(points, tri, lo, hi):
-    """Points (n, 3) [m] inside the closed mesh of corners ``tri`` (m, 3, 3) [m] in the box [lo, hi] (3,):
-    |generalised winding number| > 1/2, the solid angle of each triangle by Van Oosterom and Strackee's
-    formula (as scene geometry's NumPy form), one point at a time (no (points x triangles) temporaries)."""
-    n = points.shape[0]
-    out = np.zeros(n, dtype=np.bool_)
-    for i in range(n):
-        px, py, pz = points[i, 0], points[i, 1], points[i, 2]
-        if px < lo[0] or px > hi[0] or py < lo[1] or py > hi[1] or pz < lo[2] or pz > hi[2]:
-            continue
-        w = 0.0
-        for k in range(tri.shape[0]):
-            ax, ay, az = tri[k, 0, 0] - px, tri[k, 0, 1] - py, tri[k, 0, 2] - pz
-            bx, by, bz = tri[k, 1, 0] - px, tri[k, 1, 1] - py, tri[k, 1, 2] - pz
-            cx, cy, cz = tri[k, 2, 0] - px, tri[k, 2, 1] - py, tri[k, 2, 2] - pz
-            la = np.sqrt(ax * ax + ay * ay + az * az)
-            lb = np.sqrt(bx * bx + by * by + bz * bz)
-            lc = np.sqrt(cx * cx + cy * cy + cz * cz)
-            det = ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)
-            den = la * lb * lc + (ax * bx + ay * by + az * bz) * lc + (bx * cx + by * cy + bz * cz) * la \
-                + (cx * ax + cy * ay + cz * az) * lb
-            w += np.arctan2(det, den)
-        out[i] = abs(w / (2.0 * np.pi)) > 0.5
-    return out
+        if len(p) * len(tri) > WINDING_MAX_PAIRS:  # linear in the points: ray parity
+            return ray_parity_contains(self.closed.mesh, p)
+        return winding_inside(p, tri, lo, hi)
 
 
 @dataclass(frozen=True, eq=False)

@@ -19,6 +19,7 @@ import numpy as np
 import trimesh
 
 from twinsense import validation as V
+from twinsense.compiled import jit
 from twinsense.errors import ConfigError, GeometryError
 from twinsense.inputs import note_input
 
@@ -312,36 +313,46 @@ def ray_parity_contains(mesh: trimesh.Trimesh, points: np.ndarray) -> np.ndarray
     return out
 
 
-def _mesh_contains(mesh: trimesh.Trimesh, points: np.ndarray) -> np.ndarray:
-    """Inside test for a closed mesh.
+#: Above this many point-triangle pairs a closed mesh is tested by ray parity (linear in the points), below
+#: by the compiled winding number (exact, robust to grazing rays).
+WINDING_MAX_PAIRS = 2e7
 
-    Small problems use the generalised winding number (exact, robust to grazing
-    rays); large ones use trimesh's ray-parity test (Embree), which is linear in
-    the number of points instead of points x triangles.
-    """
-    if len(points) * len(mesh.faces) > 2e7:
-        return ray_parity_contains(mesh, points)
-    if len(points) == 0:
-        return np.zeros(0, dtype=bool)
-    out = np.zeros(len(points), dtype=bool)
-    lo, hi = mesh.bounds
-    cand = np.all((points >= lo) & (points <= hi), axis=1)
-    idx = np.nonzero(cand)[0]
-    tri = mesh.triangles  # (m, 3, 3)
-    # Chunk so the (points x triangles) work stays under ~32 MB per step.
-    chunk = max(1, int(4e6 // max(1, len(tri))))
-    for s in range(0, len(idx), chunk):
-        sel = idx[s:s + chunk]
-        a = tri[None, :, 0, :] - points[sel, None, :]
-        b = tri[None, :, 1, :] - points[sel, None, :]
-        c = tri[None, :, 2, :] - points[sel, None, :]
-        la, lb, lc = (np.linalg.norm(x, axis=2) for x in (a, b, c))
-        det = np.einsum("ijk,ijk->ij", a, np.cross(b, c))
-        den = (la * lb * lc + np.einsum("ijk,ijk->ij", a, b) * lc
-               + np.einsum("ijk,ijk->ij", b, c) * la + np.einsum("ijk,ijk->ij", c, a) * lb)
-        w = np.arctan2(det, den).sum(axis=1) / (2 * np.pi)
-        out[sel] = np.abs(w) > 0.5
+
+@jit
+def winding_inside(points, tri, lo, hi):
+    """Points (n, 3) [m] inside the closed mesh of corners ``tri`` (m, 3, 3) [m] in the box [lo, hi] (3,):
+    |generalised winding number| > 1/2, the solid angle of each triangle by Van Oosterom and Strackee's
+    formula, one point at a time (no (points x triangles) temporaries)."""
+    n = points.shape[0]
+    out = np.zeros(n, dtype=np.bool_)
+    for i in range(n):
+        px, py, pz = points[i, 0], points[i, 1], points[i, 2]
+        if px < lo[0] or px > hi[0] or py < lo[1] or py > hi[1] or pz < lo[2] or pz > hi[2]:
+            continue
+        w = 0.0
+        for k in range(tri.shape[0]):
+            ax, ay, az = tri[k, 0, 0] - px, tri[k, 0, 1] - py, tri[k, 0, 2] - pz
+            bx, by, bz = tri[k, 1, 0] - px, tri[k, 1, 1] - py, tri[k, 1, 2] - pz
+            cx, cy, cz = tri[k, 2, 0] - px, tri[k, 2, 1] - py, tri[k, 2, 2] - pz
+            la = np.sqrt(ax * ax + ay * ay + az * az)
+            lb = np.sqrt(bx * bx + by * by + bz * bz)
+            lc = np.sqrt(cx * cx + cy * cy + cz * cz)
+            det = ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)
+            den = la * lb * lc + (ax * bx + ay * by + az * bz) * lc + (bx * cx + by * cy + bz * cz) * la \
+                + (cx * ax + cy * ay + cz * az) * lb
+            w += np.arctan2(det, den)
+        out[i] = abs(w / (2.0 * np.pi)) > 0.5
     return out
+
+
+def _mesh_contains(mesh: trimesh.Trimesh, points: np.ndarray) -> np.ndarray:
+    """Inside test for a closed mesh: the compiled generalised winding number (exact, robust to grazing
+    rays) up to WINDING_MAX_PAIRS point-triangle pairs, ray parity (Embree, linear in the points) above."""
+    if len(points) * len(mesh.faces) > WINDING_MAX_PAIRS:
+        return ray_parity_contains(mesh, points)
+    lo, hi = mesh.bounds
+    return winding_inside(np.ascontiguousarray(points, dtype=float), np.ascontiguousarray(mesh.triangles, dtype=float),
+                          np.asarray(lo, float).copy(), np.asarray(hi, float).copy())
 
 
 @dataclass(frozen=True, eq=False)
